@@ -1,0 +1,299 @@
+//! The `timbre` command: renders timbre trees to WAV files and checks them.
+//!
+//! Arguments are validated first (clap), then resolved against the file system; every
+//! error in a script is reported as a diagnostic pointing into it. Exit codes: 0 on
+//! success, 1 when a script or the file system refused, 2 on bad command-line usage,
+//! 130 when interrupted.
+
+mod wav_out;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use timbre_ir::{compile, CompileOptions, Diagnostics, FsLoader, Program, Registry, SourceFile};
+
+use crate::wav_out::{write_wav_atomically, SampleFormat, WavJob};
+
+/// Sound from timbre trees: functional compositions synchronised to motion.
+#[derive(Parser, Debug)]
+#[command(name = "timbre", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a file's sound (or one expression) to a WAV file.
+    ///
+    /// Examples:
+    ///   timbre render examples/bell.tt -o bell.wav
+    ///   timbre render --expr '(sine (* t 440))' --duration 2 -o a440.wav
+    ///   timbre render examples/bee.tt --set nominal-freq=180 -o bee.wav
+    #[command(verbatim_doc_comment)]
+    Render(RenderArgs),
+    /// Parse and check a file (or one expression) without rendering it.
+    ///
+    /// Example:
+    ///   timbre check examples/bell.tt
+    #[command(verbatim_doc_comment)]
+    Check(SourceArgs),
+}
+
+#[derive(Args, Debug)]
+struct SourceArgs {
+    /// The .tt file to read.
+    #[arg(required_unless_present = "expr", conflicts_with = "expr")]
+    file: Option<PathBuf>,
+
+    /// An expression to use instead of a file, e.g. '(sine (* t 440))'.
+    #[arg(long, short = 'e', value_name = "EXPRESSION")]
+    expr: Option<String>,
+
+    /// Give a free parameter a value (repeatable): --set nominal-freq=220.
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_binding)]
+    bindings: Vec<(String, f64)>,
+
+    /// Seed of all random nodes (overrides the file's `(scene :seed …)`).
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+#[derive(Args, Debug)]
+struct RenderArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+
+    /// Output WAV file; written to a temporary file and renamed when complete.
+    #[arg(long, short = 'o', value_name = "FILE.wav")]
+    output: PathBuf,
+
+    /// Seconds to render (default: the file's `(scene :duration …)`, else 1).
+    #[arg(long, short = 'd', value_parser = parse_positive)]
+    duration: Option<f64>,
+
+    /// Samples per second (default: the file's `(scene :sample-rate …)`, else 48000).
+    #[arg(long, short = 'r', value_parser = parse_sample_rate)]
+    sample_rate: Option<f64>,
+
+    /// Sample format of the WAV file.
+    #[arg(long, value_enum, default_value_t = Format::F32)]
+    format: Format,
+
+    /// Linear gain applied to the output.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_finite)]
+    gain: f64,
+
+    /// Samples per block of the interpreter (output does not depend on it).
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    block_size: u32,
+
+    /// Print nothing but errors.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Format {
+    /// 32-bit float.
+    F32,
+    /// 16-bit integer.
+    S16,
+    /// 24-bit integer.
+    S24,
+}
+
+fn parse_binding(text: &str) -> Result<(String, f64), String> {
+    let (name, value) = text
+        .split_once('=')
+        .ok_or_else(|| format!("expected NAME=VALUE, got `{text}`"))?;
+    let value: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{value}` is not a number (in `{text}`)"))?;
+    if name.trim().is_empty() {
+        return Err(format!("missing parameter name in `{text}`"));
+    }
+    Ok((name.trim().to_owned(), value))
+}
+
+fn parse_finite(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(format!("`{text}` is not a finite number")),
+    }
+}
+
+fn parse_positive(text: &str) -> Result<f64, String> {
+    match parse_finite(text)? {
+        x if x > 0.0 => Ok(x),
+        _ => Err(format!("`{text}` must be greater than 0")),
+    }
+}
+
+fn parse_sample_rate(text: &str) -> Result<f64, String> {
+    match parse_finite(text)? {
+        x if (1000.0..=1_536_000.0).contains(&x) && x.fract() == 0.0 => Ok(x),
+        _ => Err(format!(
+            "`{text}` is not a sample rate (a whole number of Hz from 1000 to 1536000)"
+        )),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+        Command::Check(args) => check(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Diagnostics(diagnostics)) => {
+            for diag in diagnostics.0 {
+                eprintln!("{:?}", miette::Report::new(diag));
+            }
+            ExitCode::from(1)
+        }
+        Err(Failure::Message(message)) => {
+            eprintln!("error: {message}");
+            ExitCode::from(1)
+        }
+        Err(Failure::Interrupted) => {
+            eprintln!("interrupted: no output written");
+            ExitCode::from(130)
+        }
+    }
+}
+
+enum Failure {
+    Diagnostics(Diagnostics),
+    Message(String),
+    Interrupted,
+}
+
+impl From<Diagnostics> for Failure {
+    fn from(d: Diagnostics) -> Self {
+        Failure::Diagnostics(d)
+    }
+}
+
+fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
+    let registry = Registry::new();
+    let bindings: BTreeMap<String, f64> = args.bindings.iter().cloned().collect();
+    let options = CompileOptions {
+        bindings,
+        seed: args.seed,
+        registry: &registry,
+        loader: &FsLoader,
+    };
+    let (source, dir) = match (&args.file, &args.expr) {
+        (_, Some(expr)) => (SourceFile::new("<expr>", expr.as_str()), None),
+        (Some(path), None) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| Failure::Message(format!("cannot read `{}`: {e}", path.display())))?;
+            let dir = path.parent().map(Path::to_path_buf);
+            (SourceFile::new(path.display().to_string(), text), dir)
+        }
+        (None, None) => unreachable!("clap requires a file or an expression"),
+    };
+    let program = compile(source, dir.as_deref(), &options)?;
+    for name in &program.unused_bindings {
+        eprintln!("warning: `--set {name}=…` is not used by any expression");
+    }
+    Ok(program)
+}
+
+fn check(args: SourceArgs) -> Result<(), Failure> {
+    let program = compile_source(&args)?;
+    let what = match program.root {
+        Some(root) => format!("one sound of {} nodes", program.graph.schedule(root).len()),
+        None => "no sound".to_owned(),
+    };
+    println!(
+        "ok: {what}, {} definition{}",
+        program.definitions.len(),
+        if program.definitions.len() == 1 {
+            ""
+        } else {
+            "s"
+        }
+    );
+    Ok(())
+}
+
+fn render(args: RenderArgs) -> Result<(), Failure> {
+    let program = compile_source(&args.source)?;
+    let Some(root) = program.root else {
+        return Err(Failure::Message(
+            "nothing to render: the file defines trees but has no sound expression (add one, or use --expr)".into(),
+        ));
+    };
+    let sample_rate = args
+        .sample_rate
+        .or(program.settings.sample_rate)
+        .unwrap_or(48_000.0);
+    let duration = args.duration.or(program.settings.duration).unwrap_or(1.0);
+    let frames = (duration * sample_rate).round() as u64;
+
+    let interrupted = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupted.clone();
+        // If a handler cannot be installed, the render still works; only an interrupt
+        // would then leave the temporary file behind.
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    }
+    let config = timbre_ir::RenderConfig {
+        sample_rate,
+        block_size: args.block_size as usize,
+    };
+    let mut voice = timbre_ir::Interpreter::new(&program.graph, root, config);
+    let job = WavJob {
+        path: &args.output,
+        sample_rate: sample_rate as u32,
+        format: match args.format {
+            Format::F32 => SampleFormat::F32,
+            Format::S16 => SampleFormat::S16,
+            Format::S24 => SampleFormat::S24,
+        },
+        gain: args.gain,
+        frames,
+        interrupted: &interrupted,
+    };
+    let summary = write_wav_atomically(&job, |out| voice.render(out)).map_err(|e| match e {
+        wav_out::WriteError::Interrupted => Failure::Interrupted,
+        other => Failure::Message(other.to_string()),
+    })?;
+    if !args.quiet {
+        if summary.clipped > 0 {
+            eprintln!(
+                "warning: {} samples clipped at full scale; lower --gain",
+                summary.clipped
+            );
+        }
+        eprintln!(
+            "rendered {:.3} s ({} samples at {} Hz, {}) to {}; peak {}",
+            frames as f64 / sample_rate,
+            frames,
+            sample_rate,
+            args.format
+                .to_possible_value()
+                .map(|v| v.get_name().to_owned())
+                .unwrap_or_default(),
+            args.output.display(),
+            format_db(summary.peak),
+        );
+    }
+    Ok(())
+}
+
+fn format_db(peak: f64) -> String {
+    if peak > 0.0 {
+        format!("{:.1} dBFS", 20.0 * peak.log10())
+    } else {
+        "silent".into()
+    }
+}

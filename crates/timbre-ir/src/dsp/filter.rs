@@ -1,0 +1,392 @@
+//! Filters: RBJ Audio-EQ-Cookbook biquads (transposed direct form II), a
+//! one-pole low-pass and a Csound-`reson`-style two-pole resonator.
+//!
+//! Coefficients and state are separate so that the interpreter can recompute
+//! coefficients only when the parameters change (or every sample when they are
+//! modulated) while the state lives in the per-instance state block. Every
+//! `process` flushes near-denormal state to zero and resets state that has
+//! become non-finite (after a NaN/∞ input), so one bad sample never silences a
+//! filter for good.
+
+use super::{clamp_or, flush, sane_rate};
+use std::f64::consts::PI;
+
+/// The response type of a [`BiquadCoeffs`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BiquadKind {
+    /// Second-order low-pass (−3 dB at the cutoff when `q = 1/√2`).
+    Lowpass,
+    /// Second-order high-pass (−3 dB at the cutoff when `q = 1/√2`).
+    Highpass,
+    /// Band-pass with constant 0 dB peak gain at the centre frequency.
+    Bandpass,
+}
+
+/// Normalised biquad coefficients (`a0 = 1`):
+/// `H(z) = (b0 + b1 z⁻¹ + b2 z⁻²) / (1 + a1 z⁻¹ + a2 z⁻²)`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BiquadCoeffs {
+    /// Feed-forward coefficient of `x[n]`.
+    pub b0: f64,
+    /// Feed-forward coefficient of `x[n−1]`.
+    pub b1: f64,
+    /// Feed-forward coefficient of `x[n−2]`.
+    pub b2: f64,
+    /// Feedback coefficient of `y[n−1]` (sign as in the denominator).
+    pub a1: f64,
+    /// Feedback coefficient of `y[n−2]` (sign as in the denominator).
+    pub a2: f64,
+}
+
+impl BiquadCoeffs {
+    /// RBJ cookbook coefficients. With `w0 = 2π·freq/sr`, `α = sin(w0)/(2q)`:
+    ///
+    /// - low-pass: `b = [(1−cos w0)/2, 1−cos w0, (1−cos w0)/2]`
+    /// - high-pass: `b = [(1+cos w0)/2, −(1+cos w0), (1+cos w0)/2]`
+    /// - band-pass (0 dB peak): `b = [α, 0, −α]`
+    ///
+    /// and `a = [1+α, −2cos w0, 1−α]`, all divided by `a0 = 1+α`.
+    /// (`1 − cos w0` is computed as `2 sin²(w0/2)` for accuracy at very low
+    /// cutoffs.)
+    ///
+    /// `freq_hz` is clamped to `[1e-3, 0.49·sr]` (NaN → 1e-3), `q` to
+    /// `[1e-3, 1e3]` (NaN → 1/√2), and a non-finite sample rate to 48 kHz
+    /// (finite rates are clamped to `[1, 1e9]`).
+    pub fn new(kind: BiquadKind, freq_hz: f64, q: f64, sample_rate: f64) -> Self {
+        let sr = sane_rate(sample_rate);
+        let f = clamp_or(freq_hz, 1e-3, 0.49 * sr, 1e-3);
+        let q = clamp_or(q, 1e-3, 1e3, std::f64::consts::FRAC_1_SQRT_2);
+        let w0 = 2.0 * PI * f / sr;
+        let (sin_w, cos_w) = w0.sin_cos();
+        let half_sin = (0.5 * w0).sin();
+        let one_minus_cos = 2.0 * half_sin * half_sin;
+        let alpha = sin_w / (2.0 * q);
+        let inv_a0 = 1.0 / (1.0 + alpha);
+        let (b0, b1, b2) = match kind {
+            BiquadKind::Lowpass => (0.5 * one_minus_cos, one_minus_cos, 0.5 * one_minus_cos),
+            BiquadKind::Highpass => {
+                let one_plus_cos = 2.0 - one_minus_cos;
+                (0.5 * one_plus_cos, -one_plus_cos, 0.5 * one_plus_cos)
+            }
+            BiquadKind::Bandpass => (alpha, 0.0, -alpha),
+        };
+        Self {
+            b0: b0 * inv_a0,
+            b1: b1 * inv_a0,
+            b2: b2 * inv_a0,
+            a1: -2.0 * cos_w * inv_a0,
+            a2: (1.0 - alpha) * inv_a0,
+        }
+    }
+}
+
+/// State of a biquad in transposed direct form II.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BiquadState {
+    s1: f64,
+    s2: f64,
+}
+
+impl BiquadState {
+    /// One sample through the biquad (transposed direct form II):
+    ///
+    /// `y = b0·x + s1;  s1 = b1·x − a1·y + s2;  s2 = b2·x − a2·y`.
+    #[inline]
+    pub fn process(&mut self, c: &BiquadCoeffs, x: f64) -> f64 {
+        let y = c.b0 * x + self.s1;
+        self.s1 = flush(c.b1 * x - c.a1 * y + self.s2);
+        self.s2 = flush(c.b2 * x - c.a2 * y);
+        if !(self.s1.is_finite() && self.s2.is_finite()) {
+            *self = Self::default();
+        }
+        y
+    }
+}
+
+/// One-pole low-pass `y += a·(x − y)`, with `a` from [`OnePole::coefficient`].
+#[derive(Default, Clone, Copy, Debug)]
+pub struct OnePole {
+    y: f64,
+}
+
+impl OnePole {
+    /// Smoothing coefficient for a cutoff: `a = 1 − exp(−2π·fc/sr)`, in `[0, 1]`.
+    ///
+    /// The pole is at `1 − a = exp(−2π·fc/sr)` (impulse-invariant mapping of
+    /// an analogue RC low-pass), so the −3 dB point is at `fc` for
+    /// `fc ≪ sr`. Negative/NaN cutoffs give 0 (output holds); huge cutoffs give
+    /// 1 (pass-through). A non-finite sample rate is replaced by 48 kHz.
+    pub fn coefficient(cutoff_hz: f64, sample_rate: f64) -> f64 {
+        let sr = sane_rate(sample_rate);
+        let fc = clamp_or(cutoff_hz, 0.0, f64::MAX, 0.0);
+        clamp_or(-(-2.0 * PI * fc / sr).exp_m1(), 0.0, 1.0, 0.0)
+    }
+
+    /// One sample: `y += a·(x − y)`, returns `y`. `a` is clamped to `[0, 1]`
+    /// (NaN → 1).
+    #[inline]
+    pub fn process(&mut self, a: f64, x: f64) -> f64 {
+        let a = clamp_or(a, 0.0, 1.0, 1.0);
+        self.y = flush(self.y + a * (x - self.y));
+        let y = self.y;
+        if !y.is_finite() {
+            self.y = 0.0;
+        }
+        y
+    }
+}
+
+/// Coefficients of a two-pole resonator (after Csound's `reson`) whose gain is
+/// exactly 1 at the centre frequency.
+///
+/// `y[n] = c1·x[n] + c2·y[n−1] − c3·y[n−2]` with
+/// `r = exp(−π·bw/sr)`, `c3 = r²`, `c2 = 4·c3·cos(2π·f/sr)/(1 + c3)` (this
+/// places the response peak exactly at `f`), and
+/// `c1 = |1 − c2·e^{−jω0} + c3·e^{−2jω0}|`, `ω0 = 2πf/sr`, so that
+/// `|H(e^{jω0})| = 1`. The −3 dB bandwidth is ≈ `bw` for `bw ≪ sr`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ResonatorCoeffs {
+    c1: f64,
+    c2: f64,
+    c3: f64,
+}
+
+impl ResonatorCoeffs {
+    /// Resonator centred on `freq_hz` (clamped to `[0, sr/2]`, NaN → 0) with
+    /// bandwidth `bandwidth_hz` (clamped to `[1e-3, sr/2]`, NaN → sr/2).
+    pub fn new(freq_hz: f64, bandwidth_hz: f64, sample_rate: f64) -> Self {
+        let sr = sane_rate(sample_rate);
+        let f = clamp_or(freq_hz, 0.0, 0.5 * sr, 0.0);
+        let bw = clamp_or(bandwidth_hz, 1e-3, 0.5 * sr, 0.5 * sr);
+        let r = (-PI * bw / sr).exp();
+        let c3 = r * r;
+        let w0 = 2.0 * PI * f / sr;
+        let c2 = 4.0 * c3 * w0.cos() / (1.0 + c3);
+        // |1 − c2 e^{−jw} + c3 e^{−2jw}|
+        let re = 1.0 - c2 * w0.cos() + c3 * (2.0 * w0).cos();
+        let im = c2 * w0.sin() - c3 * (2.0 * w0).sin();
+        let c1 = re.hypot(im);
+        Self { c1, c2, c3 }
+    }
+}
+
+/// State of a [`ResonatorCoeffs`] resonator: the last two outputs.
+#[derive(Default, Clone, Copy, Debug)]
+pub struct ResonatorState {
+    y1: f64,
+    y2: f64,
+}
+
+impl ResonatorState {
+    /// One sample: `y = c1·x + c2·y[n−1] − c3·y[n−2]`.
+    #[inline]
+    pub fn process(&mut self, c: &ResonatorCoeffs, x: f64) -> f64 {
+        let y = c.c1 * x + c.c2 * self.y1 - c.c3 * self.y2;
+        self.y2 = self.y1;
+        self.y1 = flush(y);
+        if !y.is_finite() {
+            *self = Self::default();
+        }
+        y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testutil::{db, sine_gain};
+    use super::*;
+
+    const SR: f64 = 48_000.0;
+
+    fn biquad_gain(kind: BiquadKind, fc: f64, q: f64, f: f64) -> f64 {
+        let c = BiquadCoeffs::new(kind, fc, q, SR);
+        let mut s = BiquadState::default();
+        sine_gain(|x| s.process(&c, x), f, SR, 48_000, 96_000)
+    }
+
+    #[test]
+    fn lowpass_response() {
+        let q = std::f64::consts::FRAC_1_SQRT_2;
+        for &fc in &[100.0, 1000.0, 2000.0] {
+            let at_fc = db(biquad_gain(BiquadKind::Lowpass, fc, q, fc));
+            let low = db(biquad_gain(BiquadKind::Lowpass, fc, q, fc / 20.0));
+            let high = db(biquad_gain(BiquadKind::Lowpass, fc, q, fc * 8.0));
+            eprintln!(
+                "lowpass fc={fc}: {at_fc:.3} dB at fc, {low:.3} dB at fc/20, {high:.1} dB at 8fc"
+            );
+            assert!((at_fc + 3.0103).abs() < 0.2, "{at_fc}");
+            assert!(low.abs() < 0.05);
+            // Two-pole roll-off: about −36 dB at three octaves above (more near Nyquist).
+            assert!(high < -33.0, "{high}");
+        }
+        // DC passes exactly.
+        let c = BiquadCoeffs::new(BiquadKind::Lowpass, 1000.0, 0.7, SR);
+        let mut s = BiquadState::default();
+        let mut y = 0.0;
+        for _ in 0..10_000 {
+            y = s.process(&c, 1.0);
+        }
+        assert!((y - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn highpass_response() {
+        let q = std::f64::consts::FRAC_1_SQRT_2;
+        for &fc in &[100.0, 1000.0, 5000.0] {
+            let at_fc = db(biquad_gain(BiquadKind::Highpass, fc, q, fc));
+            let high = db(biquad_gain(
+                BiquadKind::Highpass,
+                fc,
+                q,
+                (fc * 4.0).min(20_000.0),
+            ));
+            let low = db(biquad_gain(BiquadKind::Highpass, fc, q, fc / 8.0));
+            eprintln!(
+                "highpass fc={fc}: {at_fc:.3} dB at fc, {high:.3} dB above, {low:.1} dB at fc/8"
+            );
+            assert!((at_fc + 3.0103).abs() < 0.2, "{at_fc}");
+            assert!(high.abs() < 0.3);
+            assert!(low < -33.0);
+        }
+        // DC is rejected.
+        let c = BiquadCoeffs::new(BiquadKind::Highpass, 100.0, 0.7, SR);
+        let mut s = BiquadState::default();
+        let mut y = 1.0;
+        for _ in 0..100_000 {
+            y = s.process(&c, 1.0);
+        }
+        assert!(y.abs() < 1e-9);
+    }
+
+    #[test]
+    fn bandpass_unity_at_centre() {
+        for &(fc, q) in &[(300.0, 0.5), (1000.0, 2.0), (4000.0, 10.0)] {
+            let g = biquad_gain(BiquadKind::Bandpass, fc, q, fc);
+            let off = biquad_gain(BiquadKind::Bandpass, fc, q, fc * 4.0);
+            eprintln!(
+                "bandpass fc={fc} q={q}: gain {g:.5} at centre, {:.1} dB at 4fc",
+                db(off)
+            );
+            assert!((g - 1.0).abs() < 0.01);
+            assert!(off < 0.5);
+        }
+    }
+
+    #[test]
+    fn one_pole_cutoff() {
+        for &fc in &[20.0, 100.0, 1000.0] {
+            let a = OnePole::coefficient(fc, SR);
+            let mut p = OnePole::default();
+            let g = sine_gain(|x| p.process(a, x), fc, SR, 96_000, 96_000);
+            let mut p = OnePole::default();
+            let g10 = sine_gain(|x| p.process(a, x), 10.0 * fc, SR, 96_000, 96_000);
+            eprintln!("one-pole fc={fc}: gain at fc {g:.4} (1/√2 = 0.7071), at 10fc {g10:.4}");
+            assert!((g / std::f64::consts::FRAC_1_SQRT_2 - 1.0).abs() < 0.03);
+            // First-order roll-off: ≈ 1/√101 at ten times the cutoff.
+            assert!((g10 * 101f64.sqrt() - 1.0).abs() < 0.1);
+        }
+        assert_eq!(OnePole::coefficient(f64::NAN, SR), 0.0);
+        assert_eq!(OnePole::coefficient(1e300, SR), 1.0);
+        assert_eq!(OnePole::coefficient(-5.0, SR), 0.0);
+    }
+
+    #[test]
+    fn resonator_response() {
+        for &(f, bw) in &[(1000.0, 100.0), (440.0, 20.0), (5000.0, 500.0)] {
+            let c = ResonatorCoeffs::new(f, bw, SR);
+            let gain = |freq: f64| {
+                let mut s = ResonatorState::default();
+                sine_gain(|x| s.process(&c, x), freq, SR, 96_000, 96_000)
+            };
+            let g0 = gain(f);
+            let lo = gain(f - bw / 2.0);
+            let hi = gain(f + bw / 2.0);
+            // Locate the −3 dB points by bisection on the measured response
+            // (`a` stays inside the passband, `b` outside).
+            let edge = |mut a: f64, mut b: f64| {
+                for _ in 0..20 {
+                    let m = 0.5 * (a + b);
+                    if gain(m) > std::f64::consts::FRAC_1_SQRT_2 {
+                        a = m;
+                    } else {
+                        b = m;
+                    }
+                }
+                0.5 * (a + b)
+            };
+            let f_lo = edge(f, f - bw);
+            let f_hi = edge(f, f + bw);
+            eprintln!(
+                "resonator f={f} bw={bw}: centre gain {g0:.5}, gain at f∓bw/2 {lo:.4}/{hi:.4}, \
+                 −3 dB points {f_lo:.1}/{f_hi:.1} Hz (measured bw {:.1})",
+                f_hi - f_lo
+            );
+            assert!((g0 - 1.0).abs() < 0.01);
+            assert!(((f_hi - f_lo) / bw - 1.0).abs() < 0.1);
+            assert!((f_lo - (f - bw / 2.0)).abs() < 0.1 * bw);
+            assert!((f_hi - (f + bw / 2.0)).abs() < 0.1 * bw);
+        }
+    }
+
+    #[test]
+    fn impulse_responses_decay_and_extreme_params_are_safe() {
+        let weird = [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            0.0,
+            -1.0,
+            1e-300,
+            1e300,
+            0.5,
+            1000.0,
+        ];
+        for &f in &weird {
+            for &q in &weird {
+                for &sr in &[f64::NAN, 0.0, -1.0, 48_000.0, 1e300] {
+                    for kind in [
+                        BiquadKind::Lowpass,
+                        BiquadKind::Highpass,
+                        BiquadKind::Bandpass,
+                    ] {
+                        let c = BiquadCoeffs::new(kind, f, q, sr);
+                        assert!([c.b0, c.b1, c.b2, c.a1, c.a2].iter().all(|v| v.is_finite()));
+                        let mut s = BiquadState::default();
+                        for n in 0..2000 {
+                            let y = s.process(&c, if n == 0 { 1.0 } else { 0.0 });
+                            assert!(y.is_finite() && y.abs() < 1e3);
+                        }
+                    }
+                    let c = ResonatorCoeffs::new(f, q, sr);
+                    let mut s = ResonatorState::default();
+                    for n in 0..2000 {
+                        let y = s.process(&c, if n == 0 { 1.0 } else { 0.0 });
+                        assert!(y.is_finite() && y.abs() < 1e3);
+                    }
+                    let a = OnePole::coefficient(f, sr);
+                    assert!((0.0..=1.0).contains(&a));
+                }
+            }
+        }
+        // A resonator's impulse response decays at the rate set by r = exp(−π·bw/sr):
+        // the envelope falls by e^{−π·bw·t}, i.e. by e^{−π} after 1/bw seconds.
+        let c = ResonatorCoeffs::new(1000.0, 100.0, SR);
+        let mut s = ResonatorState::default();
+        let ys: Vec<f64> = (0..4800)
+            .map(|n| s.process(&c, if n == 0 { 1.0 } else { 0.0 }))
+            .collect();
+        let peak = |a: usize| ys[a..a + 96].iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        let ratio = peak(480 + 96) / peak(96);
+        let expect = (-PI).exp();
+        assert!((ratio / expect - 1.0).abs() < 0.05, "{ratio} vs {expect}");
+        // NaN input does not poison the state forever.
+        let c = BiquadCoeffs::new(BiquadKind::Lowpass, 1000.0, 0.7, SR);
+        let mut s = BiquadState::default();
+        s.process(&c, f64::NAN);
+        assert!(s.process(&c, 1.0).is_finite());
+        let mut r = ResonatorState::default();
+        let rc = ResonatorCoeffs::new(1000.0, 100.0, SR);
+        r.process(&rc, f64::NAN);
+        assert!(r.process(&rc, 1.0).is_finite());
+    }
+}

@@ -1,0 +1,205 @@
+//! One diagnostic type for everything that can go wrong between source text and a
+//! rendered tree: syntax errors are converted into it, so a host handles one type.
+
+use std::borrow::Cow;
+use std::fmt;
+use std::sync::Arc;
+
+use miette::{
+    Diagnostic, LabeledSpan, MietteError, MietteSpanContents, SourceCode, SourceSpan, SpanContents,
+};
+use timbre_syntax::{Span, SyntaxError};
+
+/// A source text with the name it is reported under (a path, `<expr>` …).
+#[derive(Clone, Debug)]
+pub struct SourceFile {
+    pub name: String,
+    pub text: Arc<str>,
+}
+
+impl SourceFile {
+    pub fn new(name: impl Into<String>, text: impl Into<Arc<str>>) -> Arc<Self> {
+        Arc::new(SourceFile {
+            name: name.into(),
+            text: text.into(),
+        })
+    }
+}
+
+impl SourceCode for SourceFile {
+    fn read_span<'a>(
+        &'a self,
+        span: &SourceSpan,
+        context_lines_before: usize,
+        context_lines_after: usize,
+    ) -> Result<Box<dyn SpanContents<'a> + 'a>, MietteError> {
+        let inner = self
+            .text
+            .read_span(span, context_lines_before, context_lines_after)?;
+        Ok(Box::new(MietteSpanContents::new_named(
+            self.name.clone(),
+            inner.data(),
+            *inner.span(),
+            inner.line(),
+            inner.column(),
+            inner.line_count(),
+        )))
+    }
+}
+
+/// A diagnostic pointing into a source file, with a stable code and a hint.
+#[derive(Clone)]
+pub struct Diag {
+    /// Stable identifier, e.g. `timbre::unknown-function`.
+    pub code: Cow<'static, str>,
+    pub message: String,
+    /// Spans with their captions; the first is the primary one.
+    pub labels: Vec<(Span, String)>,
+    pub help: Option<String>,
+    pub source: Option<Arc<SourceFile>>,
+}
+
+impl Diag {
+    pub fn new(code: &'static str, message: impl Into<String>) -> Self {
+        Diag {
+            code: Cow::Borrowed(code),
+            message: message.into(),
+            labels: vec![],
+            help: None,
+            source: None,
+        }
+    }
+
+    pub fn label(mut self, span: Span, text: impl Into<String>) -> Self {
+        self.labels.push((span, text.into()));
+        self
+    }
+
+    pub fn help(mut self, help: impl Into<String>) -> Self {
+        self.help = Some(help.into());
+        self
+    }
+
+    pub fn in_source(mut self, source: &Arc<SourceFile>) -> Self {
+        self.source = Some(source.clone());
+        self
+    }
+
+    /// The primary span, if the diagnostic points somewhere.
+    pub fn span(&self) -> Option<Span> {
+        self.labels.first().map(|(span, _)| *span)
+    }
+
+    pub fn from_syntax(error: &SyntaxError, source: &Arc<SourceFile>) -> Self {
+        let mut diag = Diag::new("timbre::syntax", error.to_string()).in_source(source);
+        if let Some(code) = error.code() {
+            diag.code = Cow::Owned(code.to_string());
+        }
+        let caption = error
+            .labels()
+            .and_then(|mut labels| labels.next())
+            .and_then(|l| l.label().map(str::to_owned))
+            .unwrap_or_default();
+        diag = diag.label(error.span(), caption);
+        if let Some(help) = error.help() {
+            diag = diag.help(help.to_string());
+        }
+        diag
+    }
+}
+
+impl fmt::Debug for Diag {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Diag")
+            .field("code", &self.code)
+            .field("message", &self.message)
+            .field("labels", &self.labels)
+            .field("help", &self.help)
+            .field("source", &self.source.as_ref().map(|s| &s.name))
+            .finish()
+    }
+}
+
+impl fmt::Display for Diag {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Diag {}
+
+impl Diagnostic for Diag {
+    fn code<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
+        Some(Box::new(&self.code))
+    }
+
+    fn help<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
+        self.help
+            .as_ref()
+            .map(|h| Box::new(h) as Box<dyn fmt::Display>)
+    }
+
+    fn source_code(&self) -> Option<&dyn SourceCode> {
+        self.source.as_deref().map(|s| s as &dyn SourceCode)
+    }
+
+    fn labels(&self) -> Option<Box<dyn Iterator<Item = LabeledSpan> + '_>> {
+        if self.labels.is_empty() || self.source.is_none() {
+            return None;
+        }
+        let len = self.source.as_ref().map_or(0, |s| s.text.len());
+        Some(Box::new(self.labels.iter().enumerate().map(
+            move |(i, (span, text))| {
+                // A label at the very end of the source is not drawn: clamp it onto the
+                // last character.
+                let mut span = *span;
+                if span.start >= len && len > 0 {
+                    span = Span::new(len - 1, len);
+                }
+                let text = (!text.is_empty()).then(|| text.clone());
+                if i == 0 {
+                    LabeledSpan::new_primary_with_span(text, span)
+                } else {
+                    LabeledSpan::new_with_span(text, span)
+                }
+            },
+        )))
+    }
+}
+
+/// All diagnostics of one failed step, in source order.
+#[derive(Debug, Clone)]
+pub struct Diagnostics(pub Vec<Diag>);
+
+impl Diagnostics {
+    pub fn one(diag: Diag) -> Self {
+        Diagnostics(vec![diag])
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = &Diag> {
+        self.0.iter()
+    }
+}
+
+impl fmt::Display for Diagnostics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0.as_slice() {
+            [one] => write!(f, "{one}"),
+            many => write!(f, "{} errors", many.len()),
+        }
+    }
+}
+
+impl std::error::Error for Diagnostics {}
+
+impl Diagnostic for Diagnostics {
+    fn related<'a>(&'a self) -> Option<Box<dyn Iterator<Item = &'a dyn Diagnostic> + 'a>> {
+        Some(Box::new(self.0.iter().map(|d| d as &dyn Diagnostic)))
+    }
+}
+
+impl From<Diag> for Diagnostics {
+    fn from(diag: Diag) -> Self {
+        Diagnostics::one(diag)
+    }
+}

@@ -1,0 +1,460 @@
+//! The reference interpreter: post-order evaluation of a tree, a block at a time.
+//!
+//! Each scheduled node owns a buffer of `width × block_size` samples (lane after lane)
+//! and, if it is stateful, an explicit state. A block is rendered by filling the
+//! buffers in schedule order, so every node reads finished buffers of its children.
+//! Output depends only on the tree, the sample rate and the number of samples
+//! rendered so far, never on the block size or on how a render is split into calls.
+
+use std::any::Any;
+use std::sync::Arc;
+
+use crate::custom::{BlockContext, Lanes};
+use crate::dsp::conv::Convolver;
+use crate::dsp::delay::DelayLine;
+use crate::dsp::envelope::Adsr;
+use crate::dsp::filter::{BiquadCoeffs, BiquadState, OnePole, ResonatorCoeffs, ResonatorState};
+use crate::dsp::noise::{hash2, white, Markov, Pink};
+use crate::dsp::wav::{read_cubic, resample};
+use crate::graph::{index_lane, Graph, NodeId};
+use crate::op::{env, frac, noise, ImpulseResponse, Op};
+
+/// Partition size of the FFT convolution (independent of the block size, so output
+/// does not depend on it).
+const CONV_PARTITION: usize = 256;
+
+/// How to render: the sample rate and the number of samples per block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderConfig {
+    pub sample_rate: f64,
+    pub block_size: usize,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        RenderConfig {
+            sample_rate: 48_000.0,
+            block_size: 256,
+        }
+    }
+}
+
+struct Step {
+    op: Op,
+    /// Step indices of the arguments.
+    args: Vec<usize>,
+    width: usize,
+    /// Constants are filled once and never recomputed.
+    constant: bool,
+}
+
+/// An instance of a tree being rendered: its buffers, states and position.
+pub struct Interpreter {
+    steps: Vec<Step>,
+    buffers: Vec<Vec<f64>>,
+    states: Vec<State>,
+    config: RenderConfig,
+    /// Samples rendered so far: the instance's local sample counter.
+    position: u64,
+}
+
+/// Per-node state of stateful nodes, one entry per lane where lanes are independent.
+enum State {
+    None,
+    Phase(Vec<f64>),
+    Pink(Pink),
+    Markov(Vec<Markov>),
+    Biquad(Vec<(BiquadState, BiquadCoeffs, [f64; 2])>),
+    OnePole(Vec<(OnePole, f64, f64)>),
+    Resonator(Vec<(ResonatorState, ResonatorCoeffs, [f64; 2])>),
+    Delay(Vec<DelayLine>),
+    Conv(Vec<Convolver>),
+    Sample {
+        frames: Arc<Vec<f64>>,
+        positions: Vec<f64>,
+    },
+    Adsr(Vec<Adsr>),
+    Custom(Box<dyn Any + Send>),
+}
+
+impl Interpreter {
+    /// Prepares `root` of `graph` for rendering from t = 0. Impulse-response trees of
+    /// convolutions are rendered here.
+    pub fn new(graph: &Graph, root: NodeId, config: RenderConfig) -> Self {
+        let config = RenderConfig {
+            sample_rate: config.sample_rate,
+            block_size: config.block_size.max(1),
+        };
+        let schedule = graph.schedule(root);
+        let mut step_of = vec![usize::MAX; root.index() + 1];
+        let mut steps = Vec::with_capacity(schedule.len());
+        for (i, id) in schedule.iter().enumerate() {
+            step_of[id.index()] = i;
+            let node = graph.node(*id);
+            steps.push(Step {
+                op: node.op.clone(),
+                args: node.args.iter().map(|a| step_of[a.index()]).collect(),
+                width: node.width,
+                constant: matches!(node.op, Op::Const(_)),
+            });
+        }
+        let bs = config.block_size;
+        let buffers = steps
+            .iter()
+            .map(|step| match &step.op {
+                Op::Const(values) => values
+                    .iter()
+                    .flat_map(|v| std::iter::repeat_n(*v, bs))
+                    .collect(),
+                _ => vec![0.0; step.width * bs],
+            })
+            .collect();
+        let states = steps
+            .iter()
+            .map(|step| new_state(graph, step, config))
+            .collect();
+        Interpreter {
+            steps,
+            buffers,
+            states,
+            config,
+            position: 0,
+        }
+    }
+
+    pub fn config(&self) -> RenderConfig {
+        self.config
+    }
+
+    /// Samples rendered so far.
+    pub fn position(&self) -> u64 {
+        self.position
+    }
+
+    /// Renders the next `out.len()` samples of the root (which must be one lane).
+    pub fn render(&mut self, out: &mut [f64]) {
+        for chunk in out.chunks_mut(self.config.block_size) {
+            self.render_block(chunk.len());
+            let root = self.buffers.len() - 1;
+            chunk.copy_from_slice(&self.buffers[root][..chunk.len()]);
+        }
+    }
+
+    /// Renders `n ≤ block_size` samples into the node buffers.
+    fn render_block(&mut self, n: usize) {
+        for i in 0..self.steps.len() {
+            if self.steps[i].constant {
+                continue;
+            }
+            // Take the output buffer out so the children's buffers can be borrowed.
+            let mut out = std::mem::take(&mut self.buffers[i]);
+            let mut state = std::mem::replace(&mut self.states[i], State::None);
+            self.eval(i, n, &mut out, &mut state);
+            self.buffers[i] = out;
+            self.states[i] = state;
+        }
+        self.position += n as u64;
+    }
+
+    /// Lane `lane` of argument `arg` of step `i`, broadcasting one-lane arguments.
+    fn arg(&self, i: usize, arg: usize, lane: usize, n: usize) -> &[f64] {
+        let step = self.steps[i].args[arg];
+        let lane = if self.steps[step].width == 1 { 0 } else { lane };
+        let bs = self.config.block_size;
+        &self.buffers[step][lane * bs..lane * bs + n]
+    }
+
+    fn eval(&self, i: usize, n: usize, out: &mut [f64], state: &mut State) {
+        let step = &self.steps[i];
+        let bs = self.config.block_size;
+        let sr = self.config.sample_rate;
+        let n0 = self.position;
+        let width = step.width;
+        for lane in 0..width {
+            let o = &mut out[lane * bs..lane * bs + n];
+            match (&step.op, &mut *state) {
+                (Op::Const(_), _) => unreachable!("constants are filled once"),
+                (Op::Time, _) => {
+                    for (k, y) in o.iter_mut().enumerate() {
+                        *y = (n0 + k as u64) as f64 / sr;
+                    }
+                }
+                (Op::Unary(op), _) => {
+                    for (y, x) in o.iter_mut().zip(self.arg(i, 0, lane, n)) {
+                        *y = op.apply(*x);
+                    }
+                }
+                (Op::Binary(op), _) => {
+                    let (a, b) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    for k in 0..n {
+                        o[k] = op.apply(a[k], b[k]);
+                    }
+                }
+                (Op::Ternary(op), _) => {
+                    let (a, b, c) = (
+                        self.arg(i, 0, lane, n),
+                        self.arg(i, 1, lane, n),
+                        self.arg(i, 2, lane, n),
+                    );
+                    for k in 0..n {
+                        o[k] = op.apply(a[k], b[k], c[k]);
+                    }
+                }
+                (Op::Noise { seed }, _) => {
+                    for (y, x) in o.iter_mut().zip(self.arg(i, 0, lane, n)) {
+                        *y = noise(*seed, *x);
+                    }
+                }
+                (Op::Env, _) => {
+                    let args: [&[f64]; 6] = std::array::from_fn(|a| self.arg(i, a, lane, n));
+                    for k in 0..n {
+                        o[k] = env(std::array::from_fn(|a| args[a][k]));
+                    }
+                }
+                (Op::Combine, _) => {
+                    o.fill(0.0);
+                    let src = step.args[0];
+                    for l in 0..self.steps[src].width {
+                        for (y, x) in o.iter_mut().zip(&self.buffers[src][l * bs..l * bs + n]) {
+                            *y += x;
+                        }
+                    }
+                }
+                (Op::Index, _) => {
+                    let src = step.args[0];
+                    let w = self.steps[src].width;
+                    let idx = self.arg(i, 1, 0, n);
+                    for k in 0..n {
+                        o[k] = self.buffers[src][index_lane(idx[k], w) * bs + k];
+                    }
+                }
+                (Op::Concat, _) => {
+                    // Find which argument holds output lane `lane`.
+                    let mut first = 0;
+                    for &src in &step.args {
+                        let w = self.steps[src].width;
+                        if lane < first + w {
+                            let l = lane - first;
+                            o.copy_from_slice(&self.buffers[src][l * bs..l * bs + n]);
+                            break;
+                        }
+                        first += w;
+                    }
+                }
+                (Op::White { seed }, _) => {
+                    for (k, y) in o.iter_mut().enumerate() {
+                        *y = white(*seed, n0 + k as u64);
+                    }
+                }
+                (Op::Pink { seed }, State::Pink(pink)) => {
+                    for (k, y) in o.iter_mut().enumerate() {
+                        *y = pink.next(white(*seed, n0 + k as u64));
+                    }
+                }
+                (Op::Markov { seed }, State::Markov(lanes)) => {
+                    let lane_seed = hash2(*seed, lane as u64);
+                    let rate = self.arg(i, 0, lane, n);
+                    for k in 0..n {
+                        o[k] = lanes[lane].next(white(lane_seed, n0 + k as u64), rate[k], sr);
+                    }
+                }
+                (Op::Phasor, State::Phase(phases)) => {
+                    let (freq, offset) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    let phase = &mut phases[lane];
+                    for k in 0..n {
+                        o[k] = frac(*phase + offset[k]);
+                        *phase = frac(*phase + freq[k] / sr);
+                    }
+                }
+                (Op::Biquad(kind), State::Biquad(lanes)) => {
+                    let (x, f, q) = (
+                        self.arg(i, 0, lane, n),
+                        self.arg(i, 1, lane, n),
+                        self.arg(i, 2, lane, n),
+                    );
+                    let (filter, coeffs, last) = &mut lanes[lane];
+                    for k in 0..n {
+                        if [f[k], q[k]] != *last {
+                            *last = [f[k], q[k]];
+                            *coeffs = BiquadCoeffs::new(*kind, f[k], q[k], sr);
+                        }
+                        o[k] = filter.process(coeffs, x[k]);
+                    }
+                }
+                (Op::OnePole, State::OnePole(lanes)) => {
+                    let (x, f) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    let (filter, a, last) = &mut lanes[lane];
+                    for k in 0..n {
+                        if f[k] != *last {
+                            *last = f[k];
+                            *a = OnePole::coefficient(f[k], sr);
+                        }
+                        o[k] = filter.process(*a, x[k]);
+                    }
+                }
+                (Op::Resonator, State::Resonator(lanes)) => {
+                    let (x, f, bw) = (
+                        self.arg(i, 0, lane, n),
+                        self.arg(i, 1, lane, n),
+                        self.arg(i, 2, lane, n),
+                    );
+                    let (filter, coeffs, last) = &mut lanes[lane];
+                    for k in 0..n {
+                        if [f[k], bw[k]] != *last {
+                            *last = [f[k], bw[k]];
+                            *coeffs = ResonatorCoeffs::new(f[k], bw[k], sr);
+                        }
+                        o[k] = filter.process(coeffs, x[k]);
+                    }
+                }
+                (Op::Delay { .. }, State::Delay(lines)) => {
+                    let (x, time) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    let line = &mut lines[lane];
+                    for k in 0..n {
+                        line.push(x[k]);
+                        o[k] = line.read(time[k] * sr);
+                    }
+                }
+                (Op::Conv(_), State::Conv(convolvers)) => {
+                    convolvers[lane].process(self.arg(i, 0, lane, n), o);
+                }
+                (Op::Sample(playback), State::Sample { frames, positions }) => {
+                    let rate = self.arg(i, 0, lane, n);
+                    let pos = &mut positions[lane];
+                    let len = frames.len() as f64;
+                    for k in 0..n {
+                        o[k] = read_cubic(frames, *pos);
+                        *pos += rate[k];
+                        if playback.looping && len > 0.0 && !(0.0..len).contains(pos) {
+                            *pos = pos.rem_euclid(len);
+                        }
+                    }
+                }
+                (Op::Adsr, State::Adsr(lanes)) => {
+                    let args: [&[f64]; 5] = std::array::from_fn(|a| self.arg(i, a, lane, n));
+                    let adsr = &mut lanes[lane];
+                    for k in 0..n {
+                        o[k] = adsr.next(
+                            args[0][k], args[1][k], args[2][k], args[3][k], args[4][k], sr,
+                        );
+                    }
+                }
+                (Op::Custom(node), State::Custom(custom_state)) => {
+                    // Custom nodes fill all lanes at once.
+                    if lane == 0 {
+                        let args: Vec<Lanes<'_>> = step
+                            .args
+                            .iter()
+                            .map(|&a| Lanes::new(&self.buffers[a], self.steps[a].width, bs))
+                            .collect();
+                        let ctx = BlockContext {
+                            sample_rate: sr,
+                            first_sample: n0,
+                            len: n,
+                            width,
+                        };
+                        eval_custom(node.as_ref(), &ctx, &args, out, bs, custom_state.as_mut());
+                    }
+                    return;
+                }
+                (op, _) => unreachable!("state of `{op}` was not prepared"),
+            }
+        }
+    }
+}
+
+/// Calls a custom node with a tightly packed output (`width × n`) and spreads the
+/// lanes back to the block stride.
+fn eval_custom(
+    node: &dyn crate::custom::CustomNode,
+    ctx: &BlockContext,
+    args: &[Lanes<'_>],
+    out: &mut [f64],
+    bs: usize,
+    state: &mut (dyn Any + Send),
+) {
+    let (n, width) = (ctx.len, ctx.width);
+    if n == bs {
+        node.eval_block(ctx, args, &mut out[..width * bs], state);
+        return;
+    }
+    // A short final block: arguments are still laid out with the block stride, so
+    // present them and the output packed to `n`.
+    let packed_args: Vec<Vec<f64>> = args
+        .iter()
+        .map(|a| {
+            (0..a.width())
+                .flat_map(|l| a.lane(l)[..n].to_vec())
+                .collect()
+        })
+        .collect();
+    let lanes: Vec<Lanes<'_>> = packed_args
+        .iter()
+        .zip(args)
+        .map(|(data, a)| Lanes::new(data, a.width(), n))
+        .collect();
+    let mut packed = vec![0.0; width * n];
+    node.eval_block(ctx, &lanes, &mut packed, state);
+    for l in 0..width {
+        out[l * bs..l * bs + n].copy_from_slice(&packed[l * n..(l + 1) * n]);
+    }
+}
+
+fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
+    let w = step.width;
+    let sr = config.sample_rate;
+    match &step.op {
+        Op::Phasor => State::Phase(vec![0.0; w]),
+        Op::Pink { .. } => State::Pink(Pink::new()),
+        Op::Markov { .. } => State::Markov((0..w).map(|_| Markov::new()).collect()),
+        Op::Biquad(_) => State::Biquad(vec![
+            (
+                BiquadState::default(),
+                BiquadCoeffs::default(),
+                [f64::NAN; 2]
+            );
+            w
+        ]),
+        Op::OnePole => State::OnePole(vec![(OnePole::default(), 0.0, f64::NAN); w]),
+        Op::Resonator => State::Resonator(vec![
+            (
+                ResonatorState::default(),
+                ResonatorCoeffs::new(1.0, 1.0, sr),
+                [f64::NAN; 2]
+            );
+            w
+        ]),
+        Op::Delay { max_seconds } => {
+            let max = (max_seconds * sr).ceil() as usize + 1;
+            State::Delay((0..w).map(|_| DelayLine::new(max)).collect())
+        }
+        Op::Conv(response) => {
+            let ir = match response {
+                ImpulseResponse::Wav { data, .. } => resample(data, sr),
+                ImpulseResponse::Tree { root, seconds } => {
+                    render_impulse(graph, *root, *seconds, config)
+                }
+            };
+            State::Conv(
+                (0..w)
+                    .map(|_| Convolver::new(&ir, CONV_PARTITION))
+                    .collect(),
+            )
+        }
+        Op::Sample(playback) => State::Sample {
+            frames: Arc::new(resample(&playback.data, sr)),
+            positions: vec![playback.start_seconds * sr; w],
+        },
+        Op::Adsr => State::Adsr((0..w).map(|_| Adsr::new()).collect()),
+        Op::Custom(node) => State::Custom(node.new_state(w, sr)),
+        _ => State::None,
+    }
+}
+
+/// Renders an impulse-response tree from t = 0 for `seconds`.
+fn render_impulse(graph: &Graph, root: NodeId, seconds: f64, config: RenderConfig) -> Vec<f64> {
+    let len = (seconds * config.sample_rate).round() as usize;
+    let mut ir = vec![0.0; len];
+    Interpreter::new(graph, root, config).render(&mut ir);
+    ir
+}

@@ -1,0 +1,53 @@
+//! Timbre trees: lowering from the syntax tree to a hash-consed DAG, the node
+//! catalogue, width checks, constant folding, and the reference interpreter.
+//!
+//! The interpreter is the semantics in runnable form: every other engine must agree
+//! with it. This crate reads files only through the [`Loader`] its host supplies and
+//! keeps no global state. It is *not* a scene renderer or a command-line tool.
+//!
+//! ```
+//! use timbre_ir::{compile_str, CompileOptions, FsLoader, Interpreter, Registry, RenderConfig};
+//!
+//! let registry = Registry::new();
+//! let options = CompileOptions::new(&registry, &FsLoader);
+//! let program = compile_str("(sine (* t 440))", &options).unwrap();
+//! let mut voice = Interpreter::new(&program.graph, program.root.unwrap(), RenderConfig::default());
+//! let mut out = vec![0.0; 480];
+//! voice.render(&mut out);
+//! assert!((out[12] - (std::f64::consts::TAU * 440.0 * 12.0 / 48000.0).sin()).abs() < 1e-12);
+//! ```
+
+pub mod custom;
+pub mod dsp;
+mod error;
+mod graph;
+mod interp;
+mod loader;
+mod lower;
+pub mod op;
+
+pub use custom::{BlockContext, CustomNode, Lanes};
+pub use error::{Diag, Diagnostics, SourceFile};
+pub use graph::{Graph, Node, NodeId, StableHasher};
+pub use interp::{Interpreter, RenderConfig};
+pub use loader::{FsLoader, Loader, NoFiles};
+pub use lower::{
+    compile, did_you_mean, CompileOptions, Program, Registry, Settings, BUILTIN_NAMES, MAX_LANES,
+};
+
+impl<'a> CompileOptions<'a> {
+    /// Options with no bindings and the file's own seed.
+    pub fn new(registry: &'a Registry, loader: &'a dyn Loader) -> Self {
+        CompileOptions {
+            bindings: Default::default(),
+            seed: None,
+            registry,
+            loader,
+        }
+    }
+}
+
+/// Compiles source text that did not come from a file (reported as `<expr>`).
+pub fn compile_str(text: &str, options: &CompileOptions<'_>) -> Result<Program, Diagnostics> {
+    compile(SourceFile::new("<expr>", text), None, options)
+}

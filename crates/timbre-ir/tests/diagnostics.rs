@@ -1,0 +1,330 @@
+//! Every kind of malformed input yields a diagnostic with a stable code, a message and
+//! the exact span it points at. The table lists the input, the code, the start of the
+//! message, and the text the primary label underlines.
+
+mod common;
+
+/// (source, code, message prefix, underlined text)
+const CASES: &[(&str, &str, &str, &str)] = &[
+    (
+        "(sine (* t 440)",
+        "timbre::syntax::unclosed_list",
+        "unclosed list",
+        "(",
+    ),
+    (
+        "(sine t))",
+        "timbre::syntax::unexpected_close",
+        "unexpected `)`",
+        ")",
+    ),
+    (
+        "(sine 1.2.3)",
+        "timbre::syntax::bad_number",
+        "malformed number `1.2.3`",
+        "1.2.3",
+    ),
+    (
+        "(sine 3abc)",
+        "timbre::syntax::bad_number",
+        "malformed number `3abc`",
+        "3abc",
+    ),
+    (
+        "\"abc",
+        "timbre::syntax::unterminated_string",
+        "unterminated string",
+        "\"",
+    ),
+    (
+        "(sample \"a\\qb.wav\")",
+        "timbre::syntax::bad_escape",
+        "unknown escape `\\q` in string",
+        "\\q",
+    ),
+    (
+        "(sine #t)",
+        "timbre::syntax::unexpected_char",
+        "unexpected character `#`",
+        "#",
+    ),
+    (
+        "(white :)",
+        "timbre::syntax::empty_keyword",
+        "missing keyword name after `:`",
+        ":",
+    ),
+    (
+        "(sinee (* t 440))",
+        "timbre::unknown-function",
+        "unknown function `sinee`",
+        "sinee",
+    ),
+    (
+        "(sine t t)",
+        "timbre::arity",
+        "`sine` takes 1 argument, got 2",
+        "(sine t t)",
+    ),
+    (
+        "(pow 2)",
+        "timbre::arity",
+        "`pow` takes 2 arguments, got 1",
+        "(pow 2)",
+    ),
+    (
+        "(phasor)",
+        "timbre::arity",
+        "`phasor` takes 1 to 2 arguments, got 0",
+        "(phasor)",
+    ),
+    (
+        "(sine (* t fre))",
+        "timbre::unbound-parameter",
+        "unbound parameter `fre`",
+        "fre",
+    ),
+    (
+        "(let ((a 1)) b)",
+        "timbre::unbound-parameter",
+        "unbound parameter `b`",
+        "b",
+    ),
+    (
+        "(+ (vector 1 2 3) (vector 1 2 3 4 5))",
+        "timbre::width-mismatch",
+        "`+` combines 3 lanes with 5 lanes",
+        "(vector 1 2 3 4 5)",
+    ),
+    (
+        "(index (rvector 3 1 2) (vector 1 2))",
+        "timbre::width-mismatch",
+        "the lane index must be one lane, not 2",
+        "(vector 1 2)",
+    ),
+    (
+        "(vector 1 2)",
+        "timbre::wide-sound",
+        "the sound is 2 lanes wide",
+        "(vector 1 2)",
+    ),
+    (
+        "(sample \"missing.wav\")",
+        "timbre::sample-unreadable",
+        "cannot read sound file `missing.wav`",
+        "\"missing.wav\"",
+    ),
+    (
+        "(include \"nope.tt\") (sine t)",
+        "timbre::include-unreadable",
+        "cannot read included file `nope.tt`",
+        "\"nope.tt\"",
+    ),
+    (
+        "(sine \"abc\")",
+        "timbre::unexpected-string",
+        "`sine` does not take a string",
+        "\"abc\"",
+    ),
+    ("()", "timbre::empty-call", "empty list", "()"),
+    (
+        "(3 4)",
+        "timbre::not-callable",
+        "expected a node name, found a number",
+        "3",
+    ),
+    (
+        "(rvector 2.5 1 2)",
+        "timbre::bad-count",
+        "the number of lanes must be a whole number ≥ 1, not 2.5",
+        "2.5",
+    ),
+    (
+        "(rvector (sine t) 1 2)",
+        "timbre::not-constant",
+        "the number of lanes must be a constant number",
+        "(sine t)",
+    ),
+    (
+        "(lowpass (white) 1000 :qq 2)",
+        "timbre::unknown-keyword",
+        "`lowpass` has no argument `:qq`",
+        ":qq",
+    ),
+    (
+        "(white :seed)",
+        "timbre::keyword-without-value",
+        "keyword `:seed` has no value",
+        ":seed",
+    ),
+    (
+        "(let ((a)) a)",
+        "timbre::bad-let",
+        "a binding must be (name value)",
+        "(a)",
+    ),
+    (
+        "(define f (x) (* x x)) (f 1 2)",
+        "timbre::arity",
+        "`f` takes 1 argument, got 2",
+        "(f 1 2)",
+    ),
+    (
+        "(define f (x) (f x)) (f 1)",
+        "timbre::recursive-define",
+        "`f` uses itself",
+        "(f x)",
+    ),
+    (
+        "(define sine (x) x)",
+        "timbre::redefine-builtin",
+        "`sine` is a built-in name",
+        "sine",
+    ),
+    (
+        "(sine t) (sine t)",
+        "timbre::several-sounds",
+        "the file has 2 top-level sounds",
+        "(sine t)",
+    ),
+    (
+        "(delay (white) (sine t))",
+        "timbre::delay-needs-max",
+        "a varying delay time needs a maximum",
+        "(sine t)",
+    ),
+    (
+        "(scene :duration -1) (sine t)",
+        "timbre::bad-scene",
+        "duration -1 is not positive",
+        "-1",
+    ),
+    (
+        "(define x)",
+        "timbre::bad-define",
+        "definition of `x` has no body",
+        "(define x)",
+    ),
+    (
+        "(conv (white) (sine t) :length 0)",
+        "timbre::bad-conv",
+        "impulse length 0 s is out of range",
+        "0",
+    ),
+    (
+        "(+ t (define q 1))",
+        "timbre::misplaced-form",
+        "`define` is only allowed at the top level",
+        "define",
+    ),
+    (
+        "(define f (x) x) (f)",
+        "timbre::arity",
+        "`f` takes 1 argument, got 0",
+        "(f)",
+    ),
+    (
+        "(sine sine)",
+        "timbre::node-as-value",
+        "`sine` is a node and must be called",
+        "sine",
+    ),
+    (
+        "(+ t (damp 2 3) (sine))",
+        "timbre::arity",
+        "`damp` takes 1 argument, got 2",
+        "(damp 2 3)",
+    ),
+    (
+        "(sine 1e400)",
+        "timbre::syntax::number_too_large",
+        "number `1e400` is too large",
+        "1e400",
+    ),
+    (
+        "(f :amp 1)",
+        "timbre::unknown-function",
+        "unknown function `f`",
+        "f",
+    ),
+    (
+        "(define f (a b) (+ a b)) (f :a 1 :c 2)",
+        "timbre::unknown-keyword",
+        "`f` has no argument `:c`",
+        ":c",
+    ),
+];
+
+#[test]
+fn malformed_inputs_give_exact_diagnostics() {
+    assert!(CASES.len() >= 25);
+    let mut failures = vec![];
+    for (source, code, message, underlined) in CASES {
+        let diags = match common::compile_with(source, &[], 0) {
+            Ok(_) => {
+                failures.push(format!("{source:?}: compiled without error"));
+                continue;
+            }
+            Err(d) => d,
+        };
+        let first = &diags.0[0];
+        let span = first.span().expect("every diagnostic points somewhere");
+        let actual_underlined = &source[span.start..span.end];
+        if first.code != *code
+            || !first.message.starts_with(message)
+            || actual_underlined != *underlined
+        {
+            failures.push(format!(
+                "{source:?}: got {} / {:?} at {actual_underlined:?}, expected {code} / {message:?} at {underlined:?}",
+                first.code, first.message
+            ));
+        }
+        assert!(first.help.is_some(), "{source:?} has no help");
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn suggestions_name_the_closest_node_or_parameter() {
+    let help = |src: &str| {
+        common::compile_with(src, &[], 0).unwrap_err().0[0]
+            .help
+            .clone()
+            .unwrap()
+    };
+    assert_eq!(help("(sinee t)"), "did you mean `sine`?");
+    assert_eq!(help("(sawtoth t)"), "did you mean `sawtooth`?");
+    assert_eq!(
+        help("(define bell (f) (sine (* t f))) (bel 440)"),
+        "did you mean `bell`?"
+    );
+    assert!(help("(let ((freq 1)) (sine (* t frq)))").starts_with("did you mean `freq`?"));
+    assert!(help("(lowpass (white) 1000 :qq 2)").contains(":x :freq :q"));
+}
+
+#[test]
+fn one_bad_form_does_not_hide_the_next() {
+    let diags =
+        common::compile_with("(sine t))\n(define f (x) (sinn x))\n(f 1)", &[], 0).unwrap_err();
+    let codes: Vec<&str> = diags.0.iter().map(|d| d.code.as_ref()).collect();
+    assert_eq!(
+        codes,
+        [
+            "timbre::syntax::unexpected_close",
+            "timbre::unknown-function"
+        ]
+    );
+}
+
+#[test]
+fn nesting_too_deep_is_an_error_not_a_crash() {
+    for depth in [300, 100_000] {
+        let source = format!("{}t{}", "(sine ".repeat(depth), ")".repeat(depth));
+        let diags = common::compile_with(&source, &[], 0).unwrap_err();
+        assert!(
+            diags.0.iter().any(|d| d.code == "timbre::syntax::too_deep"),
+            "{:?}",
+            diags.0[0]
+        );
+    }
+}

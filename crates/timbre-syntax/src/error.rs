@@ -1,0 +1,142 @@
+//! Syntax errors: everything the lexer and parser can complain about.
+//!
+//! Each variant carries the exact byte span of the offending text, a stable
+//! diagnostic code and a help line, so the command line can render it with miette
+//! without knowing anything about the parser. Spans never sit at the very end of the
+//! input with zero width (miette would not draw them): an unclosed list points at its
+//! opening `(`, an unterminated string at its opening `"`.
+
+use crate::ast::Span;
+use crate::parser::MAX_DEPTH;
+
+/// One problem found while reading source text.
+///
+/// Messages are short and lowercase; the label says where, the help says what to do.
+#[derive(Debug, Clone, PartialEq, thiserror::Error, miette::Diagnostic)]
+pub enum SyntaxError {
+    /// A `(` with no matching `)` before the end of the input.
+    #[error("unclosed list")]
+    #[diagnostic(
+        code(timbre::syntax::unclosed_list),
+        help("add a `)` to close this list")
+    )]
+    UnclosedList {
+        #[label("this `(` is never closed")]
+        span: Span,
+    },
+
+    /// A `)` that closes nothing.
+    #[error("unexpected `)`")]
+    #[diagnostic(
+        code(timbre::syntax::unexpected_close),
+        help("remove it, or add the `(` it closes")
+    )]
+    UnexpectedClose {
+        #[label("no open list to close")]
+        span: Span,
+    },
+
+    /// Something that starts like a number but is not one: `1.2.3`, `3abc`, `1e`.
+    #[error("malformed number `{text}`")]
+    #[diagnostic(
+        code(timbre::syntax::bad_number),
+        help("numbers look like 440, -3.5, .5 or 1e-3")
+    )]
+    BadNumber {
+        text: String,
+        #[label("not a number")]
+        span: Span,
+    },
+
+    /// A well-formed number too large for an `f64` (`1e999`).
+    #[error("number `{text}` is too large")]
+    #[diagnostic(
+        code(timbre::syntax::number_too_large),
+        help("numbers must lie between about -1.8e308 and 1.8e308")
+    )]
+    NumberTooLarge {
+        text: String,
+        #[label("too large")]
+        span: Span,
+    },
+
+    /// A `"` whose string runs to the end of the input.
+    #[error("unterminated string")]
+    #[diagnostic(
+        code(timbre::syntax::unterminated_string),
+        help("add a `\"` to close the string (a quote inside a string is written `\\\"`)")
+    )]
+    UnterminatedString {
+        #[label("this string is never closed")]
+        span: Span,
+    },
+
+    /// A backslash in a string followed by something that is not a known escape.
+    #[error("unknown escape `{escape}` in string")]
+    #[diagnostic(
+        code(timbre::syntax::bad_escape),
+        help("the escapes are \\\" \\\\ \\n \\t \\r \\0 and \\u{{hex}}")
+    )]
+    BadEscape {
+        escape: String,
+        #[label("unknown escape")]
+        span: Span,
+    },
+
+    /// A `:` with no keyword name after it.
+    #[error("missing keyword name after `:`")]
+    #[diagnostic(
+        code(timbre::syntax::empty_keyword),
+        help("a keyword is a name after a colon, like `:seed`")
+    )]
+    EmptyKeyword {
+        #[label("keyword without a name")]
+        span: Span,
+    },
+
+    /// A character that cannot start any token (`,`, `#`, `[` …).
+    #[error("unexpected character `{}`", .ch.escape_debug())]
+    #[diagnostic(
+        code(timbre::syntax::unexpected_char),
+        help(
+            "names use letters, digits and - _ ? ! * / < > = + . % & ^ ~, and `;` starts a comment"
+        )
+    )]
+    UnexpectedChar {
+        ch: char,
+        #[label("not allowed here")]
+        span: Span,
+    },
+
+    /// A `(` nested more than [`MAX_DEPTH`] lists deep. Everything up to its
+    /// matching `)` is skipped.
+    #[error("lists nested too deeply")]
+    #[diagnostic(
+        code(timbre::syntax::too_deep),
+        help(
+            "lists may be nested at most {} deep; split the expression into smaller definitions",
+            MAX_DEPTH
+        )
+    )]
+    TooDeep {
+        #[label("this list crosses the nesting limit")]
+        span: Span,
+    },
+}
+
+impl SyntaxError {
+    /// Where in the source the problem is.
+    pub fn span(&self) -> Span {
+        match self {
+            SyntaxError::UnclosedList { span }
+            | SyntaxError::UnexpectedClose { span }
+            | SyntaxError::BadNumber { span, .. }
+            | SyntaxError::NumberTooLarge { span, .. }
+            | SyntaxError::UnterminatedString { span }
+            | SyntaxError::BadEscape { span, .. }
+            | SyntaxError::EmptyKeyword { span }
+            | SyntaxError::UnexpectedChar { span, .. }
+            | SyntaxError::TooDeep { span } => *span,
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! The parser: tokens to a span-carrying tree of [`Expr`]s, plus every error met.
+//!
+//! It works in two steps over the token list:
+//!
+//! 1. [`check_structure`], a flat loop with an explicit stack, collects the lexer's
+//!    error tokens, matches parentheses and enforces [`MAX_DEPTH`]. It drops what
+//!    cannot be part of a tree (error tokens, stray `)`, lists nested too deep,
+//!    lists never closed) and so hands on a stream that is balanced and at most
+//!    `MAX_DEPTH` deep. Doing this without recursion is what keeps a million `(`
+//!    from overflowing the stack, and it lets each error point at the exact token
+//!    (an unclosed list at its own `(`, not at the end of the input).
+//! 2. A chumsky parser builds the tree from that stream. Since the stream is
+//!    balanced, its recursion is bounded by `MAX_DEPTH`, and so is every later
+//!    recursive walk of the tree, dropping it included.
+
+use chumsky::input::{Stream, ValueInput};
+use chumsky::prelude::*;
+
+use crate::ast::{Expr, ExprKind, Span};
+use crate::error::SyntaxError;
+use crate::lexer::{lex, Token};
+
+/// The deepest list nesting accepted: `MAX_DEPTH` nested lists parse, one more
+/// is an error. Later passes may recurse over the tree and rely on this bound.
+pub const MAX_DEPTH: usize = 256;
+
+/// The result of parsing: the expressions that could be read, and the errors met.
+///
+/// Both can be non-empty at once. When `errors` is non-empty, `exprs` is a best
+/// effort: bad tokens are left out of their lists, and a list that is nested too
+/// deeply or never closed is left out entirely.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parse {
+    pub exprs: Vec<Expr>,
+    /// In source order (by start offset).
+    pub errors: Vec<SyntaxError>,
+}
+
+/// Parses a whole source text. Never panics, whatever the input.
+pub fn parse(source: &str) -> Parse {
+    let tokens = lex(source);
+    let (tokens, mut errors) = check_structure(tokens);
+
+    let eoi: SimpleSpan = (source.len()..source.len()).into();
+    let stream = Stream::from_iter(
+        tokens
+            .into_iter()
+            .map(|(token, span)| (token, SimpleSpan::from(span.start..span.end))),
+    )
+    .map(eoi, |(token, span)| (token, span));
+    let (exprs, chumsky_errors) = program().parse(stream).into_output_errors();
+
+    // `check_structure` only passes on balanced streams of atoms and parentheses,
+    // which the grammar accepts whole; an error here is a bug in this file.
+    debug_assert!(
+        chumsky_errors.is_empty(),
+        "parser rejected a checked token stream: {chumsky_errors:?}"
+    );
+
+    errors.sort_by_key(|error| error.span().start);
+    Parse {
+        exprs: exprs.unwrap_or_default(),
+        errors,
+    }
+}
+
+/// Step 1: collect lexer errors, match parentheses, enforce the depth limit.
+///
+/// Returns the tokens that form complete, shallow-enough expressions, and the
+/// errors (not yet sorted: unclosed lists are only known at the end).
+fn check_structure(tokens: Vec<(Token<'_>, Span)>) -> (Vec<(Token<'_>, Span)>, Vec<SyntaxError>) {
+    let mut kept = Vec::with_capacity(tokens.len());
+    let mut errors = Vec::new();
+    // Open lists: where each `(` went in `kept`, and its span. At most MAX_DEPTH long.
+    let mut open: Vec<(usize, Span)> = Vec::new();
+    // While skipping a too-deep list: how many of its parentheses are open.
+    // A counter, not a stack, so any depth costs no memory.
+    let mut skip_depth = 0usize;
+
+    for (token, span) in tokens {
+        match token {
+            // Lexer errors are reported wherever they are, even inside skipped lists.
+            Token::Error(error) => errors.push(error),
+            Token::LParen if skip_depth > 0 => skip_depth += 1,
+            Token::RParen if skip_depth > 0 => skip_depth -= 1,
+            _ if skip_depth > 0 => {}
+            Token::LParen if open.len() == MAX_DEPTH => {
+                errors.push(SyntaxError::TooDeep { span });
+                skip_depth = 1;
+            }
+            Token::LParen => {
+                open.push((kept.len(), span));
+                kept.push((token, span));
+            }
+            Token::RParen => {
+                if open.pop().is_some() {
+                    kept.push((token, span));
+                } else {
+                    errors.push(SyntaxError::UnexpectedClose { span });
+                }
+            }
+            atom => kept.push((atom, span)),
+        }
+    }
+
+    // Whatever is still open was never closed (it is a chain of lists nested in
+    // one another). One error for each, and the outermost one is dropped with
+    // everything in it: its contents would not mean what the author intended.
+    if let Some(&(first_index, _)) = open.first() {
+        kept.truncate(first_index);
+    }
+    errors.extend(
+        open.into_iter()
+            .map(|(_, span)| SyntaxError::UnclosedList { span }),
+    );
+
+    (kept, errors)
+}
+
+/// Step 2: the grammar, `expr* EOI` with `expr = atom | "(" expr* ")"`.
+fn program<'tok, 'src: 'tok, I>(
+) -> impl Parser<'tok, I, Vec<Expr>, extra::Err<Rich<'tok, Token<'src>>>>
+where
+    I: ValueInput<'tok, Token = Token<'src>, Span = SimpleSpan>,
+{
+    let expr = recursive(|expr| {
+        let atom = select! {
+            Token::Number(value) => ExprKind::Number(value),
+            Token::Symbol(name) => ExprKind::Symbol(name.to_string()),
+            Token::Str(text) => ExprKind::Str(text),
+            Token::Keyword(name) => ExprKind::Keyword(name.to_string()),
+        };
+        let list = expr
+            .repeated()
+            .collect::<Vec<Expr>>()
+            .delimited_by(just(Token::LParen), just(Token::RParen))
+            .map(ExprKind::List);
+        // `map_with` after `delimited_by` gives a list the span of both parentheses.
+        atom.or(list).map_with(|kind, extra| {
+            let span: SimpleSpan = extra.span();
+            Expr::new(kind, Span::new(span.start, span.end))
+        })
+    });
+    expr.repeated().collect().then_ignore(end())
+}
