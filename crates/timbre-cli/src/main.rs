@@ -20,7 +20,17 @@ use crate::wav_out::{write_wav_atomically, SampleFormat, WavJob};
 
 /// Sound from timbre trees: functional compositions synchronised to motion.
 #[derive(Parser, Debug)]
-#[command(name = "timbre", version, about, long_about = None)]
+#[command(
+    name = "timbre",
+    version,
+    about = "Sound from timbre trees: functional compositions synchronised to motion",
+    after_help = "Examples:
+  timbre render examples/bell.tt -o bell.wav
+  timbre render --expr '(sine (* t 440))' --duration 2 -o a440.wav
+  timbre check examples/wind.tt
+
+The language: lang-spec/README.md. A first session: docs/getting-started.md."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -238,6 +248,20 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         .unwrap_or(48_000.0);
     let duration = args.duration.or(program.settings.duration).unwrap_or(1.0);
     let frames = (duration * sample_rate).round() as u64;
+    let bytes_per_sample = match args.format {
+        Format::F32 => 4,
+        Format::S16 => 2,
+        Format::S24 => 3,
+    };
+    // A WAV file's sizes are 32-bit: refuse before rendering rather than write a file
+    // whose header lies about its length.
+    if frames.saturating_mul(bytes_per_sample) > wav_out::MAX_DATA_BYTES {
+        let max_seconds = wav_out::MAX_DATA_BYTES / bytes_per_sample / sample_rate as u64;
+        return Err(Failure::Message(format!(
+            "{duration} s at {sample_rate} Hz does not fit in a WAV file (4 GiB at most: {max_seconds} s in this format); \
+             render shorter parts, or use --format s16 for twice the length"
+        )));
+    }
 
     let interrupted = Arc::new(AtomicBool::new(false));
     {
@@ -268,6 +292,13 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         other => Failure::Message(other.to_string()),
     })?;
     if !args.quiet {
+        if summary.non_finite > 0 {
+            eprintln!(
+                "warning: {} samples were not finite (inf or NaN) and were written as silence; \
+                 look for a division by zero or a log of zero in the tree",
+                summary.non_finite
+            );
+        }
         if summary.clipped > 0 {
             eprintln!(
                 "warning: {} samples clipped at full scale; lower --gain",

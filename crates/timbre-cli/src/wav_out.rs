@@ -6,6 +6,10 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Most bytes of sample data a WAV file can describe (its sizes are 32-bit, and the
+/// RIFF size also counts the 36 header bytes).
+pub const MAX_DATA_BYTES: u64 = u32::MAX as u64 - 36;
+
 /// Frames rendered and written per step; bounds memory whatever the duration.
 const CHUNK_FRAMES: usize = 8192;
 
@@ -31,6 +35,8 @@ pub struct Summary {
     pub peak: f64,
     /// Samples outside [-1, 1] that integer formats had to clip.
     pub clipped: u64,
+    /// Samples that were inf or NaN, written as 0.
+    pub non_finite: u64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -104,7 +110,12 @@ fn write_to(
         let chunk = &mut buffer[..n];
         render(chunk);
         for x in chunk.iter() {
-            let y = if x.is_finite() { x * job.gain } else { 0.0 };
+            let y = if x.is_finite() {
+                x * job.gain
+            } else {
+                summary.non_finite += 1;
+                0.0
+            };
             summary.peak = summary.peak.max(y.abs());
             match job.format {
                 SampleFormat::F32 => writer.write_sample(y as f32),

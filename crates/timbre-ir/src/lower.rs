@@ -24,7 +24,7 @@ use crate::op::{BinaryOp, ImpulseResponse, Op, SamplePlayback, TernaryOp, UnaryO
 /// Deepest nesting of expressions, counting expansions of named trees.
 const MAX_LOWER_DEPTH: usize = 1000;
 /// Most lanes one node may have.
-pub const MAX_LANES: usize = 1 << 20;
+pub const MAX_LANES: usize = 1 << 16;
 /// Longest delay line and rendered impulse response, in seconds.
 const MAX_BUFFER_SECONDS: f64 = 600.0;
 
@@ -420,13 +420,17 @@ impl<'a> Lowerer<'a> {
                 ));
             };
             match key.as_str() {
-                "sample-rate" if (1000.0..=1_536_000.0).contains(&value) => {
+                "sample-rate"
+                    if (1000.0..=1_536_000.0).contains(&value) && value.fract() == 0.0 =>
+                {
                     self.settings.sample_rate = Some(value)
                 }
                 "sample-rate" => {
                     return Err(err(
                         value_expr.span,
-                        format!("sample rate {value} is out of range"),
+                        format!(
+                            "sample rate {value} is not a whole number of Hz from 1000 to 1536000"
+                        ),
                         "not a usable sample rate",
                         "use a rate between 1000 and 1536000 Hz, e.g. 48000",
                     ))

@@ -126,7 +126,8 @@ fn the_same_seed_gives_identical_samples_and_another_seed_other_modes() {
 #[test]
 fn output_does_not_depend_on_the_block_size() {
     let text = format!(
-        "(+ {BELL} (lowpass (white) 2000) (delay (pink) (+ 0.01 (* 0.005 (sine t))) 0.02) (phasor 3) (markov 5))"
+        "(+ {BELL} (lowpass (white) 2000) (delay (pink) (+ 0.01 (* 0.005 (sine t))) 0.02) (phasor 3) (markov 5)
+            (conv (white :seed 1) (damp (* t 300)) :length 0.05) (adsr (< t 0.1) 0.01 0.02 0.5 0.05))"
     );
     let program = compile_with(&text, &bell_bindings(20.0), 1).unwrap();
     let reference = render_program(&program, 0.3, 256);

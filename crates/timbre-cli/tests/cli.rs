@@ -1,0 +1,1099 @@
+//! The `timbre` command end to end: the paper's expressions, every render option, the
+//! atomic output file, diagnostics and exit codes, and the help text.
+
+mod common;
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use common::*;
+
+/// The two expressions DESIGN.md says must run verbatim (Takala et al. 1993).
+const MODAL: &str = "(combine (* (sine (* t (rvector n_f base_f max_f)))
+            (damp (* t (* damp_ratio (rvector n_f base_f max_f))))))";
+
+const BEE: &str = "(sawtooth (+ (* t (+ nominal-freq (* 12 (noise (* t LF-noise)))))
+             (* 0.25 (noise (* t HF-noise)))))";
+
+const A440: &str = "(sine (* t 440))";
+
+/// A tree with randomness in it (so the seed matters) and state (filters).
+const RANDOM: &str = "(+ (* 0.3 (white)) (* 0.3 (lowpass (white :seed 2) 800)))";
+
+fn s(args: &[&str]) -> Vec<String> {
+    args.iter().map(|a| a.to_string()).collect()
+}
+
+/// Does `dir` hold a temporary file left by an atomic write (`.NAME.partial-PID`)?
+fn partial_files(dir: &Path) -> Vec<String> {
+    dir_entries(dir)
+        .into_iter()
+        .filter(|n| n.contains(".partial-"))
+        .collect()
+}
+
+// ------------------------------------------------------------ the paper's expressions
+
+#[test]
+fn design_modal_expression_renders_verbatim_with_modes_in_range() {
+    for (base_f, max_f) in [(500.0, 1500.0), (3000.0, 6000.0)] {
+        let n_f = 12;
+        let wav = render_wav(s(&[
+            "--expr",
+            MODAL,
+            "--set",
+            &format!("n_f={n_f}"),
+            "--set",
+            &format!("base_f={base_f}"),
+            "--set",
+            &format!("max_f={max_f}"),
+            "--set",
+            "damp_ratio=0.001",
+            "--gain",
+            &format!("{}", 1.0 / n_f as f64),
+            "--duration",
+            "1",
+            "--seed",
+            "3",
+        ]));
+        assert_eq!(wav.samples.len(), 48_000);
+        assert!(rms(&wav.samples) > 0.01, "modal expression is silent");
+        let peaks = spectral_peaks(&wav.samples, SR, n_f);
+        eprintln!("modal {base_f}–{max_f}: {peaks:.0?}");
+        for f in &peaks {
+            assert!(
+                (base_f - 5.0..=max_f + 5.0).contains(f),
+                "peak at {f:.1} Hz outside [{base_f}, {max_f}]: {peaks:.0?}"
+            );
+        }
+        // The modes are spread over the band, not all at one frequency.
+        let lo = peaks.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = peaks.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            hi - lo > 0.3 * (max_f - base_f),
+            "modes bunch up in {lo:.0}–{hi:.0} Hz"
+        );
+        // Damping proportional to frequency (damp_ratio·f per second): decays.
+        let first = rms(wav.seconds(0.0, 0.1));
+        let last = rms(wav.seconds(0.9, 1.0));
+        assert!(last < first, "modal sound does not decay: {first} → {last}");
+    }
+}
+
+#[test]
+fn design_bee_expression_renders_verbatim_at_its_nominal_frequency() {
+    for nominal in [180.0, 330.0] {
+        let wav = render_wav(s(&[
+            "--expr",
+            BEE,
+            "--set",
+            &format!("nominal-freq={nominal}"),
+            "--set",
+            "LF-noise=3",
+            "--set",
+            "HF-noise=400",
+            "--duration",
+            "0.25",
+        ]));
+        assert_eq!(wav.samples.len(), 12_000);
+        assert!(peak(&wav.samples) <= 1.0);
+        // Drift is at most ±12 Hz (12 · noise, noise in [-1, 1]).
+        let f = strongest_peak_in(&wav.samples, SR, 50.0, 3000.0);
+        eprintln!("bee at nominal {nominal}: {f:.1} Hz");
+        assert!(
+            (f - nominal).abs() < 15.0,
+            "bee with nominal-freq={nominal} measured at {f:.1} Hz"
+        );
+    }
+}
+
+// ------------------------------------------------------------ render options
+
+#[test]
+fn duration_sets_the_length_and_overrides_the_scene() {
+    let wav = render_wav(s(&["--expr", A440, "--duration", "0.5"]));
+    assert_eq!(wav.samples.len(), 24_000);
+    let f = zero_crossing_frequency(&wav.samples, SR);
+    assert!((f - 440.0).abs() < 0.05, "440 Hz sine measured at {f}");
+
+    // bell.tt asks for 4 s; --duration wins.
+    let bell = render_wav([
+        example("bell").into_os_string(),
+        "--duration".into(),
+        "0.25".into(),
+    ]);
+    assert_eq!(bell.samples.len(), 12_000);
+
+    // Without --duration or a scene: 1 s.
+    let default = render_wav(s(&["--expr", A440]));
+    assert_eq!(default.samples.len(), 48_000);
+}
+
+#[test]
+fn sample_rate_option_sets_header_length_and_keeps_pitch() {
+    let wav = render_wav(s(&[
+        "--expr",
+        A440,
+        "--duration",
+        "0.5",
+        "--sample-rate",
+        "44100",
+    ]));
+    assert_eq!(wav.spec.sample_rate, 44_100);
+    assert_eq!(wav.samples.len(), 22_050);
+    // t is in seconds whatever the rate: still 440 Hz when read at 44.1 kHz.
+    let f = zero_crossing_frequency(&wav.samples, 44_100.0);
+    assert!(
+        (f - 440.0).abs() < 0.05,
+        "440 Hz at 44.1 kHz measured at {f}"
+    );
+}
+
+#[test]
+fn scene_sample_rate_is_used_and_the_option_overrides_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("tone.tt");
+    std::fs::write(
+        &script,
+        "(scene :sample-rate 22050 :duration 0.2)\n(sine (* t 1000))\n",
+    )
+    .unwrap();
+    let wav = render_wav([script.as_os_str()]);
+    assert_eq!(wav.spec.sample_rate, 22_050);
+    assert_eq!(wav.samples.len(), 4410);
+    let f = zero_crossing_frequency(&wav.samples, 22_050.0);
+    assert!(
+        (f - 1000.0).abs() < 0.5,
+        "1 kHz at 22.05 kHz measured at {f}"
+    );
+
+    let wav = render_wav([
+        script.as_os_str(),
+        "--sample-rate".as_ref(),
+        "44100".as_ref(),
+    ]);
+    assert_eq!(wav.spec.sample_rate, 44_100);
+    assert_eq!(wav.samples.len(), 8820);
+}
+
+#[test]
+fn fractional_scene_sample_rate_is_refused_or_consistent() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("odd.tt");
+    std::fs::write(
+        &script,
+        "(scene :sample-rate 1000.9 :duration 2)\n(sine (* t 100))\n",
+    )
+    .unwrap();
+    let out = dir.path().join("odd.wav");
+    let run = run([
+        "render".as_ref(),
+        script.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    if run.code == Some(1) {
+        run.assert_stderr_has("sample rate");
+        return;
+    }
+    run.assert_success();
+    // If it renders, the file must describe itself truthfully.
+    let wav = read_wav(&out);
+    assert_eq!(
+        wav.samples.len(),
+        (2.0 * wav.rate()).round() as usize,
+        "2 s at the header's {} Hz",
+        wav.rate()
+    );
+    let f = zero_crossing_frequency(&wav.samples, wav.rate());
+    assert!((f - 100.0).abs() < 0.02, "100 Hz sine plays at {f} Hz");
+}
+
+fn render_bytes(args: &[std::ffi::OsString]) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let mut all: Vec<std::ffi::OsString> = vec!["render".into()];
+    all.extend(args.iter().cloned());
+    all.push("-o".into());
+    all.push(out.clone().into());
+    run(&all).assert_success();
+    std::fs::read(&out).unwrap()
+}
+
+fn os(args: &[&str]) -> Vec<std::ffi::OsString> {
+    args.iter().map(Into::into).collect()
+}
+
+#[test]
+fn seed_makes_random_trees_reproducible_and_distinct() {
+    let a = render_bytes(&os(&["--expr", RANDOM, "--duration", "0.1", "--seed", "7"]));
+    let b = render_bytes(&os(&["--expr", RANDOM, "--duration", "0.1", "--seed", "7"]));
+    let c = render_bytes(&os(&["--expr", RANDOM, "--duration", "0.1", "--seed", "8"]));
+    assert_eq!(a, b, "the same seed must give the same bytes");
+    assert_ne!(a, c, "another seed must give another sound");
+    // Not merely a different header or a few samples: the noise is independent.
+    let dir = tempfile::tempdir().unwrap();
+    let (pa, pc) = (dir.path().join("a.wav"), dir.path().join("c.wav"));
+    std::fs::write(&pa, &a).unwrap();
+    std::fs::write(&pc, &c).unwrap();
+    let (wa, wc) = (read_wav(&pa), read_wav(&pc));
+    let same = wa
+        .samples
+        .iter()
+        .zip(&wc.samples)
+        .filter(|(x, y)| x == y)
+        .count();
+    assert!(
+        same < wa.samples.len() / 100,
+        "{same} of {} samples equal across seeds",
+        wa.samples.len()
+    );
+    let corr: f64 = wa
+        .samples
+        .iter()
+        .zip(&wc.samples)
+        .map(|(x, y)| x * y)
+        .sum::<f64>()
+        / (energy(&wa.samples) * energy(&wc.samples)).sqrt();
+    assert!(corr.abs() < 0.2, "seeds 7 and 8 correlate by {corr}");
+}
+
+#[test]
+fn seed_option_overrides_the_scene_seed() {
+    // bell.tt says (scene :seed 1): --seed 1 is the same sound, --seed 2 another bell.
+    let bell = example("bell").into_os_string();
+    let short = |extra: &[&str]| {
+        let mut args = vec![bell.clone(), "--duration".into(), "0.2".into()];
+        args.extend(os(extra));
+        render_bytes(&args)
+    };
+    let default = short(&[]);
+    assert_eq!(default, short(&[]), "a scene renders identically twice");
+    assert_eq!(default, short(&["--seed", "1"]), "the scene's seed is 1");
+    assert_ne!(
+        default,
+        short(&["--seed", "2"]),
+        "--seed 2 must change the bell"
+    );
+}
+
+#[test]
+fn block_size_does_not_change_the_output() {
+    // wind.tt: noises, Markov gusts and a moving band-pass, all stateful.
+    let wind = example("wind").into_os_string();
+    let with = |block: &str| {
+        render_bytes(&[
+            wind.clone(),
+            "--duration".into(),
+            "0.3".into(),
+            "--block-size".into(),
+            block.into(),
+        ])
+    };
+    let reference = with("256");
+    for block in ["1", "7", "4096"] {
+        assert!(
+            with(block) == reference,
+            "--block-size {block} changes the samples"
+        );
+    }
+}
+
+#[test]
+fn formats_have_the_right_header_and_matching_content() {
+    let base = ["--expr", "(* 0.9 (sine (* t 441)))", "--duration", "0.2"];
+    let f32_wav = render_wav(s(&base));
+    assert_eq!(f32_wav.spec.sample_format, hound::SampleFormat::Float);
+    assert_eq!(f32_wav.spec.bits_per_sample, 32);
+    let explicit = render_wav(s(&[&base[..], &["--format", "f32"]].concat()));
+    assert_eq!(explicit.samples, f32_wav.samples, "f32 is the default");
+
+    for (format, bits, full) in [("s16", 16, 32_767.0), ("s24", 24, 8_388_607.0)] {
+        let wav = render_wav(s(&[&base[..], &["--format", format]].concat()));
+        assert_eq!(wav.spec.sample_format, hound::SampleFormat::Int, "{format}");
+        assert_eq!(wav.spec.bits_per_sample, bits, "{format}");
+        assert_eq!(wav.spec.sample_rate, 48_000);
+        assert_eq!(wav.samples.len(), f32_wav.samples.len());
+        let worst = wav
+            .samples
+            .iter()
+            .zip(&f32_wav.samples)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst <= 1.0 / full,
+            "{format} differs from f32 by {worst} (> 1 LSB)"
+        );
+        // Really quantised at that depth: every sample is a whole number of LSBs and
+        // the full range is used (0.9 of full scale is reached).
+        assert!(
+            wav.samples
+                .iter()
+                .all(|v| (v * full - (v * full).round()).abs() < 1e-6),
+            "{format} samples are not integers"
+        );
+        assert!((peak(&wav.samples) - 0.9).abs() < 2.0 / full);
+    }
+    // s16 is coarser than s24: the error budget really is the format's.
+    let s24 = render_wav(s(&[&base[..], &["--format", "s24"]].concat()));
+    let err24 = s24
+        .samples
+        .iter()
+        .zip(&f32_wav.samples)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(err24 < 0.5 / 32_767.0 / 10.0, "s24 error {err24}");
+}
+
+#[test]
+fn integer_formats_clip_at_full_scale_and_warn() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("loud.wav");
+    let run = run([
+        "render",
+        "--expr",
+        A440,
+        "--duration",
+        "0.1",
+        "--gain",
+        "2",
+        "--format",
+        "s16",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_success();
+    run.assert_stderr_has("clipped at full scale");
+    let wav = read_wav(&out);
+    assert_eq!(peak(&wav.samples), 1.0, "clipped to full scale");
+    // A doubled sine spends two thirds of its time above full scale.
+    let clipped = wav.samples.iter().filter(|v| v.abs() == 1.0).count();
+    let share = clipped as f64 / wav.samples.len() as f64;
+    assert!(
+        (share - 2.0 / 3.0).abs() < 0.02,
+        "{share} of samples clipped"
+    );
+}
+
+#[test]
+fn gain_scales_every_sample() {
+    let full = render_wav(s(&[
+        "--expr",
+        "(* 0.8 (sine (* t 300)))",
+        "--duration",
+        "0.1",
+    ]));
+    let half = render_wav(s(&[
+        "--expr",
+        "(* 0.8 (sine (* t 300)))",
+        "--duration",
+        "0.1",
+        "--gain",
+        "0.5",
+    ]));
+    let (p1, p2) = (peak(&full.samples), peak(&half.samples));
+    assert!((p1 - 0.8).abs() < 1e-3, "peak {p1}");
+    assert!((p2 / p1 - 0.5).abs() < 1e-6, "--gain 0.5: peak {p1} → {p2}");
+    for (a, b) in full.samples.iter().zip(&half.samples) {
+        assert!((b - 0.5 * a).abs() < 1e-7, "{a} → {b}");
+    }
+}
+
+#[test]
+fn samples_are_read_relative_to_the_script() {
+    // A WAV made here, named by a script in the same directory, rendered from
+    // elsewhere: the output is the file's samples.
+    let dir = tempfile::tempdir().unwrap();
+    let n = 4800;
+    let signal: Vec<f64> = (0..n)
+        .map(|i| {
+            let t = i as f64 / SR;
+            0.5 * (std::f64::consts::TAU * 750.0 * t).sin() * (1.0 - t * 5.0)
+        })
+        .collect();
+    write_wav_f32(&dir.path().join("hit.wav"), 48_000, &signal);
+    let script = dir.path().join("play.tt");
+    std::fs::write(&script, "(sample \"hit.wav\")\n").unwrap();
+    let wav = render_wav([script.as_os_str(), "--duration".as_ref(), "0.1".as_ref()]);
+    assert_eq!(wav.samples.len(), n);
+    let worst = wav
+        .samples
+        .iter()
+        .zip(&signal)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-6, "sample playback differs by {worst}");
+}
+
+#[test]
+fn non_finite_samples_are_written_as_silence() {
+    // 1/0 is +inf for every sample: the file must still hold finite samples.
+    for format in ["f32", "s16"] {
+        let wav = render_wav(s(&[
+            "--expr",
+            "(+ (* 0.5 (sine (* t 100))) (/ 1 (* t 0)))",
+            "--duration",
+            "0.05",
+            "--format",
+            format,
+        ]));
+        assert_eq!(wav.samples.len(), 2400);
+        assert!(
+            wav.samples.iter().all(|v| *v == 0.0),
+            "{format}: non-finite samples must become 0"
+        );
+    }
+}
+
+#[test]
+fn non_finite_samples_are_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("inf.wav");
+    let run = run([
+        "render",
+        "--expr",
+        "(/ 1 (* t 0))",
+        "--duration",
+        "0.05",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_success();
+    assert!(
+        run.stderr.contains("warning"),
+        "no warning:\n{}",
+        run.stderr
+    );
+}
+
+// ------------------------------------------------------------ atomic output
+
+#[test]
+fn successful_render_leaves_only_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    // A relative output path (no directory part), run from inside the directory.
+    let run = run_in(
+        Some(dir.path()),
+        [
+            "render",
+            "--expr",
+            A440,
+            "--duration",
+            "0.1",
+            "-o",
+            "tone.wav",
+        ],
+    );
+    run.assert_success();
+    assert_eq!(dir_entries(dir.path()), ["tone.wav"]);
+    assert_eq!(read_wav(&dir.path().join("tone.wav")).samples.len(), 4800);
+    run.assert_stderr_has("rendered 0.100 s (4800 samples at 48000 Hz, f32)");
+}
+
+#[test]
+fn failed_script_leaves_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let run = run([
+        "render",
+        "--expr",
+        "(sine (* t",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_code(1);
+    assert!(
+        dir_entries(dir.path()).is_empty(),
+        "left {:?}",
+        dir_entries(dir.path())
+    );
+}
+
+#[test]
+fn output_in_a_missing_directory_fails_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("no-such-dir").join("out.wav");
+    let run = run([
+        "render",
+        "--expr",
+        A440,
+        "--duration",
+        "0.1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_code(1);
+    run.assert_stderr_has("error: cannot write");
+    run.assert_stderr_has("out.wav");
+    assert!(dir_entries(dir.path()).is_empty());
+    assert!(!out.exists());
+}
+
+#[test]
+fn existing_output_is_untouched_when_a_render_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.wav");
+    let before = b"precious bytes, not a WAV".to_vec();
+    std::fs::write(&out, &before).unwrap();
+    let run = run([
+        "render",
+        "--expr",
+        "(sinee (* t 440))",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_code(1);
+    assert_eq!(std::fs::read(&out).unwrap(), before);
+    assert_eq!(dir_entries(dir.path()), ["keep.wav"]);
+}
+
+#[test]
+fn a_failure_after_rendering_removes_the_partial_file() {
+    // The output path is a (non-empty) directory: the render completes into the
+    // temporary file, then the rename over the directory fails.
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("target.wav");
+    std::fs::create_dir(&target).unwrap();
+    std::fs::write(target.join("inside"), b"x").unwrap();
+    let run = run([
+        "render",
+        "--expr",
+        A440,
+        "--duration",
+        "0.1",
+        "-o",
+        target.to_str().unwrap(),
+    ]);
+    run.assert_code(1);
+    run.assert_stderr_has("error: cannot write");
+    assert!(partial_files(dir.path()).is_empty(), "partial file left");
+    assert_eq!(dir_entries(dir.path()), ["target.wav"]);
+    assert_eq!(dir_entries(&target), ["inside"]);
+}
+
+/// A spawned `timbre` that is killed if the test fails before it ends.
+struct Running(Option<std::process::Child>);
+
+impl Running {
+    fn child(&mut self) -> &mut std::process::Child {
+        self.0.as_mut().unwrap()
+    }
+
+    fn take(mut self) -> std::process::Child {
+        self.0.take().unwrap()
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        if let Some(child) = &mut self.0 {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn interrupted_render_exits_130_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("long.wav");
+    let before = b"previous render".to_vec();
+    std::fs::write(&out, &before).unwrap();
+    // An hour of a 60-mode bell: minutes of work, so it is surely still running.
+    let mut running = Running(Some(
+        command()
+            .args(["render".as_ref(), example("bell").as_os_str()])
+            .args(["--duration", "3600", "-o", out.to_str().unwrap()])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+    ));
+    // Wait until it writes (so the interrupt handler is installed).
+    let start = Instant::now();
+    while partial_files(dir.path()).is_empty() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "no partial file appeared"
+        );
+        if let Some(status) = running.child().try_wait().unwrap() {
+            panic!("render ended early: {status}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let pid = running.child().id().to_string();
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let output = running.take().wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "stderr: {stderr}");
+    assert!(
+        stderr.contains("interrupted: no output written"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), before);
+    assert_eq!(dir_entries(dir.path()), ["long.wav"]);
+}
+
+#[test]
+fn render_larger_than_a_wav_can_hold_is_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("huge.wav");
+    let mut running = Running(Some(
+        command()
+            .args(["render", "--expr", A440, "--duration", "30000", "-o"])
+            .arg(&out)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    ));
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = running.child().try_wait().unwrap() {
+            break Some(status);
+        }
+        if start.elapsed() > Duration::from_secs(5) {
+            break None; // `running` kills it when dropped
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let status = status.expect("still rendering a file that cannot be valid after 5 s");
+    assert_eq!(status.code(), Some(1));
+    assert!(!out.exists());
+    assert!(partial_files(dir.path()).is_empty());
+}
+
+// ------------------------------------------------------------ diagnostics and exit codes
+
+#[test]
+fn unknown_function_is_reported_with_a_suggestion() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let run = run([
+        "render",
+        "--expr",
+        "(sinee (* t 440))",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_code(1);
+    run.assert_stderr_has("unknown function `sinee`");
+    run.assert_stderr_has("did you mean `sine`?");
+    // It points into the source.
+    run.assert_stderr_has("<expr>:1:2");
+    assert!(run.stdout.is_empty());
+    assert!(!out.exists());
+}
+
+#[test]
+fn unbound_parameter_says_how_to_bind_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let run = run([
+        "render",
+        "--expr",
+        "(sine (* t pitch))",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_code(1);
+    run.assert_stderr_has("unbound parameter `pitch`");
+    run.assert_stderr_has("--set pitch=VALUE");
+    assert!(!out.exists());
+    // ...and binding it makes the same expression render, at that pitch.
+    let wav = render_wav(s(&[
+        "--expr",
+        "(sine (* t pitch))",
+        "--set",
+        "pitch=250",
+        "--duration",
+        "0.2",
+    ]));
+    let f = zero_crossing_frequency(&wav.samples, SR);
+    assert!((f - 250.0).abs() < 0.05, "--set pitch=250 gives {f} Hz");
+}
+
+#[test]
+fn unbalanced_parentheses_are_reported() {
+    for (expr, message, help) in [
+        (
+            "(sine (* t 440)",
+            "unclosed list",
+            "add a `)` to close this list",
+        ),
+        (
+            "(sine (* t 440)))",
+            "unexpected `)`",
+            "remove it, or add the `(` it closes",
+        ),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out.wav");
+        let run = run(["render", "--expr", expr, "-o", out.to_str().unwrap()]);
+        run.assert_code(1);
+        run.assert_stderr_has(message);
+        run.assert_stderr_has(help);
+        assert!(dir_entries(dir.path()).is_empty());
+    }
+}
+
+#[test]
+fn unbalanced_file_is_reported_at_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("broken.tt");
+    std::fs::write(&script, "; a comment\n(define f 3)\n(sine (* t f)\n").unwrap();
+    let run = run(["check".as_ref(), script.as_os_str()]);
+    run.assert_code(1);
+    run.assert_stderr_has("unclosed list");
+    run.assert_stderr_has("broken.tt:3:1");
+    assert!(!run.stdout.contains("ok"));
+}
+
+#[test]
+fn missing_sample_file_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("play.tt");
+    std::fs::write(&script, "(* 0.5 (sample \"missing-hit.wav\"))\n").unwrap();
+    let out = dir.path().join("out.wav");
+    let run = run([
+        "render".as_ref(),
+        script.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    run.assert_code(1);
+    run.assert_stderr_has("cannot read sound file `missing-hit.wav`");
+    run.assert_stderr_has("play.tt:1:16");
+    assert_eq!(dir_entries(dir.path()), ["play.tt"]);
+}
+
+#[test]
+fn missing_script_file_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let missing = dir.path().join("nope.tt");
+    let run = run([
+        "render".as_ref(),
+        missing.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    run.assert_code(1);
+    run.assert_stderr_has("error: cannot read");
+    run.assert_stderr_has("nope.tt");
+    assert!(dir_entries(dir.path()).is_empty());
+}
+
+#[test]
+fn bad_usage_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let o = out.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["render", "--expr", A440, "--set", "foo", "-o", o],
+            "expected NAME=VALUE, got `foo`",
+        ),
+        (
+            &["render", "--expr", A440, "--set", "foo=loud", "-o", o],
+            "`loud` is not a number",
+        ),
+        (
+            &["render", "--expr", A440, "--set", "=3", "-o", o],
+            "missing parameter name",
+        ),
+        (
+            &["render", "--expr", A440, "--sample-rate", "0", "-o", o],
+            "`0` is not a sample rate",
+        ),
+        (
+            &[
+                "render",
+                "--expr",
+                A440,
+                "--sample-rate",
+                "44100.5",
+                "-o",
+                o,
+            ],
+            "is not a sample rate",
+        ),
+        (
+            &["render", "--expr", A440, "--duration", "0", "-o", o],
+            "`0` must be greater than 0",
+        ),
+        (
+            &["render", "--expr", A440, "--duration", "inf", "-o", o],
+            "`inf` is not a finite number",
+        ),
+        (
+            &["render", "--expr", A440, "--gain", "NaN", "-o", o],
+            "`NaN` is not a finite number",
+        ),
+        (
+            &["render", "--expr", A440, "--format", "s8", "-o", o],
+            "invalid value 's8'",
+        ),
+        (
+            &["render", "--expr", A440, "--block-size", "0", "-o", o],
+            "--block-size",
+        ),
+        (&["render", "--expr", A440], "--output"),
+        (&["render", "-o", o], "required"),
+        (
+            &["render", "examples/bell.tt", "--expr", A440, "-o", o],
+            "cannot be used with",
+        ),
+        (&["play", "examples/bell.tt"], "unrecognized subcommand"),
+    ];
+    for (args, message) in cases {
+        let run = run(*args);
+        assert_eq!(
+            run.code,
+            Some(2),
+            "{args:?} should be a usage error:\n{}",
+            run.stderr
+        );
+        assert!(
+            run.stderr.contains(message),
+            "{args:?}: stderr lacks {message:?}:\n{}",
+            run.stderr
+        );
+        assert!(!out.exists(), "{args:?} wrote a file");
+    }
+}
+
+#[test]
+fn check_reports_ok_without_writing_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = run_in(
+        Some(dir.path()),
+        [
+            "check",
+            "--expr",
+            BEE,
+            "--set",
+            "nominal-freq=220",
+            "--set",
+            "LF-noise=3",
+            "--set",
+            "HF-noise=400",
+        ],
+    );
+    run.assert_success();
+    assert!(run.stdout.starts_with("ok: one sound"), "{}", run.stdout);
+    assert!(dir_entries(dir.path()).is_empty());
+
+    // The same expression with a parameter missing is an error, not "ok".
+    let run = run_in(
+        Some(dir.path()),
+        [
+            "check",
+            "--expr",
+            BEE,
+            "--set",
+            "nominal-freq=220",
+            "--set",
+            "LF-noise=3",
+        ],
+    );
+    run.assert_code(1);
+    run.assert_stderr_has("unbound parameter `HF-noise`");
+    assert!(run.stdout.is_empty(), "{}", run.stdout);
+}
+
+#[test]
+fn a_file_of_definitions_only_checks_but_does_not_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("lib.tt");
+    std::fs::write(
+        &script,
+        "(define base 220)\n(define tone (f) (sine (* t f)))\n",
+    )
+    .unwrap();
+    let run1 = run(["check".as_ref(), script.as_os_str()]);
+    run1.assert_success();
+    assert_eq!(run1.stdout.trim(), "ok: no sound, 2 definitions");
+
+    let out = dir.path().join("out.wav");
+    let run2 = run([
+        "render".as_ref(),
+        script.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    run2.assert_code(1);
+    run2.assert_stderr_has("nothing to render");
+    run2.assert_stderr_has("has no sound expression");
+    assert_eq!(dir_entries(dir.path()), ["lib.tt"]);
+}
+
+#[test]
+fn unused_set_is_warned_about_but_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let run1 = run([
+        "render",
+        "--expr",
+        "(sine (* t pitch))",
+        "--set",
+        "pitch=300",
+        "--set",
+        "pitchh=301",
+        "--duration",
+        "0.1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run1.assert_success();
+    run1.assert_stderr_has("warning: `--set pitchh=…` is not used by any expression");
+    assert!(
+        !run1.stderr.contains("`--set pitch=…`"),
+        "the used binding is not warned about:\n{}",
+        run1.stderr
+    );
+    let f = zero_crossing_frequency(&read_wav(&out).samples, SR);
+    assert!((f - 300.0).abs() < 0.1, "{f}");
+
+    // An example's own parameter is "used": no warning.
+    let run2 = run([
+        "check".as_ref(),
+        example("bee").as_os_str(),
+        "--set".as_ref(),
+        "nominal-freq=600".as_ref(),
+    ]);
+    run2.assert_success();
+    assert!(!run2.stderr.contains("warning"), "{}", run2.stderr);
+}
+
+#[test]
+fn quiet_prints_nothing_on_success() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.wav");
+    let run = run([
+        "render",
+        "--expr",
+        A440,
+        "--duration",
+        "0.1",
+        "-q",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_success();
+    assert!(run.stderr.is_empty(), "{}", run.stderr);
+    assert!(run.stdout.is_empty(), "{}", run.stdout);
+    assert_eq!(read_wav(&out).samples.len(), 4800);
+}
+
+// ------------------------------------------------------------ help
+
+/// Splits a shell-like command line (single quotes only).
+fn shell_words(line: &str) -> Vec<String> {
+    let mut words = vec![];
+    let mut word = String::new();
+    let mut quoted = false;
+    let mut any = false;
+    for c in line.chars() {
+        match c {
+            '\'' => {
+                quoted = !quoted;
+                any = true;
+            }
+            c if c.is_whitespace() && !quoted => {
+                if any {
+                    words.push(std::mem::take(&mut word));
+                    any = false;
+                }
+            }
+            c => {
+                word.push(c);
+                any = true;
+            }
+        }
+    }
+    if any {
+        words.push(word);
+    }
+    words
+}
+
+#[test]
+fn render_help_shows_examples_that_work() {
+    let run = run(["render", "--help"]);
+    run.assert_success();
+    let examples: Vec<&str> = run
+        .stdout
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.starts_with("timbre render "))
+        .collect();
+    assert!(
+        !examples.is_empty(),
+        "render --help shows no example:\n{}",
+        run.stdout
+    );
+    assert!(run.stdout.contains("examples/bell.tt"));
+    // Each example command line runs (from the workspace root), output redirected.
+    let dir = tempfile::tempdir().unwrap();
+    for (i, line) in examples.iter().enumerate() {
+        let mut words = shell_words(line);
+        assert_eq!(&words[..2], ["timbre", "render"]);
+        let o = words
+            .iter()
+            .position(|w| w == "-o")
+            .unwrap_or_else(|| panic!("example without -o: {line}"));
+        let out = dir.path().join(format!("{i}.wav"));
+        words[o + 1] = out.to_str().unwrap().to_owned();
+        // Short renders: replace the example's duration, or add one.
+        match words.iter().position(|w| w == "--duration" || w == "-d") {
+            Some(d) => words[d + 1] = "0.1".into(),
+            None => words.extend(["--duration".into(), "0.1".into()]),
+        }
+        let r = run_in(None, &words[1..]);
+        assert_eq!(
+            r.code,
+            Some(0),
+            "help example `{line}` fails:\n{}",
+            r.stderr
+        );
+        assert_eq!(read_wav(&out).samples.len(), 4800, "{line}");
+    }
+}
+
+#[test]
+fn check_help_shows_an_example() {
+    let run = run(["check", "--help"]);
+    run.assert_success();
+    assert!(
+        run.stdout.contains("timbre check examples/"),
+        "{}",
+        run.stdout
+    );
+}
+
+#[test]
+fn top_level_help_mentions_an_example() {
+    let run = run(["--help"]);
+    run.assert_success();
+    assert!(
+        run.stdout.contains("timbre render ") && run.stdout.contains(".tt"),
+        "timbre --help shows no example:\n{}",
+        run.stdout
+    );
+}
+
+#[test]
+fn version_is_printed() {
+    let run = run(["--version"]);
+    run.assert_success();
+    assert_eq!(
+        run.stdout.trim(),
+        format!("timbre {}", env!("CARGO_PKG_VERSION"))
+    );
+}
