@@ -121,10 +121,7 @@ fn parse_binding(text: &str) -> Result<(String, f64), String> {
     let (name, value) = text
         .split_once('=')
         .ok_or_else(|| format!("expected NAME=VALUE, got `{text}`"))?;
-    let value: f64 = value
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{value}` is not a number (in `{text}`)"))?;
+    let value = parse_finite(value.trim()).map_err(|e| format!("{e} (in `{text}`)"))?;
     if name.trim().is_empty() {
         return Err(format!("missing parameter name in `{text}`"));
     }
@@ -220,7 +217,13 @@ fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
 fn check(args: SourceArgs) -> Result<(), Failure> {
     let program = compile_source(&args)?;
     let what = match program.root {
-        Some(root) => format!("one sound of {} nodes", program.graph.schedule(root).len()),
+        Some(root) => {
+            let nodes = program.graph.schedule(root).len();
+            format!(
+                "one sound of {nodes} node{}",
+                if nodes == 1 { "" } else { "s" }
+            )
+        }
         None => "no sound".to_owned(),
     };
     println!(

@@ -801,7 +801,7 @@ fn bad_usage_exits_2() {
         ),
         (
             &["render", "--expr", A440, "--set", "foo=loud", "-o", o],
-            "`loud` is not a number",
+            "`loud` is not a finite number",
         ),
         (
             &["render", "--expr", A440, "--set", "=3", "-o", o],
@@ -834,6 +834,10 @@ fn bad_usage_exits_2() {
         (
             &["render", "--expr", A440, "--gain", "NaN", "-o", o],
             "`NaN` is not a finite number",
+        ),
+        (
+            &["render", "--expr", A440, "--set", "f=nan", "-o", o],
+            "`nan` is not a finite number",
         ),
         (
             &["render", "--expr", A440, "--format", "s8", "-o", o],

@@ -307,12 +307,14 @@ impl Interpreter {
                         o[k] = filter.process(coeffs, x[k]);
                     }
                 }
-                (Op::Delay { .. }, State::Delay(lines)) => {
+                (Op::Delay { max_seconds }, State::Delay(lines)) => {
                     let (x, time) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
                     let line = &mut lines[lane];
+                    // Never longer than the stated maximum.
+                    let max = max_seconds * sr;
                     for k in 0..n {
                         line.push(x[k]);
-                        o[k] = line.read(time[k] * sr);
+                        o[k] = line.read((time[k] * sr).min(max));
                     }
                 }
                 (Op::Conv(_), State::Conv(convolvers)) => {
@@ -425,7 +427,7 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
             w
         ]),
         Op::Delay { max_seconds } => {
-            let max = (max_seconds * sr).ceil() as usize + 1;
+            let max = (max_seconds * sr).ceil() as usize;
             State::Delay((0..w).map(|_| DelayLine::new(max)).collect())
         }
         Op::Conv(response) => {

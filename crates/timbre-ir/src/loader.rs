@@ -23,6 +23,8 @@ impl Loader for FsLoader {
             _ => path.to_path_buf(),
         };
         let bytes = std::fs::read(&resolved)?;
+        // One name per file, so that `lib/../lib/a.tt` and `lib/a.tt` are one include.
+        let resolved = std::fs::canonicalize(&resolved).unwrap_or(resolved);
         Ok((resolved, bytes))
     }
 }

@@ -105,6 +105,8 @@ struct Definition {
     body: Expr,
     name_span: Span,
     source: Arc<SourceFile>,
+    /// Directory of the defining file: paths in the body are relative to it.
+    dir: Option<PathBuf>,
 }
 
 /// Where an expression comes from, for diagnostics and relative paths.
@@ -241,6 +243,14 @@ impl<'a> Lowerer<'a> {
                             .label(p.span, "repeated here")
                             .help("give each parameter its own name"));
                         }
+                        Some(n) if is_reserved(n) => {
+                            return Err(err(
+                                "timbre::reserved-name",
+                                format!("`{n}` is reserved and cannot name a parameter"),
+                            )
+                            .label(p.span, "reserved name")
+                            .help("choose another parameter name"));
+                        }
                         Some(n) => names.push((n.to_owned(), p.span)),
                         None => {
                             return Err(err(
@@ -271,7 +281,7 @@ impl<'a> Lowerer<'a> {
                 .help(shape_help))
             }
         };
-        if is_builtin(name) || is_reserved(name) {
+        if is_builtin(name) || is_reserved(name) || self.options.registry.get(name).is_some() {
             return Err(err(
                 "timbre::redefine-builtin",
                 format!("`{name}` is a built-in name"),
@@ -297,6 +307,7 @@ impl<'a> Lowerer<'a> {
                 body: body.clone(),
                 name_span: name_expr.span,
                 source: origin.source.clone(),
+                dir: origin.dir.clone(),
             },
         );
         self.definition_order.push(name.to_owned());
@@ -341,13 +352,24 @@ impl<'a> Lowerer<'a> {
                 .help("paths are relative to the file that includes them")
                 .in_source(&origin.source)
             })?;
-        if self.include_stack.contains(&resolved) {
-            return Err(
-                Diag::new("timbre::include-cycle", format!("`{path}` includes itself"))
-                    .label(path_expr.span, "this include closes a cycle")
-                    .help("remove one of the includes in the cycle")
-                    .in_source(&origin.source),
-            );
+        if let Some(first) = self.include_stack.iter().position(|p| *p == resolved) {
+            let chain: Vec<String> = self.include_stack[first..]
+                .iter()
+                .chain([&resolved])
+                .map(|p| {
+                    p.file_name().map_or_else(
+                        || p.display().to_string(),
+                        |n| n.to_string_lossy().into_owned(),
+                    )
+                })
+                .collect();
+            return Err(Diag::new(
+                "timbre::include-cycle",
+                format!("includes form a cycle: {}", chain.join(" → ")),
+            )
+            .label(path_expr.span, "this include closes a cycle")
+            .help("remove one of the includes in the cycle")
+            .in_source(&origin.source));
         }
         if !self.included.insert(resolved.clone()) {
             return Ok(()); // already read through another include
@@ -758,6 +780,18 @@ impl<'a> Lowerer<'a> {
                         .help(shape));
                 }
             };
+            let bound_name = name.as_symbol().unwrap_or_default();
+            if is_reserved(bound_name) {
+                scope.truncate(mark);
+                return Err(self
+                    .diag(
+                        "timbre::reserved-name",
+                        format!("`{bound_name}` is reserved and cannot be bound by `let`"),
+                        origin,
+                    )
+                    .label(name.span, "reserved name")
+                    .help("choose another name"));
+            }
             let node = match self.lower(value, origin, scope) {
                 Ok(node) => node,
                 Err(e) => {
@@ -817,7 +851,7 @@ impl<'a> Lowerer<'a> {
             .collect();
         let def_origin = Origin {
             source: def.source.clone(),
-            dir: origin.dir.clone(),
+            dir: def.dir.clone(),
         };
         self.expanding.push(name.to_owned());
         let result = self.lower(&def.body, &def_origin, &mut scope);
@@ -891,6 +925,10 @@ impl<'a> Lowerer<'a> {
                 self.check_widths(call, &all, origin)?;
                 self.graph.add(Op::Ternary(op), nodes)
             }
+            B::Fold(op @ (BinaryOp::And | BinaryOp::Or)) if nodes.len() == 1 => {
+                // One argument: its truth value, (and x x).
+                self.graph.add(Op::Binary(op), vec![nodes[0], nodes[0]])
+            }
             B::Fold(op) => {
                 self.check_widths(call, &all, origin)?;
                 let mut acc = nodes[0];
@@ -941,7 +979,22 @@ impl<'a> Lowerer<'a> {
             }
             B::Rvector => {
                 let n = self.const_count(&all[0], "the number of lanes", origin)?;
-                self.check_widths(call, &all[1..], origin)?;
+                let bounds_width = self.check_widths(call, &all[1..], origin)?;
+                if bounds_width != 1 && bounds_width != n {
+                    let wide = all[1..]
+                        .iter()
+                        .find(|a| self.graph.width(a.node) != 1)
+                        .unwrap_or(&all[1]);
+                    return Err(self
+                        .diag(
+                            "timbre::width-mismatch",
+                            format!("`rvector` of {n} lanes with bounds of {bounds_width} lanes"),
+                            origin,
+                        )
+                        .label(wide.span, format!("{bounds_width} lanes"))
+                        .label(all[0].span, format!("{n} lanes"))
+                        .help("the bounds must be one lane, or one per lane of the vector"));
+                }
                 let seed = self.random_seed("rvector", seed_key, &nodes);
                 let unit: Vec<f64> = (0..n as u64)
                     .map(|i| (hash2(seed, i) >> 11) as f64 * (1.0 / (1u64 << 53) as f64))
@@ -1055,6 +1108,7 @@ impl<'a> Lowerer<'a> {
         };
         let args = self.bind_args(&sub, params, false, origin, scope)?;
         let all: Vec<Arg> = args.args.into_iter().flatten().collect();
+        self.check_one_lane(&all[0], "the playback rate", origin)?;
         let start_seconds = self.const_number(&all[1], "the start time", origin)?;
         let looping = self.const_number(&all[2], "the loop flag", origin)? != 0.0;
         let data = self.load_wav(&path, path_span, origin)?;

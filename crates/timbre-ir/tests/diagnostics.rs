@@ -8,49 +8,49 @@ mod common;
 const CASES: &[(&str, &str, &str, &str)] = &[
     (
         "(sine (* t 440)",
-        "timbre::syntax::unclosed_list",
+        "timbre::syntax::unclosed-list",
         "unclosed list",
         "(",
     ),
     (
         "(sine t))",
-        "timbre::syntax::unexpected_close",
+        "timbre::syntax::unexpected-close",
         "unexpected `)`",
         ")",
     ),
     (
         "(sine 1.2.3)",
-        "timbre::syntax::bad_number",
+        "timbre::syntax::bad-number",
         "malformed number `1.2.3`",
         "1.2.3",
     ),
     (
         "(sine 3abc)",
-        "timbre::syntax::bad_number",
+        "timbre::syntax::bad-number",
         "malformed number `3abc`",
         "3abc",
     ),
     (
         "\"abc",
-        "timbre::syntax::unterminated_string",
+        "timbre::syntax::unterminated-string",
         "unterminated string",
         "\"",
     ),
     (
         "(sample \"a\\qb.wav\")",
-        "timbre::syntax::bad_escape",
+        "timbre::syntax::bad-escape",
         "unknown escape `\\q` in string",
         "\\q",
     ),
     (
         "(sine #t)",
-        "timbre::syntax::unexpected_char",
+        "timbre::syntax::unexpected-char",
         "unexpected character `#`",
         "#",
     ),
     (
         "(white :)",
-        "timbre::syntax::empty_keyword",
+        "timbre::syntax::empty-keyword",
         "missing keyword name after `:`",
         ":",
     ),
@@ -237,7 +237,7 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ),
     (
         "(sine 1e400)",
-        "timbre::syntax::number_too_large",
+        "timbre::syntax::number-too-large",
         "number `1e400` is too large",
         "1e400",
     ),
@@ -252,6 +252,36 @@ const CASES: &[(&str, &str, &str, &str)] = &[
         "timbre::unknown-keyword",
         "`f` has no argument `:c`",
         ":c",
+    ),
+    (
+        "(rvector 3 (vector 1 2) 5)",
+        "timbre::width-mismatch",
+        "`rvector` of 3 lanes with bounds of 2 lanes",
+        "(vector 1 2)",
+    ),
+    (
+        "(rvector 3 (* t (vector 1 2)) 5)",
+        "timbre::width-mismatch",
+        "`rvector` of 3 lanes with bounds of 2 lanes",
+        "(* t (vector 1 2))",
+    ),
+    (
+        "(sample \"x.wav\" :rate (vector 1 2))",
+        "timbre::width-mismatch",
+        "the playback rate must be one lane, not 2",
+        "(vector 1 2)",
+    ),
+    (
+        "(define f (t) t) (f 1)",
+        "timbre::reserved-name",
+        "`t` is reserved and cannot name a parameter",
+        "t",
+    ),
+    (
+        "(let ((pi 3)) pi)",
+        "timbre::reserved-name",
+        "`pi` is reserved and cannot be bound by `let`",
+        "pi",
     ),
 ];
 
@@ -310,7 +340,7 @@ fn one_bad_form_does_not_hide_the_next() {
     assert_eq!(
         codes,
         [
-            "timbre::syntax::unexpected_close",
+            "timbre::syntax::unexpected-close",
             "timbre::unknown-function"
         ]
     );
@@ -322,7 +352,7 @@ fn nesting_too_deep_is_an_error_not_a_crash() {
         let source = format!("{}t{}", "(sine ".repeat(depth), ")".repeat(depth));
         let diags = common::compile_with(&source, &[], 0).unwrap_err();
         assert!(
-            diags.0.iter().any(|d| d.code == "timbre::syntax::too_deep"),
+            diags.0.iter().any(|d| d.code == "timbre::syntax::too-deep"),
             "{:?}",
             diags.0[0]
         );

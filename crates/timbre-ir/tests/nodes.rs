@@ -71,6 +71,8 @@ fn comparisons_logic_and_if() {
         ("(and 1 0)", 0.0),
         ("(or 1 0)", 1.0),
         ("(not 0)", 1.0),
+        ("(and 5)", 1.0),
+        ("(or 0)", 0.0),
         ("(if 1 10 20)", 10.0),
         ("(if 0 10 20)", 20.0),
     ];
@@ -300,6 +302,13 @@ fn delay_shifts_by_whole_and_fractional_samples() {
     for k in 480..wet.len() {
         assert!(approx(wet[k], dry[k - 480], 1e-12));
     }
+    // A delay time beyond the stated maximum is held at the maximum (0.002 s = 96 samples).
+    let x = render(
+        "(delay (if (= (floor (+ 0.5 (* t 48000))) 0) 1 0) 0.005 0.002)",
+        &[],
+        0.01,
+    );
+    assert_eq!(x.iter().position(|v| *v == 1.0), Some(96));
     // A delay growing at 1 ms per second lowers the pitch by 0.1 % (Doppler).
     let x = render(
         "(delay (sine (* t 1000)) (+ 0.01 (* 0.001 t)) 0.02)",
@@ -487,6 +496,19 @@ fn include_reads_definitions_relative_to_the_including_file() {
     )
     .unwrap_err();
     assert_eq!(err.0[0].code, "timbre::include-cycle");
+    assert_eq!(err.0[0].message, "includes form a cycle: c.tt → c.tt");
+    // The same file reached by two spellings of its path is read once.
+    let x = render_file(
+        "(include \"lib/b.tt\") (include \"lib/../lib/b.tt\") (one 0.5)",
+        &dir,
+        0.001,
+    );
+    assert_eq!(x[0], 0.5);
+    // Paths inside an included definition are relative to the file that defines it.
+    write_wav(&dir.join("lib/hit.wav"), 48_000, &[0.25, 0.5]);
+    std::fs::write(dir.join("lib/hits.tt"), "(define hit (sample \"hit.wav\"))").unwrap();
+    let x = render_file("(include \"lib/hits.tt\") (hit)", &dir, 0.001);
+    assert_eq!(&x[..3], &[0.25, 0.5, 0.0]);
     assert_eq!(
         err.0[0].source.as_ref().unwrap().name,
         dir.join("lib/c.tt").display().to_string()

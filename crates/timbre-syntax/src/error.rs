@@ -17,7 +17,7 @@ pub enum SyntaxError {
     /// A `(` with no matching `)` before the end of the input.
     #[error("unclosed list")]
     #[diagnostic(
-        code(timbre::syntax::unclosed_list),
+        code("timbre::syntax::unclosed-list"),
         help("add a `)` to close this list")
     )]
     UnclosedList {
@@ -28,7 +28,7 @@ pub enum SyntaxError {
     /// A `)` that closes nothing.
     #[error("unexpected `)`")]
     #[diagnostic(
-        code(timbre::syntax::unexpected_close),
+        code("timbre::syntax::unexpected-close"),
         help("remove it, or add the `(` it closes")
     )]
     UnexpectedClose {
@@ -39,7 +39,7 @@ pub enum SyntaxError {
     /// Something that starts like a number but is not one: `1.2.3`, `3abc`, `1e`.
     #[error("malformed number `{text}`")]
     #[diagnostic(
-        code(timbre::syntax::bad_number),
+        code("timbre::syntax::bad-number"),
         help("numbers look like 440, -3.5, .5 or 1e-3")
     )]
     BadNumber {
@@ -51,7 +51,7 @@ pub enum SyntaxError {
     /// A well-formed number too large for an `f64` (`1e999`).
     #[error("number `{text}` is too large")]
     #[diagnostic(
-        code(timbre::syntax::number_too_large),
+        code("timbre::syntax::number-too-large"),
         help("numbers must lie between about -1.8e308 and 1.8e308")
     )]
     NumberTooLarge {
@@ -63,7 +63,7 @@ pub enum SyntaxError {
     /// A `"` whose string runs to the end of the input.
     #[error("unterminated string")]
     #[diagnostic(
-        code(timbre::syntax::unterminated_string),
+        code("timbre::syntax::unterminated-string"),
         help("add a `\"` to close the string (a quote inside a string is written `\\\"`)")
     )]
     UnterminatedString {
@@ -74,7 +74,7 @@ pub enum SyntaxError {
     /// A backslash in a string followed by something that is not a known escape.
     #[error("unknown escape `{escape}` in string")]
     #[diagnostic(
-        code(timbre::syntax::bad_escape),
+        code("timbre::syntax::bad-escape"),
         help("the escapes are \\\" \\\\ \\n \\t \\r \\0 and \\u{{hex}}")
     )]
     BadEscape {
@@ -86,7 +86,7 @@ pub enum SyntaxError {
     /// A `:` with no keyword name after it.
     #[error("missing keyword name after `:`")]
     #[diagnostic(
-        code(timbre::syntax::empty_keyword),
+        code("timbre::syntax::empty-keyword"),
         help("a keyword is a name after a colon, like `:seed`")
     )]
     EmptyKeyword {
@@ -97,7 +97,7 @@ pub enum SyntaxError {
     /// A character that cannot start any token (`,`, `#`, `[` …).
     #[error("unexpected character `{}`", .ch.escape_debug())]
     #[diagnostic(
-        code(timbre::syntax::unexpected_char),
+        code("timbre::syntax::unexpected-char"),
         help(
             "names use letters, digits and - _ ? ! * / < > = + . % & ^ ~, and `;` starts a comment"
         )
@@ -112,7 +112,7 @@ pub enum SyntaxError {
     /// matching `)` is skipped.
     #[error("lists nested too deeply")]
     #[diagnostic(
-        code(timbre::syntax::too_deep),
+        code("timbre::syntax::too-deep"),
         help(
             "lists may be nested at most {} deep; split the expression into smaller definitions",
             MAX_DEPTH

@@ -32,83 +32,83 @@ const fn case(
 }
 
 const CASES: &[Case] = &[
-    case("(a b", "unclosed_list", "unclosed list", (0, 1)),
-    case("((a)", "unclosed_list", "unclosed list", (0, 1)),
-    case("(a) (b (c)", "unclosed_list", "unclosed list", (4, 5)),
-    case(")", "unexpected_close", "unexpected `)`", (0, 1)),
-    case("(a))", "unexpected_close", "unexpected `)`", (3, 4)),
-    case("1.2.3", "bad_number", "malformed number `1.2.3`", (0, 5)),
-    case("(f 3abc)", "bad_number", "malformed number `3abc`", (3, 7)),
-    case("1e", "bad_number", "malformed number `1e`", (0, 2)),
-    case("(* 1e+ x)", "bad_number", "malformed number `1e+`", (3, 6)),
-    case("0x10", "bad_number", "malformed number `0x10`", (0, 4)),
-    case("-3db", "bad_number", "malformed number `-3db`", (0, 4)),
-    case(".5.", "bad_number", "malformed number `.5.`", (0, 3)),
+    case("(a b", "unclosed-list", "unclosed list", (0, 1)),
+    case("((a)", "unclosed-list", "unclosed list", (0, 1)),
+    case("(a) (b (c)", "unclosed-list", "unclosed list", (4, 5)),
+    case(")", "unexpected-close", "unexpected `)`", (0, 1)),
+    case("(a))", "unexpected-close", "unexpected `)`", (3, 4)),
+    case("1.2.3", "bad-number", "malformed number `1.2.3`", (0, 5)),
+    case("(f 3abc)", "bad-number", "malformed number `3abc`", (3, 7)),
+    case("1e", "bad-number", "malformed number `1e`", (0, 2)),
+    case("(* 1e+ x)", "bad-number", "malformed number `1e+`", (3, 6)),
+    case("0x10", "bad-number", "malformed number `0x10`", (0, 4)),
+    case("-3db", "bad-number", "malformed number `-3db`", (0, 4)),
+    case(".5.", "bad-number", "malformed number `.5.`", (0, 3)),
     case(
         "1e999",
-        "number_too_large",
+        "number-too-large",
         "number `1e999` is too large",
         (0, 5),
     ),
     case(
         "load \"bell.wav)",
-        "unterminated_string",
+        "unterminated-string",
         "unterminated string",
         (5, 6),
     ),
     case(
         r#""ends in escaped quote\""#,
-        "unterminated_string",
+        "unterminated-string",
         "unterminated string",
         (0, 1),
     ),
     case(
         r#"(f "a\qb")"#,
-        "bad_escape",
+        "bad-escape",
         r"unknown escape `\q` in string",
         (5, 7),
     ),
     case(
         r#""\u{zz}""#,
-        "bad_escape",
+        "bad-escape",
         r"unknown escape `\u{` in string",
         (1, 4),
     ),
     case(
         r#""\u{110000}""#,
-        "bad_escape",
+        "bad-escape",
         r"unknown escape `\u{110000}` in string",
         (1, 11),
     ),
     case(
         ":",
-        "empty_keyword",
+        "empty-keyword",
         "missing keyword name after `:`",
         (0, 1),
     ),
     case(
         "(noise : 3)",
-        "empty_keyword",
+        "empty-keyword",
         "missing keyword name after `:`",
         (7, 8),
     ),
     case(
         "(a, b)",
-        "unexpected_char",
+        "unexpected-char",
         "unexpected character `,`",
         (2, 3),
     ),
-    case("[a", "unexpected_char", "unexpected character `[`", (0, 1)),
-    case("#t", "unexpected_char", "unexpected character `#`", (0, 1)),
+    case("[a", "unexpected-char", "unexpected character `[`", (0, 1)),
+    case("#t", "unexpected-char", "unexpected character `#`", (0, 1)),
     case(
         "(sine ω)",
-        "unexpected_char",
+        "unexpected-char",
         "unexpected character `ω`",
         (6, 8),
     ),
     case(
         "a\u{7}",
-        "unexpected_char",
+        "unexpected-char",
         r"unexpected character `\u{7}`",
         (1, 2),
     ),
@@ -178,8 +178,8 @@ fn recovery_after_a_stray_close_and_an_unclosed_list() {
     expect![[r#"
         List @0..3
           Symbol "a" @1..2
-        error @3..4 unexpected_close: unexpected `)`
-        error @5..6 unclosed_list: unclosed list
+        error @3..4 unexpected-close: unexpected `)`
+        error @5..6 unclosed-list: unclosed list
     "#]]
     .assert_eq(&render("(a)) (b"));
 }
@@ -196,9 +196,9 @@ fn recovery_keeps_later_forms_and_reports_every_error() {
           Str "a\\qb" @17..23
         List @25..28
           Symbol "h" @26..27
-        error @3..8 bad_number: malformed number `1.2.3`
-        error @12..13 unexpected_char: unexpected character `,`
-        error @19..21 bad_escape: unknown escape `\q` in string
+        error @3..8 bad-number: malformed number `1.2.3`
+        error @12..13 unexpected-char: unexpected character `,`
+        error @19..21 bad-escape: unknown escape `\q` in string
     "#]]
     .assert_eq(&render(r#"(f 1.2.3 x) , (g "a\qb") (h)"#));
 }
@@ -207,21 +207,21 @@ fn recovery_keeps_later_forms_and_reports_every_error() {
 fn recovery_reports_each_unclosed_and_stray_paren() {
     // The unterminated string swallows the `)`, so the list is unclosed too.
     expect![[r#"
-        error @0..1 unclosed_list: unclosed list
-        error @6..7 unterminated_string: unterminated string
+        error @0..1 unclosed-list: unclosed list
+        error @6..7 unterminated-string: unterminated string
     "#]]
     .assert_eq(&render("(load \"bell.wav)"));
     expect![[r#"
-        error @0..1 unclosed_list: unclosed list
-        error @7..8 unclosed_list: unclosed list
+        error @0..1 unclosed-list: unclosed list
+        error @7..8 unclosed-list: unclosed list
     "#]]
     .assert_eq(&render("(a (b) (c"));
     expect![[r#"
         List @2..8
           Symbol "ok" @3..5
           Number 1.0 @6..7
-        error @0..1 unexpected_close: unexpected `)`
-        error @9..10 unexpected_close: unexpected `)`
+        error @0..1 unexpected-close: unexpected `)`
+        error @9..10 unexpected-close: unexpected `)`
     "#]]
     .assert_eq(&render(") (ok 1) )"));
 }
@@ -267,7 +267,7 @@ fn one_level_too_deep_is_one_error_at_the_crossing_paren() {
             span: Span::new(MAX_DEPTH, MAX_DEPTH + 1)
         }]
     );
-    expect!["error @256..257 too_deep: lists nested too deeply"]
+    expect!["error @256..257 too-deep: lists nested too deeply"]
         .assert_eq(&render_error(&parse.errors[0]));
     // The too-deep list is left out; the lists around it and later forms stay.
     assert_eq!(parse.exprs.len(), 2);
