@@ -43,11 +43,13 @@ pub fn compile(workload: &Workload) -> Program {
     compile_str(&workload.source, &options).expect("benchmark trees compile")
 }
 
-/// A voice of the workload ready to render at 48 kHz in blocks of 64.
+/// 48 kHz in blocks of 64.
+pub const CONFIG: RenderConfig = RenderConfig {
+    sample_rate: 48_000.0,
+    block_size: 64,
+};
+
+/// A voice of the workload for the reference interpreter.
 pub fn interpreter(program: &Program) -> Interpreter {
-    let config = RenderConfig {
-        sample_rate: 48_000.0,
-        block_size: 64,
-    };
-    Interpreter::new(&program.graph, program.root.expect("a sound"), config)
+    Interpreter::new(&program.graph, program.root.expect("a sound"), CONFIG)
 }

@@ -102,9 +102,21 @@ struct RenderArgs {
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
     block_size: u32,
 
+    /// Which engine renders: the compiled one, or the reference interpreter.
+    #[arg(long, value_enum, default_value_t = Engine::Jit)]
+    engine: Engine,
+
     /// Print nothing but errors.
     #[arg(long, short = 'q')]
     quiet: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Engine {
+    /// Native code compiled with cranelift (the default).
+    Jit,
+    /// The reference interpreter: the semantics in their simplest form.
+    Interp,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -172,6 +184,21 @@ fn main() -> ExitCode {
         Err(Failure::Interrupted) => {
             eprintln!("interrupted: no output written");
             ExitCode::from(130)
+        }
+    }
+}
+
+/// A sound being rendered by one of the engines.
+enum Voice {
+    Interp(timbre_ir::Interpreter),
+    Jit(timbre_jit::JitVoice),
+}
+
+impl Voice {
+    fn render(&mut self, out: &mut [f64]) {
+        match self {
+            Voice::Interp(voice) => voice.render(out),
+            Voice::Jit(voice) => voice.render(out),
         }
     }
 }
@@ -277,7 +304,14 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         sample_rate,
         block_size: args.block_size as usize,
     };
-    let mut voice = timbre_ir::Interpreter::new(&program.graph, root, config);
+    let mut voice = match args.engine {
+        Engine::Interp => Voice::Interp(timbre_ir::Interpreter::new(&program.graph, root, config)),
+        Engine::Jit => {
+            let compiled =
+                timbre_jit::Jit::new().and_then(|mut jit| jit.voice(&program.graph, root, config));
+            Voice::Jit(compiled.map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?)
+        }
+    };
     let job = WavJob {
         path: &args.output,
         sample_rate: sample_rate as u32,

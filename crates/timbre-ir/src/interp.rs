@@ -39,13 +39,15 @@ impl Default for RenderConfig {
     }
 }
 
-struct Step {
-    op: Op,
+/// One scheduled node, as a compiled engine sees it.
+#[derive(Debug)]
+pub struct Step {
+    pub op: Op,
     /// Step indices of the arguments.
-    args: Vec<usize>,
-    width: usize,
+    pub args: Vec<usize>,
+    pub width: usize,
     /// Constants are filled once and never recomputed.
-    constant: bool,
+    pub constant: bool,
 }
 
 /// An instance of a tree being rendered: its buffers, states and position.
@@ -74,6 +76,7 @@ enum State {
         positions: Vec<f64>,
     },
     Adsr(Vec<Adsr>),
+    DampedSine(Vec<Rotator>),
     Custom(Box<dyn Any + Send>),
 }
 
@@ -135,25 +138,56 @@ impl Interpreter {
     pub fn render(&mut self, out: &mut [f64]) {
         for chunk in out.chunks_mut(self.config.block_size) {
             self.render_block(chunk.len());
-            let root = self.buffers.len() - 1;
-            chunk.copy_from_slice(&self.buffers[root][..chunk.len()]);
+            chunk.copy_from_slice(self.root_output(chunk.len()));
         }
     }
 
     /// Renders `n ≤ block_size` samples into the node buffers.
     fn render_block(&mut self, n: usize) {
         for i in 0..self.steps.len() {
-            if self.steps[i].constant {
-                continue;
+            if !self.steps[i].constant {
+                self.eval_step(i, n);
             }
-            // Take the output buffer out so the children's buffers can be borrowed.
-            let mut out = std::mem::take(&mut self.buffers[i]);
-            let mut state = std::mem::replace(&mut self.states[i], State::None);
-            self.eval(i, n, &mut out, &mut state);
-            self.buffers[i] = out;
-            self.states[i] = state;
         }
         self.position += n as u64;
+    }
+
+    // ------------------------------------------------------------------------
+    // Support for compiled engines. An engine may compute some steps itself
+    // (writing their buffers through `buffer_pointers`) and have the interpreter
+    // compute the others with `eval_step`, so every node has one definition.
+
+    /// The schedule: step `i`'s arguments are earlier steps; the last step is the root.
+    pub fn steps(&self) -> &[Step] {
+        &self.steps
+    }
+
+    /// Where each step's buffer starts: `width × block_size` samples, lane after lane.
+    /// The pointers stay valid for the interpreter's lifetime (buffers never move).
+    pub fn buffer_pointers(&mut self) -> Vec<*mut f64> {
+        self.buffers.iter_mut().map(|b| b.as_mut_ptr()).collect()
+    }
+
+    /// Computes the next `n ≤ block_size` samples of step `i` from its arguments'
+    /// buffers. The caller ends the block with [`Interpreter::advance`].
+    pub fn eval_step(&mut self, i: usize, n: usize) {
+        // Take the output buffer out so the children's buffers can be borrowed; the
+        // heap allocation itself does not move.
+        let mut out = std::mem::take(&mut self.buffers[i]);
+        let mut state = std::mem::replace(&mut self.states[i], State::None);
+        self.eval(i, n, &mut out, &mut state);
+        self.buffers[i] = out;
+        self.states[i] = state;
+    }
+
+    /// Ends a block of `n` samples computed step by step.
+    pub fn advance(&mut self, n: usize) {
+        self.position += n as u64;
+    }
+
+    /// The root's first `n` samples of the current block.
+    pub fn root_output(&self, n: usize) -> &[f64] {
+        &self.buffers[self.buffers.len() - 1][..n]
     }
 
     /// Lane `lane` of argument `arg` of step `i`, broadcasting one-lane arguments.
@@ -332,6 +366,19 @@ impl Interpreter {
                         }
                     }
                 }
+                (Op::DampedSine, State::DampedSine(rotators)) => {
+                    // All lanes at once; the arguments are constants, so the first
+                    // sample of each lane is its value.
+                    let freq = |l: usize| self.arg(i, 0, l, 1)[0];
+                    let damping = |l: usize| self.arg(i, 1, l, 1)[0];
+                    let block = BlockOut {
+                        samples: out,
+                        stride: bs,
+                        n,
+                    };
+                    render_rotators(rotators, &freq, &damping, n0, sr, block);
+                    return;
+                }
                 (Op::Adsr, State::Adsr(lanes)) => {
                     let args: [&[f64]; 5] = std::array::from_fn(|a| self.arg(i, a, lane, n));
                     let adsr = &mut lanes[lane];
@@ -448,6 +495,7 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
             positions: vec![playback.start_seconds * sr; w],
         },
         Op::Adsr => State::Adsr((0..w).map(|_| Adsr::new()).collect()),
+        Op::DampedSine => State::DampedSine(vec![Rotator::default(); w]),
         Op::Custom(node) => State::Custom(node.new_state(w, sr)),
         _ => State::None,
     }
@@ -459,4 +507,119 @@ fn render_impulse(graph: &Graph, root: NodeId, seconds: f64, config: RenderConfi
     let mut ir = vec![0.0; len];
     Interpreter::new(graph, root, config).render(&mut ir);
     ir
+}
+
+/// Samples between exact re-anchorings of a rotator. Anchors sit at fixed sample
+/// positions, so output does not depend on how a render is split into blocks.
+const ANCHOR_INTERVAL: u64 = 512;
+
+/// One lane of a damped sine, sin(2π·F·t)·e^(−D·t), as a complex number z rotated by
+/// r = e^((−D + 2πiF)/sr) each sample. z is recomputed exactly from t, as the plain
+/// tree would compute it, every [`ANCHOR_INTERVAL`] samples, so rounding never
+/// accumulates beyond that.
+#[derive(Clone, Copy, Debug, Default)]
+struct Rotator {
+    z: (f64, f64),
+    step: (f64, f64),
+    /// The (freq, damping, rate) `step` was computed for; None before the first block.
+    key: Option<(f64, f64, f64)>,
+}
+
+impl Rotator {
+    /// Prepares for these parameters; true if z must be anchored now.
+    fn prepare(&mut self, freq: f64, damping: f64, sr: f64) -> bool {
+        if self.key == Some((freq, damping, sr)) {
+            return false;
+        }
+        let decay = (-damping / sr).exp();
+        let angle = std::f64::consts::TAU * frac(freq / sr);
+        self.step = (decay * angle.cos(), decay * angle.sin());
+        self.key = Some((freq, damping, sr));
+        true
+    }
+
+    fn anchor(&mut self, freq: f64, damping: f64, sample: u64, sr: f64) {
+        let t = sample as f64 / sr;
+        let amplitude = (-(t * damping)).exp();
+        let angle = std::f64::consts::TAU * frac(t * freq);
+        self.z = (amplitude * angle.cos(), amplitude * angle.sin());
+    }
+}
+
+/// Where a block of a node goes: `n` samples per lane, lane `l` at `l·stride`.
+struct BlockOut<'a> {
+    samples: &'a mut [f64],
+    stride: usize,
+    n: usize,
+}
+
+/// Renders a block of every lane of a damped-sine node. Lanes are advanced four at a
+/// time so that their multiplications overlap.
+fn render_rotators(
+    rotators: &mut [Rotator],
+    freq: &dyn Fn(usize) -> f64,
+    damping: &dyn Fn(usize) -> f64,
+    first_sample: u64,
+    sr: f64,
+    block: BlockOut<'_>,
+) {
+    let BlockOut {
+        samples: out,
+        stride,
+        n,
+    } = block;
+    let mut fresh = false;
+    for (lane, r) in rotators.iter_mut().enumerate() {
+        fresh |= r.prepare(freq(lane), damping(lane), sr);
+    }
+    let mut k = 0;
+    while k < n {
+        let position = first_sample + k as u64;
+        if fresh || position.is_multiple_of(ANCHOR_INTERVAL) {
+            for (lane, r) in rotators.iter_mut().enumerate() {
+                r.anchor(freq(lane), damping(lane), position, sr);
+            }
+            fresh = false;
+        }
+        let end = n.min(k + (ANCHOR_INTERVAL - position % ANCHOR_INTERVAL) as usize);
+        let mut groups = rotators.chunks_exact_mut(4);
+        let mut lane = 0;
+        for group in &mut groups {
+            let mut re = [group[0].z.0, group[1].z.0, group[2].z.0, group[3].z.0];
+            let mut im = [group[0].z.1, group[1].z.1, group[2].z.1, group[3].z.1];
+            let cr = [
+                group[0].step.0,
+                group[1].step.0,
+                group[2].step.0,
+                group[3].step.0,
+            ];
+            let ci = [
+                group[0].step.1,
+                group[1].step.1,
+                group[2].step.1,
+                group[3].step.1,
+            ];
+            for j in k..end {
+                for q in 0..4 {
+                    out[(lane + q) * stride + j] = im[q];
+                    (re[q], im[q]) = (re[q] * cr[q] - im[q] * ci[q], re[q] * ci[q] + im[q] * cr[q]);
+                }
+            }
+            for q in 0..4 {
+                group[q].z = (re[q], im[q]);
+            }
+            lane += 4;
+        }
+        for r in groups.into_remainder() {
+            let (mut re, mut im) = r.z;
+            let (cr, ci) = r.step;
+            for j in k..end {
+                out[lane * stride + j] = im;
+                (re, im) = (re * cr - im * ci, re * ci + im * cr);
+            }
+            r.z = (re, im);
+            lane += 1;
+        }
+        k = end;
+    }
 }

@@ -20,16 +20,19 @@
 pub mod custom;
 pub mod dsp;
 mod error;
+#[cfg(feature = "generate")]
+pub mod generate;
 mod graph;
 mod interp;
 mod loader;
 mod lower;
 pub mod op;
+pub mod optimise;
 
 pub use custom::{BlockContext, CustomNode, Lanes};
 pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, StableHasher};
-pub use interp::{Interpreter, RenderConfig};
+pub use interp::{Interpreter, RenderConfig, Step};
 pub use loader::{FsLoader, Loader, NoFiles};
 pub use lower::{
     compile, did_you_mean, CompileOptions, Program, Registry, Settings, BUILTIN_NAMES, MAX_LANES,

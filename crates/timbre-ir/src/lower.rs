@@ -1135,6 +1135,21 @@ impl<'a> Lowerer<'a> {
                 .arity_error(call, 2, Some(2), origin)
                 .help(format!("write {usage}")));
         };
+        // The input and the impulse response are positional: a keyword there would
+        // shift them silently.
+        if let Some(keyword) = [input_expr, ir_expr]
+            .into_iter()
+            .find(|e| matches!(e.kind, ExprKind::Keyword(_)))
+        {
+            return Err(self
+                .diag(
+                    "timbre::conv-positional",
+                    "`conv` takes its input and impulse response first, by position",
+                    origin,
+                )
+                .label(keyword.span, "keyword in their place")
+                .help(format!("write {usage}")));
+        }
         // Bind the input and any options; the impulse response is handled below.
         let rest: Vec<Expr> = std::iter::once(input_expr.clone())
             .chain(options.iter().cloned())

@@ -67,6 +67,10 @@ pub enum Op {
     Sample(SamplePlayback),
     /// Gate-driven ADSR; arguments: gate, attack, decay, sustain, release.
     Adsr,
+    /// sin(2π·F·t)·e^(−D·t) with constant F and D (arguments), computed by a complex
+    /// rotator re-anchored at every block. Made by [`crate::optimise`], never by
+    /// lowering: it is a faster form of `(* (sine (* t F)) (damp (* t D)))`.
+    DampedSine,
     /// A node implemented in Rust by the host.
     Custom(Arc<dyn CustomNode>),
 }
@@ -104,6 +108,7 @@ impl Op {
                 | Op::Conv(_)
                 | Op::Sample(_)
                 | Op::Adsr
+                | Op::DampedSine
                 | Op::Custom(_)
         )
     }
@@ -135,6 +140,7 @@ impl Op {
             Op::Conv(_) => "conv".into(),
             Op::Sample(s) => format!("sample {:?}", s.path),
             Op::Adsr => "adsr".into(),
+            Op::DampedSine => "damped-sine".into(),
             Op::Custom(node) => node.name().into(),
         }
     }
@@ -211,6 +217,7 @@ impl Op {
                 h.write_u64(s.looping as u64);
             }
             Op::Adsr => tag(h, 22),
+            Op::DampedSine => tag(h, 24),
             Op::Custom(node) => {
                 tag(h, 23);
                 h.write_str(node.name());
@@ -236,7 +243,8 @@ impl Op {
             | (Op::Phasor, Op::Phasor)
             | (Op::OnePole, Op::OnePole)
             | (Op::Resonator, Op::Resonator)
-            | (Op::Adsr, Op::Adsr) => true,
+            | (Op::Adsr, Op::Adsr)
+            | (Op::DampedSine, Op::DampedSine) => true,
             (Op::Unary(a), Op::Unary(b)) => a == b,
             (Op::Binary(a), Op::Binary(b)) => a == b,
             (Op::Ternary(a), Op::Ternary(b)) => a == b,

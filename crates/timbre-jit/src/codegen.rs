@@ -1,0 +1,465 @@
+//! Cranelift code for one kernel: the plan's regions as loop nests over lanes and
+//! pairs of samples (`F64X2`), and calls back into the interpreter for the rest.
+//!
+//! The kernel's signature is
+//! `kernel(interp, buffers, params, n, t0)`: the interpreter being driven (for
+//! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
+//! the sample rate), the samples in this block, and the index of its first sample.
+//! Everything that differs between instances of one tree shape (constants, states,
+//! the sample rate) is reached through these pointers, so instances share the code.
+
+use std::collections::HashMap;
+
+use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
+use cranelift_codegen::ir::{
+    types, AbiParam, BlockArg, FuncRef, InstBuilder, MemFlagsData, Signature, Value,
+};
+use cranelift_codegen::isa::CallConv;
+use cranelift_frontend::FunctionBuilder;
+use timbre_ir::op::{BinaryOp, Op, TernaryOp, UnaryOp};
+use timbre_ir::Step;
+
+use crate::approx::{self, select};
+use crate::plan::{PlanStep, Region};
+
+const F64X2: types::Type = types::F64X2;
+const I64: types::Type = types::I64;
+
+/// Buffers are only 8-byte aligned: no `aligned` flag on vector accesses.
+fn mem() -> MemFlagsData {
+    MemFlagsData::new().with_notrap()
+}
+
+/// Imported helper functions, declared in the function being built.
+pub(crate) struct Helpers {
+    pub step: FuncRef,
+    pub unary: FuncRef,
+    pub binary: FuncRef,
+    pub noise: FuncRef,
+}
+
+/// The signature of every kernel.
+pub(crate) fn kernel_signature(call_conv: CallConv) -> Signature {
+    let mut sig = Signature::new(call_conv);
+    for _ in 0..5 {
+        sig.params.push(AbiParam::new(I64));
+    }
+    sig
+}
+
+pub(crate) struct KernelBuilder<'a, 'b> {
+    pub b: &'a mut FunctionBuilder<'b>,
+    pub steps: &'a [Step],
+    pub helpers: Helpers,
+    pub block_size: usize,
+    pub interp: Value,
+    pub buffers: Value,
+    pub n: Value,
+    pub t0: Value,
+    pub sample_rate: Value,
+}
+
+impl KernelBuilder<'_, '_> {
+    pub fn emit(&mut self, plan: &[PlanStep]) {
+        for step in plan {
+            match step {
+                PlanStep::Callback(i) => {
+                    let index = self.b.ins().iconst(I64, *i as i64);
+                    self.b
+                        .ins()
+                        .call(self.helpers.step, &[self.interp, index, self.n]);
+                }
+                PlanStep::Region(region) => self.emit_region(region),
+            }
+        }
+    }
+
+    fn buffer(&mut self, step: usize) -> Value {
+        self.b
+            .ins()
+            .load(I64, mem(), self.buffers, (step * 8) as i32)
+    }
+
+    /// Samples to compute: n rounded up to a whole pair (buffers have room for it).
+    fn pairs_end(&mut self) -> Value {
+        let plus = self.b.ins().iadd_imm_s(self.n, 1);
+        self.b.ins().band_imm_s(plus, !1)
+    }
+
+    fn emit_region(&mut self, region: &Region) {
+        let end = self.pairs_end();
+        // Sums start from zero.
+        let zero = self.b.ins().f64const(0.0);
+        let zero = self.b.ins().splat(F64X2, zero);
+        for &c in &region.combines {
+            let base = self.buffer(c);
+            counted_loop(self.b, 0, end, 2, |b, i| {
+                let addr = sample_address(b, base, i);
+                b.ins().store(mem(), zero, addr, 0);
+            });
+        }
+        // Everything the body reads from outside the region.
+        let in_region: Vec<bool> = {
+            let mut v = vec![false; self.steps.len()];
+            for &node in &region.nodes {
+                v[node] = true;
+            }
+            v
+        };
+        let mut outside: Vec<usize> = region
+            .nodes
+            .iter()
+            .flat_map(|&node| self.steps[node].args.iter().copied())
+            .filter(|a| !in_region[*a])
+            .collect();
+        outside.sort_unstable();
+        outside.dedup();
+        let written: Vec<usize> = region
+            .stored
+            .iter()
+            .chain(&region.combines)
+            .copied()
+            .collect();
+        let tables: HashMap<usize, Value> = outside
+            .iter()
+            .chain(&written)
+            .map(|&s| (s, self.buffer(s)))
+            .collect();
+        let lane_bytes = (self.block_size * 8) as i64;
+        let width = region.width as i64;
+        let end_lane = self.b.ins().iconst(I64, width);
+        let rate = self.b.ins().splat(F64X2, self.sample_rate);
+        // The lane loop.
+        let steps = self.steps;
+        let helpers = Helpers {
+            ..self.helpers_copy()
+        };
+        let t0 = self.t0;
+        counted_loop(self.b, 0, end_lane, 1, |b, lane| {
+            let lane_offset = b.ins().imul_imm_s(lane, lane_bytes);
+            // Per lane: where each buffer's lane starts; constants as splatted values.
+            let mut bases: HashMap<usize, Value> = HashMap::new();
+            let mut constants: HashMap<usize, Value> = HashMap::new();
+            for (&s, &table) in &tables {
+                let base = if steps[s].width == 1 {
+                    table
+                } else {
+                    b.ins().iadd(table, lane_offset)
+                };
+                if steps[s].constant {
+                    let x = b.ins().load(types::F64, mem(), base, 0);
+                    constants.insert(s, b.ins().splat(F64X2, x));
+                } else {
+                    bases.insert(s, base);
+                }
+            }
+            counted_loop(b, 0, end, 2, |b, i| {
+                let mut values: HashMap<usize, Value> = constants.clone();
+                let offset = b.ins().ishl_imm_u(i, 3);
+                for (&s, &base) in &bases {
+                    if outside.binary_search(&s).is_ok() {
+                        let addr = b.ins().iadd(base, offset);
+                        values.insert(s, b.ins().load(F64X2, mem(), addr, 0));
+                    }
+                }
+                for &node in &region.nodes {
+                    let step = &steps[node];
+                    let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
+                    let value = match &step.op {
+                        Op::Time => time(b, t0, i, rate),
+                        Op::Unary(op) => unary(b, &helpers, *op, args[0]),
+                        Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1]),
+                        Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
+                        Op::Noise { seed } => {
+                            let seed = b.ins().iconst(I64, *seed as i64);
+                            per_lane(b, args[0], |b, x| {
+                                let call = b.ins().call(helpers.noise, &[seed, x]);
+                                b.inst_results(call)[0]
+                            })
+                        }
+                        other => unreachable!("`{other}` is not compiled inline"),
+                    };
+                    values.insert(node, value);
+                }
+                for &s in &region.stored {
+                    let addr = b.ins().iadd(bases[&s], offset);
+                    b.ins().store(mem(), values[&s], addr, 0);
+                }
+                for &c in &region.combines {
+                    // Combines write lane 0 of a one-lane buffer: no lane offset.
+                    let addr = b.ins().iadd(tables[&c], offset);
+                    let sum = b.ins().load(F64X2, mem(), addr, 0);
+                    let sum = b.ins().fadd(sum, values[&steps[c].args[0]]);
+                    b.ins().store(mem(), sum, addr, 0);
+                }
+            });
+        });
+    }
+
+    fn helpers_copy(&self) -> Helpers {
+        Helpers {
+            step: self.helpers.step,
+            unary: self.helpers.unary,
+            binary: self.helpers.binary,
+            noise: self.helpers.noise,
+        }
+    }
+}
+
+/// `for i in (start..end).step_by(step) { body(i) }` with an i64 counter.
+fn counted_loop(
+    b: &mut FunctionBuilder,
+    start: i64,
+    end: Value,
+    step: i64,
+    body: impl FnOnce(&mut FunctionBuilder, Value),
+) {
+    let header = b.create_block();
+    let block = b.create_block();
+    let exit = b.create_block();
+    b.append_block_param(header, I64);
+    let start = b.ins().iconst(I64, start);
+    b.ins().jump(header, &[BlockArg::Value(start)]);
+    b.switch_to_block(header);
+    let i = b.block_params(header)[0];
+    let more = b.ins().icmp(IntCC::UnsignedLessThan, i, end);
+    b.ins().brif(more, block, &[], exit, &[]);
+    b.switch_to_block(block);
+    body(b, i);
+    let next = b.ins().iadd_imm_s(i, step);
+    b.ins().jump(header, &[BlockArg::Value(next)]);
+    b.switch_to_block(exit);
+}
+
+fn sample_address(b: &mut FunctionBuilder, base: Value, i: Value) -> Value {
+    let offset = b.ins().ishl_imm_u(i, 3);
+    b.ins().iadd(base, offset)
+}
+
+fn splat(b: &mut FunctionBuilder, x: f64) -> Value {
+    let x = b.ins().f64const(x);
+    b.ins().splat(F64X2, x)
+}
+
+/// t of samples t0+i and t0+i+1: (t0 + i) / rate, exactly as the interpreter does.
+fn time(b: &mut FunctionBuilder, t0: Value, i: Value, rate: Value) -> Value {
+    let index = b.ins().iadd(t0, i);
+    let first = b.ins().fcvt_from_uint(types::F64, index);
+    let one = b.ins().f64const(1.0);
+    let second = b.ins().fadd(first, one);
+    let v = b.ins().splat(F64X2, first);
+    let v = b.ins().insertlane(v, second, 1);
+    b.ins().fdiv(v, rate)
+}
+
+/// Applies a scalar function to both lanes.
+fn per_lane(
+    b: &mut FunctionBuilder,
+    x: Value,
+    mut f: impl FnMut(&mut FunctionBuilder, Value) -> Value,
+) -> Value {
+    let x0 = b.ins().extractlane(x, 0);
+    let x1 = b.ins().extractlane(x, 1);
+    let y0 = f(b, x0);
+    let y1 = f(b, x1);
+    let v = b.ins().splat(F64X2, y0);
+    b.ins().insertlane(v, y1, 1)
+}
+
+fn per_lane2(
+    b: &mut FunctionBuilder,
+    x: Value,
+    y: Value,
+    mut f: impl FnMut(&mut FunctionBuilder, Value, Value) -> Value,
+) -> Value {
+    let (x0, x1) = (b.ins().extractlane(x, 0), b.ins().extractlane(x, 1));
+    let (y0, y1) = (b.ins().extractlane(y, 0), b.ins().extractlane(y, 1));
+    let r0 = f(b, x0, y0);
+    let r1 = f(b, x1, y1);
+    let v = b.ins().splat(F64X2, r0);
+    b.ins().insertlane(v, r1, 1)
+}
+
+/// 1.0 where the mask is set, else 0.0.
+fn mask_to_truth(b: &mut FunctionBuilder, mask: Value) -> Value {
+    let one = splat(b, 1.0);
+    let zero = splat(b, 0.0);
+    select(b, mask, one, zero)
+}
+
+fn is_nan(b: &mut FunctionBuilder, x: Value) -> Value {
+    b.ins().fcmp(FloatCC::Unordered, x, x)
+}
+
+/// Rust's `f64::min` / `f64::max`: a NaN argument yields the other argument.
+fn min_max(b: &mut FunctionBuilder, a: Value, c: Value, max: bool) -> Value {
+    let m = if max {
+        b.ins().fmax(a, c)
+    } else {
+        b.ins().fmin(a, c)
+    };
+    let c_nan = is_nan(b, c);
+    let m = select(b, c_nan, a, m);
+    let a_nan = is_nan(b, a);
+    select(b, a_nan, c, m)
+}
+
+fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value) -> Value {
+    match op {
+        UnaryOp::Neg => b.ins().fneg(x),
+        UnaryOp::Abs => b.ins().fabs(x),
+        UnaryOp::Sqrt => b.ins().sqrt(x),
+        UnaryOp::Floor => b.ins().floor(x),
+        UnaryOp::Frac => approx::frac(b, x),
+        UnaryOp::Exp => approx::exp(b, x),
+        UnaryOp::Damp => {
+            let minus = b.ins().fneg(x);
+            approx::exp(b, minus)
+        }
+        UnaryOp::Sine => approx::sin_cycles(b, x),
+        UnaryOp::Sawtooth => {
+            let f = approx::frac(b, x);
+            let two = splat(b, 2.0);
+            let one = splat(b, 1.0);
+            let d = b.ins().fmul(two, f);
+            b.ins().fsub(d, one)
+        }
+        UnaryOp::Square => {
+            let f = approx::frac(b, x);
+            let half = splat(b, 0.5);
+            let low = b.ins().fcmp(FloatCC::LessThan, f, half);
+            let one = splat(b, 1.0);
+            let minus = splat(b, -1.0);
+            select(b, low, one, minus)
+        }
+        UnaryOp::Triangle => {
+            // 4·|frac(x + 0.75) − 0.5| − 1
+            let q = splat(b, 0.75);
+            let shifted = b.ins().fadd(x, q);
+            let f = approx::frac(b, shifted);
+            let half = splat(b, 0.5);
+            let d = b.ins().fsub(f, half);
+            let d = b.ins().fabs(d);
+            let four = splat(b, 4.0);
+            let one = splat(b, 1.0);
+            let m = b.ins().fmul(four, d);
+            b.ins().fsub(m, one)
+        }
+        UnaryOp::Not => {
+            let zero = splat(b, 0.0);
+            let mask = b.ins().fcmp(FloatCC::Equal, x, zero);
+            mask_to_truth(b, mask)
+        }
+        // Rare transcendental functions: the interpreter's own, per sample.
+        UnaryOp::Log | UnaryOp::Sin | UnaryOp::Cos | UnaryOp::Tan | UnaryOp::Tanh => {
+            let code = b.ins().iconst(I64, unary_code(op) as i64);
+            per_lane(b, x, |b, v| {
+                let call = b.ins().call(helpers.unary, &[code, v]);
+                b.inst_results(call)[0]
+            })
+        }
+    }
+}
+
+fn binary(b: &mut FunctionBuilder, helpers: &Helpers, op: BinaryOp, x: Value, y: Value) -> Value {
+    let compare = |b: &mut FunctionBuilder, cc: FloatCC| {
+        let mask = b.ins().fcmp(cc, x, y);
+        mask_to_truth(b, mask)
+    };
+    match op {
+        BinaryOp::Add => b.ins().fadd(x, y),
+        BinaryOp::Sub => b.ins().fsub(x, y),
+        BinaryOp::Mul => b.ins().fmul(x, y),
+        BinaryOp::Div => b.ins().fdiv(x, y),
+        BinaryOp::Min => min_max(b, x, y, false),
+        BinaryOp::Max => min_max(b, x, y, true),
+        BinaryOp::Mod => {
+            // a − b·floor(a / b), in the interpreter's order of operations.
+            let q = b.ins().fdiv(x, y);
+            let q = b.ins().floor(q);
+            let m = b.ins().fmul(y, q);
+            b.ins().fsub(x, m)
+        }
+        BinaryOp::Lt => compare(b, FloatCC::LessThan),
+        BinaryOp::Gt => compare(b, FloatCC::GreaterThan),
+        BinaryOp::Le => compare(b, FloatCC::LessThanOrEqual),
+        BinaryOp::Ge => compare(b, FloatCC::GreaterThanOrEqual),
+        BinaryOp::Eq => compare(b, FloatCC::Equal),
+        BinaryOp::Ne => compare(b, FloatCC::NotEqual),
+        BinaryOp::And | BinaryOp::Or => {
+            let zero = splat(b, 0.0);
+            let xm = b.ins().fcmp(FloatCC::NotEqual, x, zero);
+            let ym = b.ins().fcmp(FloatCC::NotEqual, y, zero);
+            let mask = if op == BinaryOp::And {
+                b.ins().band(xm, ym)
+            } else {
+                b.ins().bor(xm, ym)
+            };
+            mask_to_truth(b, mask)
+        }
+        BinaryOp::Pulse => {
+            let f = approx::frac(b, x);
+            let high = b.ins().fcmp(FloatCC::LessThan, f, y);
+            let one = splat(b, 1.0);
+            let minus = splat(b, -1.0);
+            select(b, high, one, minus)
+        }
+        BinaryOp::Pow => {
+            let code = b.ins().iconst(I64, binary_code(op) as i64);
+            per_lane2(b, x, y, |b, u, v| {
+                let call = b.ins().call(helpers.binary, &[code, u, v]);
+                b.inst_results(call)[0]
+            })
+        }
+    }
+}
+
+fn ternary(b: &mut FunctionBuilder, op: TernaryOp, x: Value, y: Value, z: Value) -> Value {
+    match op {
+        TernaryOp::Clamp => {
+            let lower = min_max(b, x, y, true);
+            min_max(b, lower, z, false)
+        }
+        TernaryOp::If => {
+            let zero = splat(b, 0.0);
+            let mask = b.ins().fcmp(FloatCC::NotEqual, x, zero);
+            select(b, mask, y, z)
+        }
+    }
+}
+
+/// The unary operations called back by number (see `unary_from_code`).
+const UNARY_CALLBACKS: [UnaryOp; 5] = [
+    UnaryOp::Log,
+    UnaryOp::Sin,
+    UnaryOp::Cos,
+    UnaryOp::Tan,
+    UnaryOp::Tanh,
+];
+const BINARY_CALLBACKS: [BinaryOp; 1] = [BinaryOp::Pow];
+
+fn unary_code(op: UnaryOp) -> usize {
+    UNARY_CALLBACKS
+        .iter()
+        .position(|o| *o == op)
+        .expect("a called-back unary op")
+}
+
+fn binary_code(op: BinaryOp) -> usize {
+    BINARY_CALLBACKS
+        .iter()
+        .position(|o| *o == op)
+        .expect("a called-back binary op")
+}
+
+pub(crate) extern "C" fn call_unary(code: u64, x: f64) -> f64 {
+    UNARY_CALLBACKS[code as usize].apply(x)
+}
+
+pub(crate) extern "C" fn call_binary(code: u64, x: f64, y: f64) -> f64 {
+    BINARY_CALLBACKS[code as usize].apply(x, y)
+}
+
+pub(crate) extern "C" fn call_noise(seed: u64, x: f64) -> f64 {
+    timbre_ir::op::noise(seed, x)
+}

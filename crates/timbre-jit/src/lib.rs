@@ -1,0 +1,317 @@
+//! Compiles timbre trees into native block kernels with cranelift.
+//!
+//! A [`Jit`] compiles the schedule of a tree (after lowering, and later after
+//! instantiation) into one native function per tree *shape*. Pure element-wise
+//! nodes are fused into SIMD loops over lanes and pairs of samples; every other
+//! node is computed by calling back into the reference interpreter, so each node has
+//! exactly one definition of its semantics. Constants, states and the sample rate
+//! are reached through pointers, so instances of one shape share one kernel and a
+//! new instance costs no compilation.
+//!
+//! This crate is *not* a second semantics: the interpreter in `timbre-ir` is the
+//! reference, and the tests compare the two at every sample.
+
+mod approx;
+mod codegen;
+mod plan;
+
+use std::collections::HashMap;
+use std::hash::{Hash, Hasher};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use cranelift_codegen::ir::{AbiParam, InstBuilder, MemFlagsData, Signature};
+use cranelift_codegen::settings::{self, Configurable};
+use cranelift_codegen::Context;
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
+use cranelift_jit::{JITBuilder, JITModule};
+use cranelift_module::{FuncId, Linkage, Module};
+use timbre_ir::op::Op;
+use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
+
+use crate::codegen::{kernel_signature, Helpers, KernelBuilder};
+use crate::plan::PlanStep;
+
+/// Why a tree could not be compiled.
+#[derive(Debug, thiserror::Error)]
+pub enum JitError {
+    #[error("this machine is not supported by the code generator: {0}")]
+    Host(String),
+    #[error("code generation failed: {0}")]
+    Codegen(String),
+}
+
+/// `kernel(interp, buffers, params, n, t0)`; see `codegen`.
+type KernelFn = unsafe extern "C" fn(*mut Interpreter, *const *mut f64, *const f64, u64, u64);
+
+/// A compiled tree shape.
+pub struct Kernel {
+    entry: KernelFn,
+    /// Time spent compiling it.
+    pub compile_time: Duration,
+    /// Nodes computed inline, and nodes left to the interpreter.
+    pub inline_nodes: usize,
+    pub callback_nodes: usize,
+}
+
+impl std::fmt::Debug for Kernel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Kernel")
+            .field("compile_time", &self.compile_time)
+            .field("inline_nodes", &self.inline_nodes)
+            .field("callback_nodes", &self.callback_nodes)
+            .finish()
+    }
+}
+
+/// The compiler: owns the generated code and a cache of kernels by tree shape.
+///
+/// Kernels stay valid for the life of the process: generated code is never freed
+/// (cranelift-jit's own policy for a dropped module), so a voice may outlive its `Jit`.
+pub struct Jit {
+    module: JITModule,
+    context: Context,
+    builder_context: FunctionBuilderContext,
+    cache: HashMap<u64, Arc<Kernel>>,
+    helpers: [FuncId; 4],
+    next_name: usize,
+}
+
+impl Jit {
+    pub fn new() -> Result<Self, JitError> {
+        let mut flags = settings::builder();
+        for (name, value) in [
+            ("opt_level", "speed"),
+            ("use_colocated_libcalls", "false"),
+            ("is_pic", "false"),
+        ] {
+            flags
+                .set(name, value)
+                .map_err(|e| JitError::Host(e.to_string()))?;
+        }
+        let isa = cranelift_native::builder()
+            .map_err(|e| JitError::Host(e.to_string()))?
+            .finish(settings::Flags::new(flags))
+            .map_err(|e| JitError::Host(e.to_string()))?;
+        let mut builder = JITBuilder::with_isa(isa, cranelift_module::default_libcall_names());
+        builder.symbol("timbre_step", step_callback as *const u8);
+        builder.symbol("timbre_unary", codegen::call_unary as *const u8);
+        builder.symbol("timbre_binary", codegen::call_binary as *const u8);
+        builder.symbol("timbre_noise", codegen::call_noise as *const u8);
+        let mut module = JITModule::new(builder);
+        let call_conv = module.target_config().default_call_conv;
+        let signature = |params: &[cranelift_codegen::ir::Type], returns: bool| {
+            let mut sig = Signature::new(call_conv);
+            sig.params.extend(params.iter().map(|t| AbiParam::new(*t)));
+            if returns {
+                sig.returns
+                    .push(AbiParam::new(cranelift_codegen::ir::types::F64));
+            }
+            sig
+        };
+        use cranelift_codegen::ir::types::{F64, I64};
+        let declare = |module: &mut JITModule, name: &str, sig: Signature| {
+            module
+                .declare_function(name, Linkage::Import, &sig)
+                .map_err(|e| JitError::Codegen(e.to_string()))
+        };
+        let helpers = [
+            declare(
+                &mut module,
+                "timbre_step",
+                signature(&[I64, I64, I64], false),
+            )?,
+            declare(&mut module, "timbre_unary", signature(&[I64, F64], true))?,
+            declare(
+                &mut module,
+                "timbre_binary",
+                signature(&[I64, F64, F64], true),
+            )?,
+            declare(&mut module, "timbre_noise", signature(&[I64, F64], true))?,
+        ];
+        Ok(Jit {
+            context: module.make_context(),
+            module,
+            builder_context: FunctionBuilderContext::new(),
+            cache: HashMap::new(),
+            helpers,
+            next_name: 0,
+        })
+    }
+
+    /// Compiles (or finds in the cache) the kernel of a schedule.
+    pub fn compile(&mut self, steps: &[Step], block_size: usize) -> Result<Arc<Kernel>, JitError> {
+        let shape = shape_hash(steps, block_size);
+        if let Some(kernel) = self.cache.get(&shape) {
+            return Ok(kernel.clone());
+        }
+        let start = Instant::now();
+        let plan = plan::plan(steps);
+        let call_conv = self.module.target_config().default_call_conv;
+        self.context.func.signature = kernel_signature(call_conv);
+        {
+            let mut b = FunctionBuilder::new(&mut self.context.func, &mut self.builder_context);
+            let entry = b.create_block();
+            b.append_block_params_for_function_params(entry);
+            b.switch_to_block(entry);
+            let params = b.block_params(entry).to_vec();
+            let helpers = Helpers {
+                step: self.module.declare_func_in_func(self.helpers[0], b.func),
+                unary: self.module.declare_func_in_func(self.helpers[1], b.func),
+                binary: self.module.declare_func_in_func(self.helpers[2], b.func),
+                noise: self.module.declare_func_in_func(self.helpers[3], b.func),
+            };
+            let sample_rate = b.ins().load(
+                cranelift_codegen::ir::types::F64,
+                MemFlagsData::new().with_notrap(),
+                params[2],
+                0,
+            );
+            let mut kb = KernelBuilder {
+                b: &mut b,
+                steps,
+                helpers,
+                block_size,
+                interp: params[0],
+                buffers: params[1],
+                n: params[3],
+                t0: params[4],
+                sample_rate,
+            };
+            kb.emit(&plan);
+            b.ins().return_(&[]);
+            b.seal_all_blocks();
+            b.finalize(self.module.target_config());
+        }
+        let name = format!("kernel{}", self.next_name);
+        self.next_name += 1;
+        let id = self
+            .module
+            .declare_function(&name, Linkage::Local, &self.context.func.signature)
+            .map_err(|e| JitError::Codegen(e.to_string()))?;
+        let defined = self.module.define_function(id, &mut self.context);
+        self.module.clear_context(&mut self.context);
+        defined.map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+        self.module
+            .finalize_definitions()
+            .map_err(|e| JitError::Codegen(e.to_string()))?;
+        let code = self.module.get_finalized_function(id);
+        let (inline_nodes, callback_nodes) = plan.iter().fold((0, 0), |(i, c), step| match step {
+            PlanStep::Region(r) => (i + r.nodes.len() + r.combines.len(), c),
+            PlanStep::Callback(_) => (i, c + 1),
+        });
+        let kernel = Arc::new(Kernel {
+            // SAFETY: `code` was generated with `kernel_signature`, which matches
+            // `KernelFn`, and generated code is never freed.
+            entry: unsafe { std::mem::transmute::<*const u8, KernelFn>(code) },
+            compile_time: start.elapsed(),
+            inline_nodes,
+            callback_nodes,
+        });
+        self.cache.insert(shape, kernel.clone());
+        Ok(kernel)
+    }
+
+    /// A voice of `root` rendered by a compiled kernel, after the rewrites of
+    /// [`timbre_ir::optimise`].
+    pub fn voice(
+        &mut self,
+        graph: &Graph,
+        root: NodeId,
+        config: RenderConfig,
+    ) -> Result<JitVoice, JitError> {
+        // Pairs of samples are computed together: the block holds a whole number of them.
+        let config = RenderConfig {
+            block_size: config.block_size.max(2).div_ceil(2) * 2,
+            ..config
+        };
+        let (graph, root) = timbre_ir::optimise::optimise(graph, root);
+        let mut interp = Interpreter::new(&graph, root, config);
+        let kernel = self.compile(interp.steps(), config.block_size)?;
+        let buffers = interp.buffer_pointers();
+        Ok(JitVoice {
+            interp,
+            kernel,
+            buffers,
+            params: vec![config.sample_rate],
+        })
+    }
+
+    /// Kernels compiled so far.
+    pub fn cached_kernels(&self) -> usize {
+        self.cache.len()
+    }
+}
+
+/// An instance of a compiled tree: its own buffers and states, a shared kernel.
+pub struct JitVoice {
+    interp: Interpreter,
+    kernel: Arc<Kernel>,
+    /// Step buffers of `interp`, for the kernel.
+    buffers: Vec<*mut f64>,
+    params: Vec<f64>,
+}
+
+// SAFETY: the raw pointers point into buffers owned by this voice's interpreter and
+// are used only by this voice.
+unsafe impl Send for JitVoice {}
+
+impl JitVoice {
+    pub fn kernel(&self) -> &Kernel {
+        &self.kernel
+    }
+
+    /// Renders the next `out.len()` samples.
+    pub fn render(&mut self, out: &mut [f64]) {
+        let block = self.interp.config().block_size;
+        for chunk in out.chunks_mut(block) {
+            let n = chunk.len();
+            let t0 = self.interp.position();
+            // SAFETY: the buffer table holds one valid buffer of `width × block`
+            // samples per step (with room for the last pair), and the interpreter
+            // pointer is exclusive for the call: callbacks re-enter it only to compute
+            // steps whose buffers the kernel is not reading or writing at that time.
+            unsafe {
+                (self.kernel.entry)(
+                    &mut self.interp,
+                    self.buffers.as_ptr(),
+                    self.params.as_ptr(),
+                    n as u64,
+                    t0,
+                );
+            }
+            self.interp.advance(n);
+            chunk.copy_from_slice(self.interp.root_output(n));
+        }
+    }
+}
+
+/// Computes one step in the interpreter; called by kernels.
+extern "C" fn step_callback(interp: *mut Interpreter, step: u64, n: u64) {
+    // SAFETY: kernels pass the interpreter they were called with.
+    let interp = unsafe { &mut *interp };
+    interp.eval_step(step as usize, n as usize);
+}
+
+/// What makes two schedules share a kernel: everything but constant values and the
+/// data of called-back nodes, which the kernel reads at run time.
+fn shape_hash(steps: &[Step], block_size: usize) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    block_size.hash(&mut h);
+    for step in steps {
+        step.args.hash(&mut h);
+        step.width.hash(&mut h);
+        step.constant.hash(&mut h);
+        match &step.op {
+            Op::Const(_) => 0u8.hash(&mut h),
+            Op::Time => 1u8.hash(&mut h),
+            Op::Unary(op) => (2u8, *op as u8).hash(&mut h),
+            Op::Binary(op) => (3u8, *op as u8).hash(&mut h),
+            Op::Ternary(op) => (4u8, *op as u8).hash(&mut h),
+            Op::Noise { seed } => (5u8, *seed).hash(&mut h),
+            Op::Combine => 6u8.hash(&mut h),
+            _ => 7u8.hash(&mut h),
+        }
+    }
+    h.finish()
+}

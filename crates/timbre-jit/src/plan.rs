@@ -1,0 +1,124 @@
+//! Planning: which steps of a schedule are compiled inline, fused into loops, and
+//! which are left to the interpreter.
+//!
+//! Pure element-wise nodes of one width are fused into a *region*: one loop over
+//! lanes, and inside it one loop over pairs of samples, in which every node of the
+//! region is an SSA value in registers. A node is written to its buffer only when
+//! something outside its region reads it. `combine` of a region's node is summed
+//! inside that region. Every other node is a *callback*: the kernel calls back into
+//! the interpreter, which computes that node exactly as it always does.
+
+use timbre_ir::op::{Op, UnaryOp};
+use timbre_ir::Step;
+
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum PlanStep {
+    Region(Region),
+    /// Computed by the interpreter (`Interpreter::eval_step`).
+    Callback(usize),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Region {
+    pub width: usize,
+    /// Steps computed in the loop body, in dependency order.
+    pub nodes: Vec<usize>,
+    /// `combine` steps summing a node of this region over its lanes.
+    pub combines: Vec<usize>,
+    /// Nodes whose values are read outside the region and so are stored.
+    pub stored: Vec<usize>,
+}
+
+/// Whether a step is computed inline in a region.
+pub(crate) fn is_inline(op: &Op) -> bool {
+    match op {
+        Op::Time | Op::Binary(_) | Op::Ternary(_) | Op::Noise { .. } => true,
+        Op::Unary(u) => !matches!(u, UnaryOp::Tan),
+        _ => false,
+    }
+}
+
+/// Builds the plan for a schedule (see the module documentation).
+pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
+    let mut plan: Vec<PlanStep> = vec![];
+    // For each step: the first plan index at which its value can be used, and whether
+    // it is an SSA value of the region at that index (usable inside it) or a buffer
+    // written by an earlier plan step.
+    let mut ready: Vec<usize> = vec![0; steps.len()];
+    let mut home: Vec<Option<usize>> = vec![None; steps.len()];
+    // Combines summed inside their argument's region.
+    let mut attached = vec![false; steps.len()];
+    for (i, step) in steps.iter().enumerate() {
+        if step.constant {
+            continue;
+        }
+        let earliest = step.args.iter().map(|a| ready[*a]).max().unwrap_or(0);
+        if is_inline(&step.op) {
+            let region = (earliest..plan.len())
+                .rev()
+                .find(|j| matches!(&plan[*j], PlanStep::Region(r) if r.width == step.width));
+            let j = match region {
+                Some(j) => j,
+                None => {
+                    plan.push(PlanStep::Region(Region {
+                        width: step.width,
+                        nodes: vec![],
+                        combines: vec![],
+                        stored: vec![],
+                    }));
+                    plan.len() - 1
+                }
+            };
+            if let PlanStep::Region(r) = &mut plan[j] {
+                r.nodes.push(i);
+            }
+            ready[i] = j;
+            home[i] = Some(j);
+            continue;
+        }
+        if let Op::Combine = step.op {
+            let arg = step.args[0];
+            if let Some(j) = home[arg] {
+                if let PlanStep::Region(r) = &mut plan[j] {
+                    r.combines.push(i);
+                    attached[i] = true;
+                    // Its sum is complete only after the region.
+                    ready[i] = j + 1;
+                    continue;
+                }
+            }
+        }
+        plan.push(PlanStep::Callback(i));
+        ready[i] = plan.len();
+    }
+    mark_stored(steps, &mut plan, &home, &attached);
+    plan
+}
+
+/// A region's node is stored if the root is it, or a step outside the region (or a
+/// callback) reads it. Combines read the SSA value and need no store.
+fn mark_stored(steps: &[Step], plan: &mut [PlanStep], home: &[Option<usize>], attached: &[bool]) {
+    let root = steps.len() - 1;
+    let mut read_outside = vec![false; steps.len()];
+    read_outside[root] = true;
+    for (i, step) in steps.iter().enumerate() {
+        if attached[i] {
+            continue;
+        }
+        for a in &step.args {
+            if home[*a].is_some() && home[i] != home[*a] {
+                read_outside[*a] = true;
+            }
+        }
+    }
+    for p in plan.iter_mut() {
+        if let PlanStep::Region(r) = p {
+            r.stored = r
+                .nodes
+                .iter()
+                .copied()
+                .filter(|n| read_outside[*n])
+                .collect();
+        }
+    }
+}
