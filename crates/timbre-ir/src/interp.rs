@@ -76,7 +76,7 @@ enum State {
         positions: Vec<f64>,
     },
     Adsr(Vec<Adsr>),
-    DampedSine(Vec<Rotator>),
+    DampedSine(RotatorBank),
     Custom(Box<dyn Any + Send>),
 }
 
@@ -366,17 +366,18 @@ impl Interpreter {
                         }
                     }
                 }
-                (Op::DampedSine, State::DampedSine(rotators)) => {
-                    // All lanes at once; the arguments are constants, so the first
-                    // sample of each lane is its value.
-                    let freq = |l: usize| self.arg(i, 0, l, 1)[0];
-                    let damping = |l: usize| self.arg(i, 1, l, 1)[0];
+                (Op::DampedSine, State::DampedSine(bank)) => {
+                    // All lanes at once. F and D are constants, so the first sample
+                    // of each lane is its value.
+                    let time = self.arg(i, 0, 0, n);
+                    let freq = |l: usize| self.arg(i, 1, l, 1)[0];
+                    let damping = |l: usize| self.arg(i, 2, l, 1)[0];
                     let block = BlockOut {
                         samples: out,
                         stride: bs,
                         n,
                     };
-                    render_rotators(rotators, &freq, &damping, n0, sr, block);
+                    bank.render(time, &freq, &damping, n0, sr, block);
                     return;
                 }
                 (Op::Adsr, State::Adsr(lanes)) => {
@@ -495,7 +496,10 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
             positions: vec![playback.start_seconds * sr; w],
         },
         Op::Adsr => State::Adsr((0..w).map(|_| Adsr::new()).collect()),
-        Op::DampedSine => State::DampedSine(vec![Rotator::default(); w]),
+        Op::DampedSine => State::DampedSine(RotatorBank {
+            lanes: vec![Rotator::default(); w],
+            last_time: None,
+        }),
         Op::Custom(node) => State::Custom(node.new_state(w, sr)),
         _ => State::None,
     }
@@ -513,10 +517,8 @@ fn render_impulse(graph: &Graph, root: NodeId, seconds: f64, config: RenderConfi
 /// positions, so output does not depend on how a render is split into blocks.
 const ANCHOR_INTERVAL: u64 = 512;
 
-/// One lane of a damped sine, sin(2π·F·t)·e^(−D·t), as a complex number z rotated by
-/// r = e^((−D + 2πiF)/sr) each sample. z is recomputed exactly from t, as the plain
-/// tree would compute it, every [`ANCHOR_INTERVAL`] samples, so rounding never
-/// accumulates beyond that.
+/// One lane of a damped sine, sin(2π·F·τ)·e^(−D·τ), as a complex number z rotated by
+/// r = e^((−D + 2πiF)/sr) each sample.
 #[derive(Clone, Copy, Debug, Default)]
 struct Rotator {
     z: (f64, f64),
@@ -538,12 +540,22 @@ impl Rotator {
         true
     }
 
-    fn anchor(&mut self, freq: f64, damping: f64, sample: u64, sr: f64) {
-        let t = sample as f64 / sr;
-        let amplitude = (-(t * damping)).exp();
-        let angle = std::f64::consts::TAU * frac(t * freq);
+    /// Sets z exactly as the plain tree computes it at time τ.
+    fn anchor(&mut self, freq: f64, damping: f64, time: f64) {
+        let amplitude = (-(time * damping)).exp();
+        let angle = std::f64::consts::TAU * frac(time * freq);
         self.z = (amplitude * angle.cos(), amplitude * angle.sin());
     }
+}
+
+/// The rotators of one damped-sine node, and the last time they were rendered at.
+/// z is recomputed exactly from τ wherever τ does not advance by one sample period
+/// (a re-strike, a jump), and every [`ANCHOR_INTERVAL`] samples, so rounding never
+/// accumulates beyond that.
+#[derive(Clone, Debug)]
+struct RotatorBank {
+    lanes: Vec<Rotator>,
+    last_time: Option<f64>,
 }
 
 /// Where a block of a node goes: `n` samples per lane, lane `l` at `l·stride`.
@@ -553,36 +565,55 @@ struct BlockOut<'a> {
     n: usize,
 }
 
-/// Renders a block of every lane of a damped-sine node. Lanes are advanced four at a
-/// time so that their multiplications overlap.
-fn render_rotators(
-    rotators: &mut [Rotator],
-    freq: &dyn Fn(usize) -> f64,
-    damping: &dyn Fn(usize) -> f64,
-    first_sample: u64,
-    sr: f64,
-    block: BlockOut<'_>,
-) {
-    let BlockOut {
-        samples: out,
-        stride,
-        n,
-    } = block;
-    let mut fresh = false;
-    for (lane, r) in rotators.iter_mut().enumerate() {
-        fresh |= r.prepare(freq(lane), damping(lane), sr);
-    }
-    let mut k = 0;
-    while k < n {
-        let position = first_sample + k as u64;
-        if fresh || position.is_multiple_of(ANCHOR_INTERVAL) {
-            for (lane, r) in rotators.iter_mut().enumerate() {
-                r.anchor(freq(lane), damping(lane), position, sr);
-            }
-            fresh = false;
+/// Whether time moved from `previous` to `next` by one sample period.
+fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
+    previous.is_some_and(|p| ((next - p) * sr - 1.0).abs() <= 1e-6)
+}
+
+impl RotatorBank {
+    /// Renders a block of every lane. Lanes are advanced four at a time so that their
+    /// multiplications overlap.
+    fn render(
+        &mut self,
+        time: &[f64],
+        freq: &dyn Fn(usize) -> f64,
+        damping: &dyn Fn(usize) -> f64,
+        first_sample: u64,
+        sr: f64,
+        block: BlockOut<'_>,
+    ) {
+        let BlockOut {
+            samples: out,
+            stride,
+            n,
+        } = block;
+        let mut fresh = false;
+        for (lane, r) in self.lanes.iter_mut().enumerate() {
+            fresh |= r.prepare(freq(lane), damping(lane), sr);
         }
-        let end = n.min(k + (ANCHOR_INTERVAL - position % ANCHOR_INTERVAL) as usize);
-        let mut groups = rotators.chunks_exact_mut(4);
+        let at_anchor = |k: usize| (first_sample + k as u64).is_multiple_of(ANCHOR_INTERVAL);
+        let mut k = 0;
+        while k < n {
+            if fresh || at_anchor(k) || !advances(self.last_time, time[k], sr) {
+                for (lane, r) in self.lanes.iter_mut().enumerate() {
+                    r.anchor(freq(lane), damping(lane), time[k]);
+                }
+                fresh = false;
+            }
+            // The segment runs until the next anchor or jump.
+            let mut end = k + 1;
+            while end < n && !at_anchor(end) && advances(Some(time[end - 1]), time[end], sr) {
+                end += 1;
+            }
+            self.rotate(k..end, out, stride);
+            self.last_time = Some(time[end - 1]);
+            k = end;
+        }
+    }
+
+    /// Writes samples `range` of every lane and advances the rotators past them.
+    fn rotate(&mut self, range: std::ops::Range<usize>, out: &mut [f64], stride: usize) {
+        let mut groups = self.lanes.chunks_exact_mut(4);
         let mut lane = 0;
         for group in &mut groups {
             let mut re = [group[0].z.0, group[1].z.0, group[2].z.0, group[3].z.0];
@@ -599,7 +630,7 @@ fn render_rotators(
                 group[2].step.1,
                 group[3].step.1,
             ];
-            for j in k..end {
+            for j in range.clone() {
                 for q in 0..4 {
                     out[(lane + q) * stride + j] = im[q];
                     (re[q], im[q]) = (re[q] * cr[q] - im[q] * ci[q], re[q] * ci[q] + im[q] * cr[q]);
@@ -613,13 +644,12 @@ fn render_rotators(
         for r in groups.into_remainder() {
             let (mut re, mut im) = r.z;
             let (cr, ci) = r.step;
-            for j in k..end {
+            for j in range.clone() {
                 out[lane * stride + j] = im;
                 (re, im) = (re * cr - im * ci, re * ci + im * cr);
             }
             r.z = (re, im);
             lane += 1;
         }
-        k = end;
     }
 }

@@ -67,9 +67,10 @@ pub enum Op {
     Sample(SamplePlayback),
     /// Gate-driven ADSR; arguments: gate, attack, decay, sustain, release.
     Adsr,
-    /// sin(2π·F·t)·e^(−D·t) with constant F and D (arguments), computed by a complex
-    /// rotator re-anchored at every block. Made by [`crate::optimise`], never by
-    /// lowering: it is a faster form of `(* (sine (* t F)) (damp (* t D)))`.
+    /// sin(2π·F·τ)·e^(−D·τ); arguments τ (a time, one lane), constant F and D. A
+    /// complex rotator, re-anchored exactly wherever τ jumps and every 512 samples.
+    /// Made by [`crate::optimise`], never by lowering: it is a faster form of
+    /// `(* (sine (* τ F)) (damp (* τ D)))`.
     DampedSine,
     /// A node implemented in Rust by the host.
     Custom(Arc<dyn CustomNode>),

@@ -4,11 +4,13 @@
 //! compares the two.
 //!
 //! Rewrites:
-//! - **Damped sines as rotators.** A product with factors `(sine (* t F))` and
-//!   optionally `(damp (* t D))`, F and D constants (one lane or one per lane), is
-//!   rewritten to `DampedSine(F, D)` times the other factors: per lane a complex
+//! - **Damped sines as rotators.** A product with factors `(sine (* τ F))` and
+//!   optionally `(damp (* τ D))`, F and D constants (one lane or one per lane) and τ a
+//!   time (`t`, or `t` shifted or wrapped: `(mod t 1)` re-strikes every second), is
+//!   rewritten to `DampedSine(τ, F, D)` times the other factors: per lane a complex
 //!   multiply per sample instead of a sine and an exponential. A lone
-//!   `(sine (* t F))` becomes `DampedSine(F, 0)`. This is the modal tree's inner loop.
+//!   `(sine (* τ F))` becomes `DampedSine(τ, F, 0)`. This is the modal tree's inner
+//!   loop.
 
 use std::sync::Arc;
 
@@ -41,21 +43,35 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
     (out, map[root.index()])
 }
 
-/// If `id` is `t·K` with K constant, K (lane by lane).
-fn linear_in_t(graph: &Graph, id: NodeId) -> Option<Vec<f64>> {
+/// Whether `id` is a time: a one-lane value that advances by one sample period per
+/// sample except at occasional jumps (`t`, `(mod t 1)`, `(- t 0.5)`, `(frac t)` …).
+fn is_time_like(graph: &Graph, id: NodeId) -> bool {
     let node = graph.node(id);
     match node.op {
-        Op::Time => Some(vec![1.0]),
-        Op::Binary(BinaryOp::Mul) => {
-            let (a, b) = (node.args[0], node.args[1]);
-            let (k, c) = match (linear_in_t(graph, a), graph.const_value(b)) {
-                (Some(k), Some(c)) => (k, c.to_vec()),
-                _ => (linear_in_t(graph, b)?, graph.const_value(a)?.to_vec()),
-            };
-            Some(broadcast(&k, &c, |x, y| x * y))
+        Op::Time => true,
+        Op::Binary(BinaryOp::Mod | BinaryOp::Add | BinaryOp::Sub) => {
+            is_time_like(graph, node.args[0]) && graph.scalar(node.args[1]).is_some()
         }
-        _ => None,
+        Op::Unary(UnaryOp::Frac) => is_time_like(graph, node.args[0]),
+        _ => false,
     }
+}
+
+/// If `id` is `τ·K` with τ time-like and K constant: τ and K (lane by lane).
+fn linear_in_time(graph: &Graph, id: NodeId) -> Option<(NodeId, Vec<f64>)> {
+    if is_time_like(graph, id) {
+        return Some((id, vec![1.0]));
+    }
+    let node = graph.node(id);
+    let Op::Binary(BinaryOp::Mul) = node.op else {
+        return None;
+    };
+    let (a, b) = (node.args[0], node.args[1]);
+    let ((time, k), c) = match (linear_in_time(graph, a), graph.const_value(b)) {
+        (Some(lin), Some(c)) => (lin, c.to_vec()),
+        _ => (linear_in_time(graph, b)?, graph.const_value(a)?.to_vec()),
+    };
+    Some((time, broadcast(&k, &c, |x, y| x * y)))
 }
 
 fn broadcast(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
@@ -75,11 +91,11 @@ fn factors(graph: &Graph, id: NodeId, into: &mut Vec<NodeId>) {
     }
 }
 
-/// The argument's t-coefficient if `id` is `(op (* t K))`.
-fn coefficient_of(graph: &Graph, id: NodeId, op: UnaryOp) -> Option<Vec<f64>> {
+/// τ and K if `id` is `(op (* τ K))`.
+fn time_coefficient(graph: &Graph, id: NodeId, op: UnaryOp) -> Option<(NodeId, Vec<f64>)> {
     let node = graph.node(id);
     match node.op {
-        Op::Unary(u) if u == op => linear_in_t(graph, node.args[0]),
+        Op::Unary(u) if u == op => linear_in_time(graph, node.args[0]),
         _ => None,
     }
 }
@@ -94,18 +110,18 @@ fn damped_sine(graph: &Graph, out: &mut Graph, map: &[NodeId], id: NodeId) -> Op
     }
     let sine = parts
         .iter()
-        .position(|f| coefficient_of(graph, *f, UnaryOp::Sine).is_some())?;
-    let freq = coefficient_of(graph, parts.remove(sine), UnaryOp::Sine)?;
-    let damping = match parts
-        .iter()
-        .position(|f| coefficient_of(graph, *f, UnaryOp::Damp).is_some())
-    {
-        Some(i) => coefficient_of(graph, parts.remove(i), UnaryOp::Damp)?,
+        .position(|f| time_coefficient(graph, *f, UnaryOp::Sine).is_some())?;
+    let (time, freq) = time_coefficient(graph, parts.remove(sine), UnaryOp::Sine)?;
+    // A damping factor of the same time, if there is one.
+    let same_time =
+        |f: &NodeId| time_coefficient(graph, *f, UnaryOp::Damp).is_some_and(|(t, _)| t == time);
+    let damping = match parts.iter().position(same_time) {
+        Some(i) => time_coefficient(graph, parts.remove(i), UnaryOp::Damp)?.1,
         None => vec![0.0],
     };
     let freq = out.add(Op::Const(Arc::from(freq)), vec![]);
     let damping = out.add(Op::Const(Arc::from(damping)), vec![]);
-    let mut product = out.add(Op::DampedSine, vec![freq, damping]);
+    let mut product = out.add(Op::DampedSine, vec![map[time.index()], freq, damping]);
     for factor in parts {
         product = out.add(
             Op::Binary(BinaryOp::Mul),

@@ -87,3 +87,24 @@ fn sines_of_varying_phase_are_left_alone() {
     );
     assert_eq!(compare("(sine (phasor 440))", 0.1).1, 0);
 }
+
+#[test]
+fn a_bell_re_struck_every_second_becomes_rotators() {
+    let (diff, rotators) = compare(
+        "(let ((tau (mod t 1))) (* 0.01 (combine (* (sine (* tau (rvector 100 200 2000))) (damp (* tau 0.02 (rvector 100 200 2000)))))))",
+        3.5,
+    );
+    assert_eq!(rotators, 1);
+    assert!(diff < 1e-9, "differs by {diff}");
+    // A time shifted by a start, as a scene instance's is.
+    let (diff, rotators) = compare("(* (sine (* (- t 0.25) 300)) (damp (* (- t 0.25) 3)))", 1.0);
+    assert_eq!(rotators, 1);
+    assert!(diff < 1e-9, "differs by {diff}");
+}
+
+#[test]
+fn a_damp_of_another_time_stays_a_separate_factor() {
+    let (diff, rotators) = compare("(* (sine (* t 300)) (damp (* (mod t 0.5) 3)))", 1.2);
+    assert_eq!(rotators, 1);
+    assert!(diff < 1e-9, "differs by {diff}");
+}

@@ -2,9 +2,10 @@
 //! pairs of samples (`F64X2`), and calls back into the interpreter for the rest.
 //!
 //! The kernel's signature is
-//! `kernel(interp, buffers, params, n, t0)`: the interpreter being driven (for
+//! `kernel(interp, buffers, params, n, t0, states)`: the interpreter being driven (for
 //! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
-//! the sample rate), the samples in this block, and the index of its first sample.
+//! the sample rate), the samples in this block, the index of its first sample, and
+//! the table of per-step state of nodes compiled inline (a phasor's phase per lane).
 //! Everything that differs between instances of one tree shape (constants, states,
 //! the sample rate) is reached through these pointers, so instances share the code.
 
@@ -35,13 +36,12 @@ pub(crate) struct Helpers {
     pub step: FuncRef,
     pub unary: FuncRef,
     pub binary: FuncRef,
-    pub noise: FuncRef,
 }
 
 /// The signature of every kernel.
 pub(crate) fn kernel_signature(call_conv: CallConv) -> Signature {
     let mut sig = Signature::new(call_conv);
-    for _ in 0..5 {
+    for _ in 0..6 {
         sig.params.push(AbiParam::new(I64));
     }
     sig
@@ -56,6 +56,7 @@ pub(crate) struct KernelBuilder<'a, 'b> {
     pub buffers: Value,
     pub n: Value,
     pub t0: Value,
+    pub states: Value,
     pub sample_rate: Value,
 }
 
@@ -135,8 +136,32 @@ impl KernelBuilder<'_, '_> {
             ..self.helpers_copy()
         };
         let t0 = self.t0;
+        let n = self.n;
+        let phasors: Vec<(usize, Value)> = region
+            .nodes
+            .iter()
+            .filter(|s| matches!(steps[**s].op, Op::Phasor))
+            .map(|&s| {
+                (
+                    s,
+                    self.b.ins().load(I64, mem(), self.states, (s * 8) as i32),
+                )
+            })
+            .collect();
         counted_loop(self.b, 0, end_lane, 1, |b, lane| {
             let lane_offset = b.ins().imul_imm_s(lane, lane_bytes);
+            // Each phasor's phase for this lane, carried through the sample loop.
+            let phase_offset = b.ins().ishl_imm_u(lane, 3);
+            let phases: HashMap<usize, (Value, cranelift_frontend::Variable)> = phasors
+                .iter()
+                .map(|&(s, table)| {
+                    let address = b.ins().iadd(table, phase_offset);
+                    let phase = b.ins().load(types::F64, mem(), address, 0);
+                    let var = b.declare_var(types::F64);
+                    b.def_var(var, phase);
+                    (s, (address, var))
+                })
+                .collect();
             // Per lane: where each buffer's lane starts; constants as splatted values.
             let mut bases: HashMap<usize, Value> = HashMap::new();
             let mut constants: HashMap<usize, Value> = HashMap::new();
@@ -170,12 +195,10 @@ impl KernelBuilder<'_, '_> {
                         Op::Unary(op) => unary(b, &helpers, *op, args[0]),
                         Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1]),
                         Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
-                        Op::Noise { seed } => {
-                            let seed = b.ins().iconst(I64, *seed as i64);
-                            per_lane(b, args[0], |b, x| {
-                                let call = b.ins().call(helpers.noise, &[seed, x]);
-                                b.inst_results(call)[0]
-                            })
+                        Op::Noise { seed } => gradient_noise(b, *seed, args[0]),
+                        Op::Phasor => {
+                            let rate = b.ins().extractlane(rate, 0);
+                            phasor(b, phases[&node].1, args[0], args[1], rate, i, n)
                         }
                         other => unreachable!("`{other}` is not compiled inline"),
                     };
@@ -193,6 +216,10 @@ impl KernelBuilder<'_, '_> {
                     b.ins().store(mem(), sum, addr, 0);
                 }
             });
+            for (address, var) in phases.values() {
+                let phase = b.use_var(*var);
+                b.ins().store(mem(), phase, *address, 0);
+            }
         });
     }
 
@@ -201,7 +228,6 @@ impl KernelBuilder<'_, '_> {
             step: self.helpers.step,
             unary: self.helpers.unary,
             binary: self.helpers.binary,
-            noise: self.helpers.noise,
         }
     }
 }
@@ -460,6 +486,130 @@ pub(crate) extern "C" fn call_binary(code: u64, x: f64, y: f64) -> f64 {
     BINARY_CALLBACKS[code as usize].apply(x, y)
 }
 
-pub(crate) extern "C" fn call_noise(seed: u64, x: f64) -> f64 {
-    timbre_ir::op::noise(seed, x)
+/// splitmix64's finaliser on a scalar i64, as `timbre_ir::dsp::noise::mix64`.
+fn mix64(b: &mut FunctionBuilder, x: Value) -> Value {
+    let z = b.ins().iadd_imm_s(x, 0x9E37_79B9_7F4A_7C15_u64 as i64);
+    let s = b.ins().ushr_imm_u(z, 30);
+    let z = b.ins().bxor(z, s);
+    let z = b.ins().imul_imm_s(z, 0xBF58_476D_1CE4_E5B9_u64 as i64);
+    let s = b.ins().ushr_imm_u(z, 27);
+    let z = b.ins().bxor(z, s);
+    let z = b.ins().imul_imm_s(z, 0x94D0_49BB_1331_11EB_u64 as i64);
+    let s = b.ins().ushr_imm_u(z, 31);
+    b.ins().bxor(z, s)
+}
+
+/// The gradient at lattice point `i` (scalar i64): a hash mapped to [−1, 1).
+fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
+    let key = b.ins().bxor_imm_s(i, mixed_seed);
+    let h = mix64(b, key);
+    let top = b.ins().ushr_imm_u(h, 11);
+    let x = b.ins().fcvt_from_uint(types::F64, top);
+    let scale = b.ins().f64const(1.0 / (1u64 << 52) as f64);
+    let x = b.ins().fmul(x, scale);
+    let one = b.ins().f64const(1.0);
+    b.ins().fsub(x, one)
+}
+
+/// `timbre_ir::op::noise` (1-D gradient noise) of both lanes, inline and bit-exact:
+/// the same operations in the same order, lattice hashes in scalar registers.
+fn gradient_noise(b: &mut FunctionBuilder, seed: u64, x: Value) -> Value {
+    let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
+    let fl = b.ins().floor(x);
+    let u = b.ins().fsub(x, fl);
+    let mut g0 = [x; 2];
+    let mut g1 = [x; 2];
+    for lane in 0..2u8 {
+        let f = b.ins().extractlane(fl, lane);
+        // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
+        let i = b.ins().fcvt_to_sint_sat(I64, f);
+        let next = b.ins().iadd_imm_s(i, 1);
+        g0[lane as usize] = gradient(b, mixed_seed, i);
+        g1[lane as usize] = gradient(b, mixed_seed, next);
+    }
+    let g0 = {
+        let v = b.ins().splat(F64X2, g0[0]);
+        b.ins().insertlane(v, g0[1], 1)
+    };
+    let g1 = {
+        let v = b.ins().splat(F64X2, g1[0]);
+        b.ins().insertlane(v, g1[1], 1)
+    };
+    // fade(u) = u·u·u·(u·(u·6 − 15) + 10), evaluated left to right as in Rust.
+    let six = splat(b, 6.0);
+    let fifteen = splat(b, 15.0);
+    let ten = splat(b, 10.0);
+    let one = splat(b, 1.0);
+    let t = b.ins().fmul(u, six);
+    let t = b.ins().fsub(t, fifteen);
+    let t = b.ins().fmul(u, t);
+    let t = b.ins().fadd(t, ten);
+    let u2 = b.ins().fmul(u, u);
+    let u3 = b.ins().fmul(u2, u);
+    let fade = b.ins().fmul(u3, t);
+    let a = b.ins().fmul(g0, u);
+    let u1 = b.ins().fsub(u, one);
+    let c = b.ins().fmul(g1, u1);
+    let d = b.ins().fsub(c, a);
+    let d = b.ins().fmul(d, fade);
+    let v = b.ins().fadd(a, d);
+    let two = splat(b, 2.0);
+    let v = b.ins().fmul(two, v);
+    // clamp(−1, 1), keeping NaN (cranelift's fmax/fmin propagate it, like f64::clamp).
+    let minus = splat(b, -1.0);
+    let v = b.ins().fmax(v, minus);
+    let v = b.ins().fmin(v, one);
+    // ±∞ gives 0.
+    let abs = b.ins().fabs(x);
+    let infinity = splat(b, f64::INFINITY);
+    let infinite = b.ins().fcmp(FloatCC::Equal, abs, infinity);
+    let zero = splat(b, 0.0);
+    select(b, infinite, zero, v)
+}
+
+/// x − floor(x) of a scalar, with 1.0 mapped to 0.0, as `timbre_ir::op::frac`.
+fn frac_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
+    let fl = b.ins().floor(x);
+    let f = b.ins().fsub(x, fl);
+    let one = b.ins().f64const(1.0);
+    let whole = b.ins().fcmp(FloatCC::GreaterThanOrEqual, f, one);
+    let zero = b.ins().f64const(0.0);
+    b.ins().select(whole, zero, f)
+}
+
+/// Two samples of a phasor whose phase is carried in `phase`: each sample outputs
+/// frac(phase + offset), then phase = frac(phase + freq / rate), as the interpreter
+/// does. The second sample of the pair advances the phase only if it is within the
+/// block (`i + 1 < n`).
+fn phasor(
+    b: &mut FunctionBuilder,
+    phase: cranelift_frontend::Variable,
+    freq: Value,
+    offset: Value,
+    rate: Value,
+    i: Value,
+    n: Value,
+) -> Value {
+    let p0 = b.use_var(phase);
+    let mut outputs = [p0; 2];
+    let mut p = p0;
+    let mut after_first = p0;
+    for lane in 0..2u8 {
+        let f = b.ins().extractlane(freq, lane);
+        let o = b.ins().extractlane(offset, lane);
+        let shifted = b.ins().fadd(p, o);
+        outputs[lane as usize] = frac_scalar(b, shifted);
+        let step = b.ins().fdiv(f, rate);
+        let next = b.ins().fadd(p, step);
+        p = frac_scalar(b, next);
+        if lane == 0 {
+            after_first = p;
+        }
+    }
+    let second = b.ins().iadd_imm_s(i, 1);
+    let in_block = b.ins().icmp(IntCC::UnsignedLessThan, second, n);
+    let p = b.ins().select(in_block, p, after_first);
+    b.def_var(phase, p);
+    let v = b.ins().splat(F64X2, outputs[0]);
+    b.ins().insertlane(v, outputs[1], 1)
 }

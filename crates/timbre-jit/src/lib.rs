@@ -41,8 +41,9 @@ pub enum JitError {
     Codegen(String),
 }
 
-/// `kernel(interp, buffers, params, n, t0)`; see `codegen`.
-type KernelFn = unsafe extern "C" fn(*mut Interpreter, *const *mut f64, *const f64, u64, u64);
+/// `kernel(interp, buffers, params, n, t0, states)`; see `codegen`.
+type KernelFn =
+    unsafe extern "C" fn(*mut Interpreter, *const *mut f64, *const f64, u64, u64, *const *mut f64);
 
 /// A compiled tree shape.
 pub struct Kernel {
@@ -73,7 +74,7 @@ pub struct Jit {
     context: Context,
     builder_context: FunctionBuilderContext,
     cache: HashMap<u64, Arc<Kernel>>,
-    helpers: [FuncId; 4],
+    helpers: [FuncId; 3],
     next_name: usize,
 }
 
@@ -97,7 +98,6 @@ impl Jit {
         builder.symbol("timbre_step", step_callback as *const u8);
         builder.symbol("timbre_unary", codegen::call_unary as *const u8);
         builder.symbol("timbre_binary", codegen::call_binary as *const u8);
-        builder.symbol("timbre_noise", codegen::call_noise as *const u8);
         let mut module = JITModule::new(builder);
         let call_conv = module.target_config().default_call_conv;
         let signature = |params: &[cranelift_codegen::ir::Type], returns: bool| {
@@ -127,7 +127,6 @@ impl Jit {
                 "timbre_binary",
                 signature(&[I64, F64, F64], true),
             )?,
-            declare(&mut module, "timbre_noise", signature(&[I64, F64], true))?,
         ];
         Ok(Jit {
             context: module.make_context(),
@@ -159,7 +158,6 @@ impl Jit {
                 step: self.module.declare_func_in_func(self.helpers[0], b.func),
                 unary: self.module.declare_func_in_func(self.helpers[1], b.func),
                 binary: self.module.declare_func_in_func(self.helpers[2], b.func),
-                noise: self.module.declare_func_in_func(self.helpers[3], b.func),
             };
             let sample_rate = b.ins().load(
                 cranelift_codegen::ir::types::F64,
@@ -176,6 +174,7 @@ impl Jit {
                 buffers: params[1],
                 n: params[3],
                 t0: params[4],
+                states: params[5],
                 sample_rate,
             };
             kb.emit(&plan);
@@ -229,10 +228,25 @@ impl Jit {
         let mut interp = Interpreter::new(&graph, root, config);
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
+        // State of the nodes computed inline: one phase per lane of each phasor.
+        let mut states: Vec<Vec<f64>> = interp
+            .steps()
+            .iter()
+            .map(|s| {
+                if matches!(s.op, Op::Phasor) {
+                    vec![0.0; s.width]
+                } else {
+                    vec![]
+                }
+            })
+            .collect();
+        let state_pointers = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
         Ok(JitVoice {
             interp,
             kernel,
             buffers,
+            _states: states,
+            state_pointers,
             params: vec![config.sample_rate],
         })
     }
@@ -249,6 +263,10 @@ pub struct JitVoice {
     kernel: Arc<Kernel>,
     /// Step buffers of `interp`, for the kernel.
     buffers: Vec<*mut f64>,
+    /// State of nodes computed inline, owned here and reached by the kernel through
+    /// `state_pointers`.
+    _states: Vec<Vec<f64>>,
+    state_pointers: Vec<*mut f64>,
     params: Vec<f64>,
 }
 
@@ -278,6 +296,7 @@ impl JitVoice {
                     self.params.as_ptr(),
                     n as u64,
                     t0,
+                    self.state_pointers.as_ptr(),
                 );
             }
             self.interp.advance(n);
@@ -310,6 +329,7 @@ fn shape_hash(steps: &[Step], block_size: usize) -> u64 {
             Op::Ternary(op) => (4u8, *op as u8).hash(&mut h),
             Op::Noise { seed } => (5u8, *seed).hash(&mut h),
             Op::Combine => 6u8.hash(&mut h),
+            Op::Phasor => 8u8.hash(&mut h),
             _ => 7u8.hash(&mut h),
         }
     }

@@ -5,8 +5,10 @@
 //! lanes, and inside it one loop over pairs of samples, in which every node of the
 //! region is an SSA value in registers. A node is written to its buffer only when
 //! something outside its region reads it. `combine` of a region's node is summed
-//! inside that region. Every other node is a *callback*: the kernel calls back into
-//! the interpreter, which computes that node exactly as it always does.
+//! inside that region. `phasor` is computed inline too, its phase carried through the
+//! sample loop and kept in the voice's state table. Every other node is a *callback*:
+//! the kernel calls back into the interpreter, which computes that node exactly as it
+//! always does.
 
 use timbre_ir::op::{Op, UnaryOp};
 use timbre_ir::Step;
@@ -32,7 +34,7 @@ pub(crate) struct Region {
 /// Whether a step is computed inline in a region.
 pub(crate) fn is_inline(op: &Op) -> bool {
     match op {
-        Op::Time | Op::Binary(_) | Op::Ternary(_) | Op::Noise { .. } => true,
+        Op::Time | Op::Binary(_) | Op::Ternary(_) | Op::Noise { .. } | Op::Phasor => true,
         Op::Unary(u) => !matches!(u, UnaryOp::Tan),
         _ => false,
     }

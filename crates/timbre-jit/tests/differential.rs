@@ -207,7 +207,10 @@ mod random_trees {
     use timbre_ir::generate::{tree_strategy, GenConfig};
 
     fn smooth() -> GenConfig {
-        GenConfig { smooth_only: true, ..GenConfig::default() }
+        GenConfig {
+            smooth_only: true,
+            ..GenConfig::default()
+        }
     }
 
     proptest! {
