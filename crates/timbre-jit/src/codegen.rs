@@ -16,7 +16,7 @@ use cranelift_codegen::ir::{
     types, AbiParam, BlockArg, FuncRef, InstBuilder, MemFlagsData, Signature, Value,
 };
 use cranelift_codegen::isa::CallConv;
-use cranelift_frontend::FunctionBuilder;
+use cranelift_frontend::{FunctionBuilder, Variable};
 use timbre_ir::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 use timbre_ir::Step;
 
@@ -137,10 +137,10 @@ impl KernelBuilder<'_, '_> {
         };
         let t0 = self.t0;
         let n = self.n;
-        let phasors: Vec<(usize, Value)> = region
+        let state_tables: Vec<(usize, Value)> = region
             .nodes
             .iter()
-            .filter(|s| matches!(steps[**s].op, Op::Phasor))
+            .filter(|s| matches!(steps[**s].op, Op::Phasor | Op::Noise { .. }))
             .map(|&s| {
                 (
                     s,
@@ -150,18 +150,16 @@ impl KernelBuilder<'_, '_> {
             .collect();
         counted_loop(self.b, 0, end_lane, 1, |b, lane| {
             let lane_offset = b.ins().imul_imm_s(lane, lane_bytes);
-            // Each phasor's phase for this lane, carried through the sample loop.
-            let phase_offset = b.ins().ishl_imm_u(lane, 3);
-            let phases: HashMap<usize, (Value, cranelift_frontend::Variable)> = phasors
-                .iter()
-                .map(|&(s, table)| {
-                    let address = b.ins().iadd(table, phase_offset);
-                    let phase = b.ins().load(types::F64, mem(), address, 0);
-                    let var = b.declare_var(types::F64);
-                    b.def_var(var, phase);
-                    (s, (address, var))
-                })
-                .collect();
+            // State of inline nodes for this lane, carried through the sample loop in
+            // variables: a phasor's phase; a noise's last lattice cell and gradients.
+            let mut states: HashMap<usize, InlineState> = HashMap::new();
+            for &(s, table) in &state_tables {
+                let state = match steps[s].op {
+                    Op::Phasor => InlineState::load(b, table, lane, &[types::F64]),
+                    _ => InlineState::load(b, table, lane, &[I64, types::F64, types::F64]),
+                };
+                states.insert(s, state);
+            }
             // Per lane: where each buffer's lane starts; constants as splatted values.
             let mut bases: HashMap<usize, Value> = HashMap::new();
             let mut constants: HashMap<usize, Value> = HashMap::new();
@@ -195,10 +193,12 @@ impl KernelBuilder<'_, '_> {
                         Op::Unary(op) => unary(b, &helpers, *op, args[0]),
                         Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1]),
                         Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
-                        Op::Noise { seed } => gradient_noise(b, *seed, args[0]),
+                        Op::Noise { seed } => {
+                            gradient_noise(b, *seed, &states[&node].vars, args[0])
+                        }
                         Op::Phasor => {
                             let rate = b.ins().extractlane(rate, 0);
-                            phasor(b, phases[&node].1, args[0], args[1], rate, i, n)
+                            phasor(b, states[&node].vars[0], args[0], args[1], rate, i, n)
                         }
                         other => unreachable!("`{other}` is not compiled inline"),
                     };
@@ -216,9 +216,8 @@ impl KernelBuilder<'_, '_> {
                     b.ins().store(mem(), sum, addr, 0);
                 }
             });
-            for (address, var) in phases.values() {
-                let phase = b.use_var(*var);
-                b.ins().store(mem(), phase, *address, 0);
+            for state in states.values() {
+                state.store(b);
             }
         });
     }
@@ -499,6 +498,39 @@ fn mix64(b: &mut FunctionBuilder, x: Value) -> Value {
     b.ins().bxor(z, s)
 }
 
+/// Per-lane state of a node computed inline: scalar slots at `address`, held in
+/// variables while the sample loop runs.
+struct InlineState {
+    address: Value,
+    vars: Vec<Variable>,
+}
+
+impl InlineState {
+    /// Loads lane `lane`'s slots (8 bytes each) from a state table.
+    fn load(b: &mut FunctionBuilder, table: Value, lane: Value, slots: &[types::Type]) -> Self {
+        let offset = b.ins().imul_imm_s(lane, 8 * slots.len() as i64);
+        let address = b.ins().iadd(table, offset);
+        let vars = slots
+            .iter()
+            .enumerate()
+            .map(|(k, ty)| {
+                let value = b.ins().load(*ty, mem(), address, (8 * k) as i32);
+                let var = b.declare_var(*ty);
+                b.def_var(var, value);
+                var
+            })
+            .collect();
+        InlineState { address, vars }
+    }
+
+    fn store(&self, b: &mut FunctionBuilder) {
+        for (k, var) in self.vars.iter().enumerate() {
+            let value = b.use_var(*var);
+            b.ins().store(mem(), value, self.address, (8 * k) as i32);
+        }
+    }
+}
+
 /// The gradient at lattice point `i` (scalar i64): a hash mapped to [−1, 1).
 fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
     let key = b.ins().bxor_imm_s(i, mixed_seed);
@@ -512,8 +544,10 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
 }
 
 /// `timbre_ir::op::noise` (1-D gradient noise) of both lanes, inline and bit-exact:
-/// the same operations in the same order, lattice hashes in scalar registers.
-fn gradient_noise(b: &mut FunctionBuilder, seed: u64, x: Value) -> Value {
+/// the same operations in the same order. The gradients of the lattice cell are
+/// hashed only when the cell changes (`cache`: cell, g0, g1), which for slow noise is
+/// rarely.
+fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let fl = b.ins().floor(x);
     let u = b.ins().fsub(x, fl);
@@ -523,9 +557,23 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, x: Value) -> Value {
         let f = b.ins().extractlane(fl, lane);
         // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
         let i = b.ins().fcvt_to_sint_sat(I64, f);
+        let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
+        let last = b.use_var(cell);
+        let same = b.ins().icmp(IntCC::Equal, i, last);
+        let compute = b.create_block();
+        let join = b.create_block();
+        b.ins().brif(same, join, &[], compute, &[]);
+        b.switch_to_block(compute);
         let next = b.ins().iadd_imm_s(i, 1);
-        g0[lane as usize] = gradient(b, mixed_seed, i);
-        g1[lane as usize] = gradient(b, mixed_seed, next);
+        let new0 = gradient(b, mixed_seed, i);
+        let new1 = gradient(b, mixed_seed, next);
+        b.def_var(cached0, new0);
+        b.def_var(cached1, new1);
+        b.def_var(cell, i);
+        b.ins().jump(join, &[]);
+        b.switch_to_block(join);
+        g0[lane as usize] = b.use_var(cached0);
+        g1[lane as usize] = b.use_var(cached1);
     }
     let g0 = {
         let v = b.ins().splat(F64X2, g0[0]);
@@ -583,7 +631,7 @@ fn frac_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
 /// block (`i + 1 < n`).
 fn phasor(
     b: &mut FunctionBuilder,
-    phase: cranelift_frontend::Variable,
+    phase: Variable,
     freq: Value,
     offset: Value,
     rate: Value,

@@ -228,16 +228,17 @@ impl Jit {
         let mut interp = Interpreter::new(&graph, root, config);
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
-        // State of the nodes computed inline: one phase per lane of each phasor.
+        // State of the nodes computed inline: one phase per lane of each phasor; the
+        // last lattice cell (none yet: i64::MIN, which only −∞ maps to, and noise of
+        // −∞ is 0 whatever the gradients) and its two gradients per lane of each noise.
+        let no_cell = f64::from_bits(i64::MIN as u64);
         let mut states: Vec<Vec<f64>> = interp
             .steps()
             .iter()
-            .map(|s| {
-                if matches!(s.op, Op::Phasor) {
-                    vec![0.0; s.width]
-                } else {
-                    vec![]
-                }
+            .map(|s| match s.op {
+                Op::Phasor => vec![0.0; s.width],
+                Op::Noise { .. } => [no_cell, 0.0, 0.0].repeat(s.width),
+                _ => vec![],
             })
             .collect();
         let state_pointers = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
