@@ -156,7 +156,7 @@ impl KernelBuilder<'_, '_> {
             for &(s, table) in &state_tables {
                 let state = match steps[s].op {
                     Op::Phasor => InlineState::load(b, table, lane, &[types::F64]),
-                    _ => InlineState::load(b, table, lane, &[I64, types::F64, types::F64]),
+                    _ => InlineState::load(b, table, lane, &[types::F64; 3]),
                 };
                 states.insert(s, state);
             }
@@ -197,7 +197,6 @@ impl KernelBuilder<'_, '_> {
                             gradient_noise(b, *seed, &states[&node].vars, args[0])
                         }
                         Op::Phasor => {
-                            let rate = b.ins().extractlane(rate, 0);
                             phasor(b, states[&node].vars[0], args[0], args[1], rate, i, n)
                         }
                         other => unreachable!("`{other}` is not compiled inline"),
@@ -544,45 +543,62 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
 }
 
 /// `timbre_ir::op::noise` (1-D gradient noise) of both lanes, inline and bit-exact:
-/// the same operations in the same order. The gradients of the lattice cell are
-/// hashed only when the cell changes (`cache`: cell, g0, g1), which for slow noise is
-/// rarely.
+/// the same operations in the same order. The gradients of a lattice cell are hashed
+/// only when the cell changes: `cache` holds the last cell's floor (NaN before the
+/// first) and its two gradients. For slow noise both samples of a pair are nearly
+/// always in the cached cell: one vector compare and one branch.
 fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
+    let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
     let fl = b.ins().floor(x);
     let u = b.ins().fsub(x, fl);
+    let last = b.use_var(cell);
+    let last = b.ins().splat(F64X2, last);
+    let same = b.ins().fcmp(FloatCC::Equal, fl, last);
+    let both_same = b.ins().vall_true(same);
+    let fast = b.create_block();
+    let slow = b.create_block();
+    let join = b.create_block();
+    b.append_block_param(join, F64X2);
+    b.append_block_param(join, F64X2);
+    b.ins().brif(both_same, fast, &[], slow, &[]);
+
+    b.switch_to_block(fast);
+    let g0 = b.use_var(cached0);
+    let g1 = b.use_var(cached1);
+    let g0 = b.ins().splat(F64X2, g0);
+    let g1 = b.ins().splat(F64X2, g1);
+    b.ins()
+        .jump(join, &[BlockArg::Value(g0), BlockArg::Value(g1)]);
+
+    // A new cell in either sample: hash both lanes' gradients, and remember the
+    // second lane's cell (the later sample).
+    b.switch_to_block(slow);
     let mut g0 = [x; 2];
     let mut g1 = [x; 2];
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
         // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
         let i = b.ins().fcvt_to_sint_sat(I64, f);
-        let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
-        let last = b.use_var(cell);
-        let same = b.ins().icmp(IntCC::Equal, i, last);
-        let compute = b.create_block();
-        let join = b.create_block();
-        b.ins().brif(same, join, &[], compute, &[]);
-        b.switch_to_block(compute);
         let next = b.ins().iadd_imm_s(i, 1);
-        let new0 = gradient(b, mixed_seed, i);
-        let new1 = gradient(b, mixed_seed, next);
-        b.def_var(cached0, new0);
-        b.def_var(cached1, new1);
-        b.def_var(cell, i);
-        b.ins().jump(join, &[]);
-        b.switch_to_block(join);
-        g0[lane as usize] = b.use_var(cached0);
-        g1[lane as usize] = b.use_var(cached1);
+        g0[lane as usize] = gradient(b, mixed_seed, i);
+        g1[lane as usize] = gradient(b, mixed_seed, next);
+        if lane == 1 {
+            b.def_var(cell, f);
+        }
     }
-    let g0 = {
-        let v = b.ins().splat(F64X2, g0[0]);
-        b.ins().insertlane(v, g0[1], 1)
-    };
-    let g1 = {
-        let v = b.ins().splat(F64X2, g1[0]);
-        b.ins().insertlane(v, g1[1], 1)
-    };
+    b.def_var(cached0, g0[1]);
+    b.def_var(cached1, g1[1]);
+    let v0 = b.ins().splat(F64X2, g0[0]);
+    let v0 = b.ins().insertlane(v0, g0[1], 1);
+    let v1 = b.ins().splat(F64X2, g1[0]);
+    let v1 = b.ins().insertlane(v1, g1[1], 1);
+    b.ins()
+        .jump(join, &[BlockArg::Value(v0), BlockArg::Value(v1)]);
+
+    b.switch_to_block(join);
+    let g0 = b.block_params(join)[0];
+    let g1 = b.block_params(join)[1];
     // fade(u) = u·u·u·(u·(u·6 − 15) + 10), evaluated left to right as in Rust.
     let six = splat(b, 6.0);
     let fifteen = splat(b, 15.0);
@@ -603,10 +619,13 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     let v = b.ins().fadd(a, d);
     let two = splat(b, 2.0);
     let v = b.ins().fmul(two, v);
-    // clamp(−1, 1), keeping NaN (cranelift's fmax/fmin propagate it, like f64::clamp).
+    // clamp(−1, 1) keeping NaN, like f64::clamp: each select keeps v unless the
+    // bound is exceeded, and a comparison with NaN is false.
     let minus = splat(b, -1.0);
-    let v = b.ins().fmax(v, minus);
-    let v = b.ins().fmin(v, one);
+    let below = b.ins().fcmp(FloatCC::GreaterThan, minus, v);
+    let v = select(b, below, minus, v);
+    let above = b.ins().fcmp(FloatCC::LessThan, one, v);
+    let v = select(b, above, one, v);
     // ±∞ gives 0.
     let abs = b.ins().fabs(x);
     let infinity = splat(b, f64::INFINITY);
@@ -627,8 +646,8 @@ fn frac_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
 
 /// Two samples of a phasor whose phase is carried in `phase`: each sample outputs
 /// frac(phase + offset), then phase = frac(phase + freq / rate), as the interpreter
-/// does. The second sample of the pair advances the phase only if it is within the
-/// block (`i + 1 < n`).
+/// does (the same operations, so the same bits). The second sample of the pair
+/// advances the phase only if it is within the block (`i + 1 < n`).
 fn phasor(
     b: &mut FunctionBuilder,
     phase: Variable,
@@ -638,26 +657,20 @@ fn phasor(
     i: Value,
     n: Value,
 ) -> Value {
+    let steps = b.ins().fdiv(freq, rate);
+    let s0 = b.ins().extractlane(steps, 0);
+    let s1 = b.ins().extractlane(steps, 1);
     let p0 = b.use_var(phase);
-    let mut outputs = [p0; 2];
-    let mut p = p0;
-    let mut after_first = p0;
-    for lane in 0..2u8 {
-        let f = b.ins().extractlane(freq, lane);
-        let o = b.ins().extractlane(offset, lane);
-        let shifted = b.ins().fadd(p, o);
-        outputs[lane as usize] = frac_scalar(b, shifted);
-        let step = b.ins().fdiv(f, rate);
-        let next = b.ins().fadd(p, step);
-        p = frac_scalar(b, next);
-        if lane == 0 {
-            after_first = p;
-        }
-    }
+    let next = b.ins().fadd(p0, s0);
+    let p1 = frac_scalar(b, next);
+    let next = b.ins().fadd(p1, s1);
+    let p2 = frac_scalar(b, next);
     let second = b.ins().iadd_imm_s(i, 1);
     let in_block = b.ins().icmp(IntCC::UnsignedLessThan, second, n);
-    let p = b.ins().select(in_block, p, after_first);
+    let p = b.ins().select(in_block, p2, p1);
     b.def_var(phase, p);
-    let v = b.ins().splat(F64X2, outputs[0]);
-    b.ins().insertlane(v, outputs[1], 1)
+    let phases = b.ins().splat(F64X2, p0);
+    let phases = b.ins().insertlane(phases, p1, 1);
+    let shifted = b.ins().fadd(phases, offset);
+    approx::frac(b, shifted)
 }

@@ -229,9 +229,9 @@ impl Jit {
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
-        // last lattice cell (none yet: i64::MIN, which only −∞ maps to, and noise of
-        // −∞ is 0 whatever the gradients) and its two gradients per lane of each noise.
-        let no_cell = f64::from_bits(i64::MIN as u64);
+        // floor of the last lattice cell (none yet: NaN equals nothing) and its two
+        // gradients per lane of each noise.
+        let no_cell = f64::NAN;
         let mut states: Vec<Vec<f64>> = interp
             .steps()
             .iter()
