@@ -1,5 +1,8 @@
 //! The benchmark workloads: the papers' trees, as the peers were measured on them
-//! (see PEERS in the design notes and docs/performance.md).
+//! (see PEERS in the design notes and docs/performance.md). Used by the criterion
+//! benches (`cargo bench -p timbre-benches`) and by `timbre bench`.
+
+use std::fmt::Write as _;
 
 use timbre_ir::{
     compile_str, CompileOptions, Interpreter, NoFiles, Program, Registry, RenderConfig,
@@ -11,14 +14,75 @@ pub struct Workload {
     pub source: String,
 }
 
+/// The names of the standard workloads, in the order `timbre bench` runs them.
+pub const WORKLOADS: [&str; 5] = [
+    "bell-100",
+    "wood-500",
+    "bell-1000",
+    "swarm-50",
+    "bell-100-restruck",
+];
+
+/// The standard workload called `name` (one of [`WORKLOADS`]).
+pub fn workload(name: &str) -> Option<Workload> {
+    Some(match name {
+        "bell-100" => bell(100),
+        "wood-500" => wood(500),
+        "bell-1000" => bell(1000),
+        "swarm-50" => swarm(50),
+        "bell-100-restruck" => bell_restruck(100),
+        _ => return None,
+    })
+}
+
+/// Every standard workload, in the order of [`WORKLOADS`].
+pub fn standard() -> Vec<Workload> {
+    WORKLOADS
+        .iter()
+        .map(|name| workload(name).expect("a standard workload"))
+        .collect()
+}
+
+fn leak(name: String) -> &'static str {
+    Box::leak(name.into_boxed_str())
+}
+
+/// The modal tree over time `time` (`t` or a let-bound local time): `n` modes between
+/// `lo` and `hi` Hz, each (1/n)·e^(−damping·f·time)·sin(2πf·time).
+fn modal(n: usize, lo: f64, hi: f64, damping: f64, time: &str) -> String {
+    format!(
+        "(let ((modes (rvector {n} {lo} {hi})))
+           (* (/ 1 {n}) (combine (* (sine (* {time} modes)) (damp (* {time} {damping} modes))))))"
+    )
+}
+
 /// The modal tree with `n` modes between 200 Hz and 2 kHz, each mode
 /// (1/n)·e^(−0.02·f·t)·sin(2πft).
 pub fn bell(n: usize) -> Workload {
     Workload {
-        name: Box::leak(format!("bell-{n}").into_boxed_str()),
+        name: leak(format!("bell-{n}")),
+        source: modal(n, 200.0, 2000.0, 0.02, "t"),
+    }
+}
+
+/// Wood (examples/wood.tt): `n` modes between 300 Hz and 3 kHz, each
+/// (1/n)·e^(−0.02·f·t)·sin(2πft).
+pub fn wood(n: usize) -> Workload {
+    Workload {
+        name: leak(format!("wood-{n}")),
+        source: modal(n, 300.0, 3000.0, 0.02, "t"),
+    }
+}
+
+/// The bell of [`bell`] struck again every second: the modal tree over the local
+/// time τ = t mod 1, each mode (1/n)·e^(−0.02·f·τ)·sin(2πfτ). Same modes as
+/// `bell(n)`, but not a damped sine of `t`, so the rotator rewrite does not apply.
+pub fn bell_restruck(n: usize) -> Workload {
+    Workload {
+        name: leak(format!("bell-{n}-restruck")),
         source: format!(
-            "(let ((modes (rvector {n} 200 2000)))
-               (* (/ 1 {n}) (combine (* (sine (* t modes)) (damp (* t 0.02 modes))))))"
+            "(let ((tau (mod t 1))) {})",
+            modal(n, 200.0, 2000.0, 0.02, "tau")
         ),
     }
 }
@@ -27,13 +91,61 @@ pub fn bell(n: usize) -> Workload {
 /// evaluated n lanes wide.
 pub fn swarm(n: usize) -> Workload {
     Workload {
-        name: Box::leak(format!("swarm-{n}").into_boxed_str()),
+        name: leak(format!("swarm-{n}")),
         source: format!(
             "(let ((offsets (rvector {n} 0 1000)))
                (* (/ 1 {n}) (combine (sawtooth (phasor (+ (rvector {n} 180 260)
                                                            (* 12 (noise (+ offsets (* t 3))))
                                                            (* 2 (noise (+ offsets (* t 400))))))))))"
         ),
+    }
+}
+
+/// A synthetic one-lane tree of exactly `nodes` scheduled nodes (at least 2), for
+/// measuring how compile time grows with the size of a tree.
+///
+/// A chain over `t` in which each node takes the two before it, through a cycle of
+/// arithmetic and waveform ops, with a distinct constant every fifth node: no two
+/// nodes are structurally identical (so nothing is shared), every node depends on
+/// `t` (so nothing is folded), no constant is 0 or 1 (so no identity applies), and
+/// the waveforms keep the values bounded. Every op is one the JIT computes inline.
+/// `interpreter(&compile(&synthetic(n))).steps().len() == n`.
+pub fn synthetic(nodes: usize) -> Workload {
+    assert!(nodes >= 2, "a synthetic tree has at least 2 nodes");
+    let mut bindings = String::from("(x0 t)");
+    let mut count = 1;
+    let mut i = 1;
+    while count < nodes {
+        let a = format!("x{}", i - 1);
+        let b = if i >= 2 {
+            format!("x{}", i - 2)
+        } else {
+            "t".to_owned()
+        };
+        let with_constant = i % 5 == 0 && count + 2 <= nodes;
+        let expr = if with_constant {
+            // Distinct constants in (1.1, 2.1), none 0 or 1.
+            let c = 1.1 + (i as f64 * 0.618_033_988_75).fract();
+            format!("(* {a} {c})")
+        } else {
+            match i % 8 {
+                0 => format!("(* {a} {b})"),
+                1 => format!("(+ {a} {b})"),
+                2 => format!("(sine {a})"),
+                3 => format!("(- {a} {b})"),
+                4 => format!("(triangle {a})"),
+                5 => format!("(max {a} {b})"),
+                6 => format!("(sawtooth {a})"),
+                _ => format!("(min {a} {b})"),
+            }
+        };
+        write!(bindings, " (x{i} {expr})").expect("writing to a String");
+        count += if with_constant { 2 } else { 1 };
+        i += 1;
+    }
+    Workload {
+        name: leak(format!("synthetic-{nodes}")),
+        source: format!("(let ({bindings}) x{})", i - 1),
     }
 }
 
@@ -52,4 +164,38 @@ pub const CONFIG: RenderConfig = RenderConfig {
 /// A voice of the workload for the reference interpreter.
 pub fn interpreter(program: &Program) -> Interpreter {
     Interpreter::new(&program.graph, program.root.expect("a sound"), CONFIG)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn standard_workloads_compile_to_one_sound() {
+        for w in standard() {
+            let program = compile(&w);
+            assert!(program.root.is_some(), "{}", w.name);
+            assert!(WORKLOADS.contains(&w.name));
+        }
+        assert!(workload("bell-7").is_none());
+    }
+
+    #[test]
+    fn synthetic_trees_have_exactly_the_nodes_asked_for() {
+        for n in (2..40).chain([100, 300, 1000, 2001]) {
+            let program = compile(&synthetic(n));
+            let steps = interpreter(&program).steps().len();
+            assert_eq!(steps, n, "synthetic({n})");
+        }
+    }
+
+    #[test]
+    fn synthetic_trees_render_finite_samples() {
+        let program = compile(&synthetic(300));
+        let mut voice = interpreter(&program);
+        let mut out = vec![0.0; 4800];
+        voice.render(&mut out);
+        assert!(out.iter().all(|x| x.is_finite()));
+        assert!(out.iter().any(|x| *x != out[0]), "the tree varies in time");
+    }
 }

@@ -5,6 +5,7 @@
 //! success, 1 when a script or the file system refused, 2 on bad command-line usage,
 //! 130 when interrupted.
 
+mod bench;
 mod wav_out;
 
 use std::collections::BTreeMap;
@@ -52,6 +53,13 @@ enum Command {
     ///   timbre check examples/bell.tt
     #[command(verbatim_doc_comment)]
     Check(SourceArgs),
+    /// Measure both engines on the benchmark workloads, and the JIT's compile time.
+    ///
+    /// Examples:
+    ///   timbre bench
+    ///   timbre bench --quick bell-100 swarm-50
+    #[command(verbatim_doc_comment)]
+    Bench(bench::BenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -168,6 +176,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Check(args) => check(args),
+        Command::Bench(args) => bench::bench(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
