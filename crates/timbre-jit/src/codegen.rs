@@ -70,6 +70,7 @@ impl KernelBuilder<'_, '_> {
                         .ins()
                         .call(self.helpers.step, &[self.interp, index, self.n]);
                 }
+                PlanStep::Region(region) if region.width >= 2 => self.emit_lane_region(region),
                 PlanStep::Region(region) => self.emit_region(region),
             }
         }
@@ -219,6 +220,169 @@ impl KernelBuilder<'_, '_> {
                 state.store(b);
             }
         });
+    }
+
+    /// A region of two or more lanes, vectorised across lanes: each `F64X2` holds
+    /// lanes `l` and `l + 1` of one sample, and the sample loop runs one sample at a
+    /// time. Per-lane state (a phasor's phase, a noise's lattice cache) is a vector
+    /// carried through the loop, and no sample is computed beyond `n`. An odd last
+    /// lane runs alone, both vector lanes holding it.
+    fn emit_lane_region(&mut self, region: &Region) {
+        let steps = self.steps;
+        let n = self.n;
+        let lane_bytes = (self.block_size * 8) as i64;
+        let width = region.width;
+        // Sums start from zero.
+        for &c in &region.combines {
+            let base = self.buffer(c);
+            counted_loop(self.b, 0, n, 1, |b, k| {
+                let zero = b.ins().f64const(0.0);
+                let addr = sample_address(b, base, k);
+                b.ins().store(mem(), zero, addr, 0);
+            });
+        }
+        let mut in_region = vec![false; steps.len()];
+        for &node in &region.nodes {
+            in_region[node] = true;
+        }
+        let mut outside: Vec<usize> = region
+            .nodes
+            .iter()
+            .flat_map(|&node| steps[node].args.iter().copied())
+            .filter(|a| !in_region[*a])
+            .collect();
+        outside.sort_unstable();
+        outside.dedup();
+        let tables: HashMap<usize, Value> = outside
+            .iter()
+            .chain(&region.stored)
+            .chain(&region.combines)
+            .map(|&s| (s, self.buffer(s)))
+            .collect();
+        let state_tables: Vec<(usize, Value)> = region
+            .nodes
+            .iter()
+            .filter(|s| matches!(steps[**s].op, Op::Phasor | Op::Noise { .. }))
+            .map(|&s| {
+                (
+                    s,
+                    self.b.ins().load(I64, mem(), self.states, (s * 8) as i32),
+                )
+            })
+            .collect();
+        let rate = self.b.ins().splat(F64X2, self.sample_rate);
+        let helpers = self.helpers_copy();
+
+        // The body for the lanes `first` and `second` (equal when one lane is left).
+        let body = |b: &mut FunctionBuilder, first: Value, second: Value, single: bool| {
+            let offsets = [
+                b.ins().imul_imm_s(first, lane_bytes),
+                b.ins().imul_imm_s(second, lane_bytes),
+            ];
+            // Where each buffer's two lanes start; constants as vectors.
+            let mut bases: HashMap<usize, [Value; 2]> = HashMap::new();
+            let mut constants: HashMap<usize, Value> = HashMap::new();
+            for (&s, &table) in &tables {
+                let lanes = if steps[s].width == 1 {
+                    [table, table]
+                } else {
+                    [
+                        b.ins().iadd(table, offsets[0]),
+                        b.ins().iadd(table, offsets[1]),
+                    ]
+                };
+                if steps[s].constant {
+                    let x0 = b.ins().load(types::F64, mem(), lanes[0], 0);
+                    let x1 = b.ins().load(types::F64, mem(), lanes[1], 0);
+                    constants.insert(s, pair(b, x0, x1));
+                } else {
+                    bases.insert(s, lanes);
+                }
+            }
+            let mut states: HashMap<usize, LaneState> = HashMap::new();
+            for &(s, table) in &state_tables {
+                let slots = if matches!(steps[s].op, Op::Phasor) {
+                    1
+                } else {
+                    3
+                };
+                states.insert(s, LaneState::load(b, table, [first, second], slots));
+            }
+            counted_loop(b, 0, n, 1, |b, k| {
+                let mut values: HashMap<usize, Value> = constants.clone();
+                let offset = b.ins().ishl_imm_u(k, 3);
+                for &s in &outside {
+                    if let Some(lanes) = bases.get(&s) {
+                        let a0 = b.ins().iadd(lanes[0], offset);
+                        let x0 = b.ins().load(types::F64, mem(), a0, 0);
+                        let value = if steps[s].width == 1 {
+                            b.ins().splat(F64X2, x0)
+                        } else {
+                            let a1 = b.ins().iadd(lanes[1], offset);
+                            let x1 = b.ins().load(types::F64, mem(), a1, 0);
+                            pair(b, x0, x1)
+                        };
+                        values.insert(s, value);
+                    }
+                }
+                for &node in &region.nodes {
+                    let step = &steps[node];
+                    let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
+                    let value = match &step.op {
+                        Op::Unary(op) => unary(b, &helpers, *op, args[0]),
+                        Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1]),
+                        Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
+                        Op::Noise { seed } => lane_noise(b, *seed, &states[&node].vars, args[0]),
+                        Op::Phasor => {
+                            // out = frac(phase + offset); phase = frac(phase + freq / rate)
+                            let phase = states[&node].vars[0];
+                            let p = b.use_var(phase);
+                            let shifted = b.ins().fadd(p, args[1]);
+                            let out = approx::frac(b, shifted);
+                            let step = b.ins().fdiv(args[0], rate);
+                            let next = b.ins().fadd(p, step);
+                            let next = approx::frac(b, next);
+                            b.def_var(phase, next);
+                            out
+                        }
+                        other => unreachable!("`{other}` is not compiled inline across lanes"),
+                    };
+                    values.insert(node, value);
+                }
+                for &s in &region.stored {
+                    for (lane, base) in bases[&s].iter().enumerate() {
+                        let x = b.ins().extractlane(values[&s], lane as u8);
+                        let addr = b.ins().iadd(*base, offset);
+                        b.ins().store(mem(), x, addr, 0);
+                    }
+                }
+                for &c in &region.combines {
+                    // Lane by lane, in the interpreter's order of summation.
+                    let addr = b.ins().iadd(tables[&c], offset);
+                    let lanes: &[u8] = if single { &[0] } else { &[0, 1] };
+                    for &lane in lanes {
+                        let sum = b.ins().load(types::F64, mem(), addr, 0);
+                        let x = b.ins().extractlane(values[&steps[c].args[0]], lane);
+                        let sum = b.ins().fadd(sum, x);
+                        b.ins().store(mem(), sum, addr, 0);
+                    }
+                }
+            });
+            for state in states.values() {
+                state.store(b);
+            }
+        };
+
+        let pairs = self.b.ins().iconst(I64, (width / 2) as i64);
+        counted_loop(self.b, 0, pairs, 1, |b, p| {
+            let first = b.ins().imul_imm_s(p, 2);
+            let second = b.ins().iadd_imm_s(first, 1);
+            body(b, first, second, false);
+        });
+        if width % 2 == 1 {
+            let last = self.b.ins().iconst(I64, (width - 1) as i64);
+            body(self.b, last, last, true);
+        }
     }
 
     fn helpers_copy(&self) -> Helpers {
@@ -599,6 +763,18 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     b.switch_to_block(join);
     let g0 = b.block_params(join)[0];
     let g1 = b.block_params(join)[1];
+    noise_from_gradients(b, x, u, g0, g1)
+}
+
+/// The rest of gradient noise once the two gradients are known:
+/// lerp(g0·u, g1·(u − 1), fade(u)), doubled, clamped, and 0 for ±∞.
+fn noise_from_gradients(
+    b: &mut FunctionBuilder,
+    x: Value,
+    u: Value,
+    g0: Value,
+    g1: Value,
+) -> Value {
     // fade(u) = u·u·u·(u·(u·6 − 15) + 10), evaluated left to right as in Rust.
     let six = splat(b, 6.0);
     let fifteen = splat(b, 15.0);
@@ -673,4 +849,87 @@ fn phasor(
     let phases = b.ins().insertlane(phases, p1, 1);
     let shifted = b.ins().fadd(phases, offset);
     approx::frac(b, shifted)
+}
+
+fn pair(b: &mut FunctionBuilder, x0: Value, x1: Value) -> Value {
+    let v = b.ins().splat(F64X2, x0);
+    b.ins().insertlane(v, x1, 1)
+}
+
+/// Per-lane state of an inline node in a lane-vectorised region: `slots` scalars per
+/// lane in the state table, each held as a vector of the two lanes' values.
+struct LaneState {
+    addresses: [Value; 2],
+    vars: Vec<Variable>,
+}
+
+impl LaneState {
+    fn load(b: &mut FunctionBuilder, table: Value, lanes: [Value; 2], slots: usize) -> Self {
+        let addresses = lanes.map(|lane| {
+            let offset = b.ins().imul_imm_s(lane, 8 * slots as i64);
+            b.ins().iadd(table, offset)
+        });
+        let vars = (0..slots)
+            .map(|k| {
+                let x0 = b
+                    .ins()
+                    .load(types::F64, mem(), addresses[0], (8 * k) as i32);
+                let x1 = b
+                    .ins()
+                    .load(types::F64, mem(), addresses[1], (8 * k) as i32);
+                let value = pair(b, x0, x1);
+                let var = b.declare_var(F64X2);
+                b.def_var(var, value);
+                var
+            })
+            .collect();
+        LaneState { addresses, vars }
+    }
+
+    /// Stores lane 0 then lane 1 (which, for a lone lane, is the same slot and value).
+    fn store(&self, b: &mut FunctionBuilder) {
+        for (k, var) in self.vars.iter().enumerate() {
+            let value = b.use_var(*var);
+            for (lane, address) in self.addresses.iter().enumerate() {
+                let x = b.ins().extractlane(value, lane as u8);
+                b.ins().store(mem(), x, *address, (8 * k) as i32);
+            }
+        }
+    }
+}
+
+/// Gradient noise of two lanes (two different signals) at one sample, inline and
+/// bit-exact. `cache` holds, per lane, the floor of the last lattice cell and its
+/// gradients, as vectors; they are rehashed only when a lane's cell changes.
+fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
+    let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
+    let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
+    let fl = b.ins().floor(x);
+    let u = b.ins().fsub(x, fl);
+    let last = b.use_var(cell);
+    let same = b.ins().fcmp(FloatCC::Equal, fl, last);
+    let both_same = b.ins().vall_true(same);
+    let slow = b.create_block();
+    let join = b.create_block();
+    b.ins().brif(both_same, join, &[], slow, &[]);
+    b.switch_to_block(slow);
+    let mut g0 = [x; 2];
+    let mut g1 = [x; 2];
+    for lane in 0..2u8 {
+        let f = b.ins().extractlane(fl, lane);
+        let i = b.ins().fcvt_to_sint_sat(I64, f);
+        let next = b.ins().iadd_imm_s(i, 1);
+        g0[lane as usize] = gradient(b, mixed_seed, i);
+        g1[lane as usize] = gradient(b, mixed_seed, next);
+    }
+    let v0 = pair(b, g0[0], g0[1]);
+    let v1 = pair(b, g1[0], g1[1]);
+    b.def_var(cell, fl);
+    b.def_var(cached0, v0);
+    b.def_var(cached1, v1);
+    b.ins().jump(join, &[]);
+    b.switch_to_block(join);
+    let g0 = b.use_var(cached0);
+    let g1 = b.use_var(cached1);
+    noise_from_gradients(b, x, u, g0, g1)
 }
