@@ -197,21 +197,6 @@ fn main() -> ExitCode {
     }
 }
 
-/// A sound being rendered by one of the engines.
-enum Voice {
-    Interp(timbre_ir::Interpreter),
-    Jit(timbre_jit::JitVoice),
-}
-
-impl Voice {
-    fn render(&mut self, out: &mut [f64]) {
-        match self {
-            Voice::Interp(voice) => voice.render(out),
-            Voice::Jit(voice) => voice.render(out),
-        }
-    }
-}
-
 enum Failure {
     Diagnostics(Diagnostics),
     Message(String),
@@ -252,35 +237,32 @@ fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
 
 fn check(args: SourceArgs) -> Result<(), Failure> {
     let program = compile_source(&args)?;
+    let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let what = match program.root {
-        Some(root) => {
-            let nodes = program.graph.schedule(root).len();
-            format!(
-                "one sound of {nodes} node{}",
-                if nodes == 1 { "" } else { "s" }
-            )
+        Some(root) => format!(
+            "one sound of {}",
+            plural(program.graph.schedule(root).len(), "node")
+        ),
+        None if !program.instances.is_empty() => {
+            format!("a scene of {}", plural(program.instances.len(), "instance"))
         }
         None => "no sound".to_owned(),
     };
     println!(
-        "ok: {what}, {} definition{}",
-        program.definitions.len(),
-        if program.definitions.len() == 1 {
-            ""
-        } else {
-            "s"
-        }
+        "ok: {what}, {}",
+        plural(program.definitions.len(), "definition")
     );
     Ok(())
 }
 
 fn render(args: RenderArgs) -> Result<(), Failure> {
     let program = compile_source(&args.source)?;
-    let Some(root) = program.root else {
+    if program.root.is_none() && program.instances.is_empty() {
         return Err(Failure::Message(
-            "nothing to render: the file defines trees but has no sound expression (add one, or use --expr)".into(),
+            "nothing to render: the file defines trees but has no sound expression or instance (add one, or use --expr)"
+                .into(),
         ));
-    };
+    }
     let sample_rate = args
         .sample_rate
         .or(program.settings.sample_rate)
@@ -313,14 +295,12 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         sample_rate,
         block_size: args.block_size as usize,
     };
-    let mut voice = match args.engine {
-        Engine::Interp => Voice::Interp(timbre_ir::Interpreter::new(&program.graph, root, config)),
-        Engine::Jit => {
-            let compiled =
-                timbre_jit::Jit::new().and_then(|mut jit| jit.voice(&program.graph, root, config));
-            Voice::Jit(compiled.map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?)
-        }
+    let engine = match args.engine {
+        Engine::Jit => timbre_scene::Engine::Jit,
+        Engine::Interp => timbre_scene::Engine::Interpreter,
     };
+    let mut scene = timbre_scene::SceneRenderer::new(&program, config, engine)
+        .map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?;
     let job = WavJob {
         path: &args.output,
         sample_rate: sample_rate as u32,
@@ -333,7 +313,12 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         frames,
         interrupted: &interrupted,
     };
-    let summary = write_wav_atomically(&job, |out| voice.render(out)).map_err(|e| match e {
+    let render = |out: &mut [f64]| {
+        scene
+            .render(out)
+            .map_err(|e| format!("{e}; use --engine interp"))
+    };
+    let summary = write_wav_atomically(&job, render).map_err(|e| match e {
         wav_out::WriteError::Interrupted => Failure::Interrupted,
         other => Failure::Message(other.to_string()),
     })?;

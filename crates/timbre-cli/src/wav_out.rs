@@ -50,6 +50,8 @@ pub enum WriteError {
     Wav { path: PathBuf, source: hound::Error },
     #[error("interrupted")]
     Interrupted,
+    #[error("{0}")]
+    Render(String),
 }
 
 /// Renders `job.frames` mono frames with `render` (called with successive chunks) and
@@ -57,7 +59,7 @@ pub enum WriteError {
 /// removed and `job.path` is left as it was.
 pub fn write_wav_atomically(
     job: &WavJob<'_>,
-    mut render: impl FnMut(&mut [f64]),
+    mut render: impl FnMut(&mut [f64]) -> Result<(), String>,
 ) -> Result<Summary, WriteError> {
     let temp = temp_path(job.path);
     let result = write_to(&temp, job, &mut render).and_then(|summary| {
@@ -76,7 +78,7 @@ pub fn write_wav_atomically(
 fn write_to(
     temp: &Path,
     job: &WavJob<'_>,
-    render: &mut impl FnMut(&mut [f64]),
+    render: &mut impl FnMut(&mut [f64]) -> Result<(), String>,
 ) -> Result<Summary, WriteError> {
     let io_error = |source| WriteError::Io {
         path: job.path.to_path_buf(),
@@ -108,7 +110,7 @@ fn write_to(
         }
         let n = remaining.min(CHUNK_FRAMES as u64) as usize;
         let chunk = &mut buffer[..n];
-        render(chunk);
+        render(chunk).map_err(WriteError::Render)?;
         for x in chunk.iter() {
             let y = if x.is_finite() {
                 x * job.gain

@@ -189,6 +189,7 @@ impl Graph {
                 .width(args[0])
                 .max(args.get(1).map_or(1, |a| self.width(*a))),
             Op::Sample(_) => 1,
+            Op::Timer { .. } => self.width(args[0]),
             Op::Custom(node) => {
                 let widths: Vec<usize> = widths.collect();
                 node.output_width(&widths).unwrap_or(1)
@@ -226,6 +227,17 @@ impl Graph {
                 vec![consts[0][i]]
             }
             Op::Concat => consts.concat(),
+            Op::Keyframe(track) => consts[0].iter().map(|x| track.value(*x)).collect(),
+            Op::Timer {
+                length,
+                fade_in,
+                fade_out,
+            } => (0..width)
+                .map(|l| {
+                    lane(consts[0], l)
+                        * crate::op::timer_gain(lane(consts[1], l), *length, *fade_in, *fade_out)
+                })
+                .collect(),
             _ => return None,
         };
         Some(values)

@@ -17,7 +17,7 @@ use crate::dsp::filter::{BiquadCoeffs, BiquadState, OnePole, ResonatorCoeffs, Re
 use crate::dsp::noise::{hash2, white, Markov, Pink};
 use crate::dsp::wav::{read_cubic, resample};
 use crate::graph::{index_lane, Graph, NodeId};
-use crate::op::{env, frac, noise, ImpulseResponse, Op};
+use crate::op::{env, frac, noise, timer_gain, ImpulseResponse, Op};
 
 /// Partition size of the FFT convolution (independent of the block size, so output
 /// does not depend on it).
@@ -237,6 +237,24 @@ impl Interpreter {
                 (Op::Noise { seed }, _) => {
                     for (y, x) in o.iter_mut().zip(self.arg(i, 0, lane, n)) {
                         *y = noise(*seed, *x);
+                    }
+                }
+                (Op::Keyframe(track), _) => {
+                    for (y, x) in o.iter_mut().zip(self.arg(i, 0, lane, n)) {
+                        *y = track.value(*x);
+                    }
+                }
+                (
+                    Op::Timer {
+                        length,
+                        fade_in,
+                        fade_out,
+                    },
+                    _,
+                ) => {
+                    let (x, t) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    for k in 0..n {
+                        o[k] = x[k] * timer_gain(t[k], *length, *fade_in, *fade_out);
                     }
                 }
                 (Op::Env, _) => {

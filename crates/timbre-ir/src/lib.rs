@@ -24,6 +24,7 @@ mod error;
 pub mod generate;
 mod graph;
 mod interp;
+pub mod keyframes;
 mod loader;
 mod lower;
 pub mod op;
@@ -35,7 +36,8 @@ pub use graph::{Graph, Node, NodeId, StableHasher};
 pub use interp::{Interpreter, RenderConfig, Step};
 pub use loader::{FsLoader, Loader, NoFiles};
 pub use lower::{
-    compile, did_you_mean, CompileOptions, Program, Registry, Settings, BUILTIN_NAMES, MAX_LANES,
+    compile, did_you_mean, CompileOptions, Instance, Program, Registry, Settings, BUILTIN_NAMES,
+    DECLICK_IN, DECLICK_OUT, MAX_LANES,
 };
 
 impl<'a> CompileOptions<'a> {

@@ -14,6 +14,7 @@ use crate::dsp::envelope;
 use crate::dsp::filter::BiquadKind;
 use crate::dsp::noise::gradient_noise;
 use crate::dsp::wav::SampleData;
+use crate::keyframes::KeyframeTrack;
 
 /// One node's operation. Arguments are the node's children, in order.
 #[derive(Clone, Debug)]
@@ -72,6 +73,16 @@ pub enum Op {
     /// Made by [`crate::optimise`], never by lowering: it is a faster form of
     /// `(* (sine (* τ F)) (damp (* τ D)))`.
     DampedSine,
+    /// A keyframed variable: the track's value at the argument (scene time).
+    Keyframe(Arc<KeyframeTrack>),
+    /// An instance's timer: arguments the sound and its local time t; the sound times
+    /// a gain that rises over `fade_in` from t = 0 and, if the instance has a length,
+    /// falls over `fade_out` from t = length (silent after).
+    Timer {
+        length: Option<f64>,
+        fade_in: f64,
+        fade_out: f64,
+    },
     /// A node implemented in Rust by the host.
     Custom(Arc<dyn CustomNode>),
 }
@@ -142,6 +153,8 @@ impl Op {
             Op::Sample(s) => format!("sample {:?}", s.path),
             Op::Adsr => "adsr".into(),
             Op::DampedSine => "damped-sine".into(),
+            Op::Keyframe(_) => "keyframe".into(),
+            Op::Timer { .. } => "timer".into(),
             Op::Custom(node) => node.name().into(),
         }
     }
@@ -219,6 +232,20 @@ impl Op {
             }
             Op::Adsr => tag(h, 22),
             Op::DampedSine => tag(h, 24),
+            Op::Keyframe(track) => {
+                tag(h, 25);
+                h.write_u64(Arc::as_ptr(track) as usize as u64);
+            }
+            Op::Timer {
+                length,
+                fade_in,
+                fade_out,
+            } => {
+                tag(h, 26);
+                h.write_u64(length.map_or(u64::MAX, canonical_bits));
+                h.write_u64(canonical_bits(*fade_in));
+                h.write_u64(canonical_bits(*fade_out));
+            }
             Op::Custom(node) => {
                 tag(h, 23);
                 h.write_str(node.name());
@@ -277,6 +304,23 @@ impl Op {
                     && a.looping == b.looping
             }
             (Op::Custom(a), Op::Custom(b)) => Arc::ptr_eq(a, b),
+            (Op::Keyframe(a), Op::Keyframe(b)) => Arc::ptr_eq(a, b),
+            (
+                Op::Timer {
+                    length: a,
+                    fade_in: ai,
+                    fade_out: ao,
+                },
+                Op::Timer {
+                    length: b,
+                    fade_in: bi,
+                    fade_out: bo,
+                },
+            ) => {
+                a.map(canonical_bits) == b.map(canonical_bits)
+                    && canonical_bits(*ai) == canonical_bits(*bi)
+                    && canonical_bits(*ao) == canonical_bits(*bo)
+            }
             _ => false,
         }
     }
@@ -520,4 +564,30 @@ impl fmt::Display for Op {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.name())
     }
+}
+
+/// The gain of a timer at local time `t` (see [`Op::Timer`]).
+#[inline]
+pub fn timer_gain(t: f64, length: Option<f64>, fade_in: f64, fade_out: f64) -> f64 {
+    if t < 0.0 {
+        return 0.0;
+    }
+    let mut gain = if fade_in > 0.0 {
+        (t / fade_in).min(1.0)
+    } else {
+        1.0
+    };
+    if let Some(length) = length {
+        if t >= length + fade_out {
+            return 0.0;
+        }
+        if t >= length {
+            gain = gain.min(if fade_out > 0.0 {
+                (length + fade_out - t) / fade_out
+            } else {
+                0.0
+            });
+        }
+    }
+    gain
 }

@@ -17,11 +17,15 @@ use std::sync::Arc;
 use crate::graph::{Graph, NodeId};
 use crate::op::{BinaryOp, ImpulseResponse, Op, UnaryOp};
 
-/// An optimised copy of `graph`, and where `root` is in it.
+/// An optimised copy of what `root` needs of `graph`, and where `root` is in it.
 pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
+    let needed = reachable(graph, root);
     let mut out = Graph::new();
-    let mut map: Vec<NodeId> = Vec::with_capacity(graph.len());
+    let mut map: Vec<NodeId> = vec![NodeId(0); graph.len()];
     for (id, node) in graph.nodes() {
+        if !needed[id.index()] {
+            continue;
+        }
         let new = match damped_sine(graph, &mut out, &map, id) {
             Some(rewritten) => rewritten,
             None => {
@@ -38,9 +42,29 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
                 out.add(op, args)
             }
         };
-        map.push(new);
+        map[id.index()] = new;
     }
     (out, map[root.index()])
+}
+
+/// The nodes `root` depends on, through arguments and impulse-response trees.
+fn reachable(graph: &Graph, root: NodeId) -> Vec<bool> {
+    let mut needed = vec![false; graph.len()];
+    needed[root.index()] = true;
+    // Children have smaller ids: one backwards sweep.
+    for i in (0..=root.index()).rev() {
+        if !needed[i] {
+            continue;
+        }
+        let node = graph.node(NodeId(i as u32));
+        for arg in &node.args {
+            needed[arg.index()] = true;
+        }
+        if let Op::Conv(ImpulseResponse::Tree { root, .. }) = &node.op {
+            needed[root.index()] = true;
+        }
+    }
+    needed
 }
 
 /// Whether `id` is a time: a one-lane value that advances by one sample period per

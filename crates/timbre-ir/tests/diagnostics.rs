@@ -283,6 +283,20 @@ const CASES: &[(&str, &str, &str, &str)] = &[
         "`pi` is reserved and cannot be bound by `let`",
         "pi",
     ),
+    // Scenes.
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hiit :amp 1 :freq 2))", "timbre::unknown-class", "unknown sound class `hiit`", "hiit"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1))", "timbre::arity", "`hit` takes 2 arguments, got 1", "(hit :amp 1)"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2 :decay 3))", "timbre::unknown-keyword", "`hit` has no argument `:decay`", ":decay"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k (0 1) (2 3) (1 4)) (instance a (hit :amp k :freq 2))", "timbre::bad-keyframes", "key 3 at 1 s is not after the key before it (2 s)", "(1 4)"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2) :start 2 :stop 1)", "timbre::stop-before-start", "instance `a` stops at 1 s, before it starts at 2 s", "1"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2) :start -1)", "timbre::bad-instance", "start time -1 is before the scene starts", "-1"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2)) (instance a (hit :amp 1 :freq 3))", "timbre::duplicate-instance", "instance `a` is defined twice", "a"),
+    ("(define hit (x) x) (instance a (hit 1))", "timbre::not-a-class", "`hit` is a tree, not a sound class", "(hit 1)"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k :interp cubic (0 1))", "timbre::bad-keyframes", "unknown interpolation cubic", "cubic"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k (0 1 2))", "timbre::bad-keyframes", "a key is (time value), two numbers", "(0 1 2)"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2) :speed 2)", "timbre::unknown-keyword", "`instance` has no option `:speed`", ":speed"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (sine t) (instance a (hit :amp 1 :freq 2))", "timbre::sound-and-instances", "the file has both a top-level sound and instances", "(sine t)"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k :csv \"m.csv\" :frame-rate 24)", "timbre::bad-keyframes", "a CSV track needs a `:column`", "(keyframes k :csv \"m.csv\" :frame-rate 24)"),
 ];
 
 #[test]

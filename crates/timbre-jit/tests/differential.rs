@@ -37,7 +37,15 @@ fn compile_text(text: &str) -> Program {
 
 /// Renders with both engines and returns the largest difference and where it is.
 fn compare(jit: &mut Jit, program: &Program, samples: usize) -> (f64, usize) {
-    let root = program.root.unwrap();
+    compare_root(jit, program, program.root.unwrap(), samples)
+}
+
+fn compare_root(
+    jit: &mut Jit,
+    program: &Program,
+    root: timbre_ir::NodeId,
+    samples: usize,
+) -> (f64, usize) {
     let mut reference = vec![0.0; samples];
     Interpreter::new(&program.graph, root, config()).render(&mut reference);
     let mut compiled = vec![0.0; samples];
@@ -74,12 +82,21 @@ fn every_example_renders_the_same_under_both_engines() {
         if path.extension().is_some_and(|e| e == "tt") {
             let program = compile_file(&path);
             let seconds = program.settings.duration.unwrap_or(1.0).min(2.0);
-            let (diff, at) = compare(&mut jit, &program, (seconds * 48_000.0) as usize);
-            assert!(
-                diff <= TOLERANCE,
-                "{}: differs by {diff} at sample {at}",
-                path.display()
-            );
+            // A file's sound, or each of a scene's instances from its start.
+            let roots: Vec<_> = program
+                .root
+                .into_iter()
+                .chain(program.instances.iter().map(|i| i.root))
+                .collect();
+            for root in roots {
+                let (diff, at) =
+                    compare_root(&mut jit, &program, root, (seconds * 48_000.0) as usize);
+                assert!(
+                    diff <= TOLERANCE,
+                    "{}: differs by {diff} at sample {at}",
+                    path.display()
+                );
+            }
             checked += 1;
         }
     }

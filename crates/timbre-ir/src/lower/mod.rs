@@ -6,6 +6,10 @@
 //! use a tree defined further down. Named trees are expanded at their call sites;
 //! hash-consing in [`Graph`] shares what the expansions have in common.
 
+mod scene;
+
+pub use scene::{Instance, DECLICK_IN, DECLICK_OUT};
+
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -84,6 +88,8 @@ pub struct Program {
     pub definitions: Vec<String>,
     /// Bindings that no expression used (likely a misspelt `--set`).
     pub unused_bindings: Vec<String>,
+    /// The scene's instances, in the order written (empty unless it is a scene).
+    pub instances: Vec<Instance>,
 }
 
 /// Parses and lowers `source`. `base_dir` resolves relative `include` and `sample`
@@ -107,6 +113,8 @@ struct Definition {
     source: Arc<SourceFile>,
     /// Directory of the defining file: paths in the body are relative to it.
     dir: Option<PathBuf>,
+    /// Declared with `define-sound`: it can be instantiated.
+    class: bool,
 }
 
 /// Where an expression comes from, for diagnostics and relative paths.
@@ -134,6 +142,13 @@ struct Lowerer<'a> {
     /// Named trees being expanded, innermost last, to catch recursion.
     expanding: Vec<String>,
     depth: usize,
+    /// Keyframed variables by name.
+    keyframes: HashMap<String, Arc<crate::keyframes::KeyframeTrack>>,
+    /// `instance` forms, lowered once all forms are read; and the lowered instances.
+    instance_forms: Vec<(Expr, Origin)>,
+    instances: Vec<Instance>,
+    /// Scene time at an instance's t = 0 while it is lowered (keyframes read scene time).
+    time_offset: f64,
 }
 
 /// Lexical scope: names bound by `let` and by a named tree's parameters.
@@ -156,6 +171,10 @@ impl<'a> Lowerer<'a> {
             used_bindings: HashSet::new(),
             expanding: vec![],
             depth: 0,
+            keyframes: HashMap::new(),
+            instance_forms: vec![],
+            instances: vec![],
+            time_offset: 0.0,
         }
     }
 
@@ -183,7 +202,13 @@ impl<'a> Lowerer<'a> {
             .and_then(|items| items.first())
             .and_then(Expr::as_symbol);
         let result = match head {
-            Some("define") => self.read_define(&form, origin),
+            Some("define") => self.read_define(&form, origin, false),
+            Some("define-sound") => self.read_define(&form, origin, true),
+            Some("keyframes") => self.read_keyframes(&form, origin),
+            Some("instance") if included_at.is_none() => {
+                self.instance_forms.push((form, origin.clone()));
+                Ok(())
+            }
             Some("include") => self.read_include(&form, origin),
             Some("scene") if included_at.is_none() => self.read_scene(&form, origin),
             _ => {
@@ -206,7 +231,7 @@ impl<'a> Lowerer<'a> {
         }
     }
 
-    fn read_define(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+    fn read_define(&mut self, form: &Expr, origin: &Origin, class: bool) -> Result<(), Diag> {
         let err = |code, msg: String| Diag::new(code, msg).in_source(&origin.source);
         let items = form.as_list().unwrap_or_default();
         let shape_help = "write `(define name (param …) body)` or `(define name body)`";
@@ -289,6 +314,14 @@ impl<'a> Lowerer<'a> {
             .label(name_expr.span, "cannot be redefined")
             .help("choose another name for your tree"));
         }
+        if self.keyframes.contains_key(name) {
+            return Err(err(
+                "timbre::duplicate-define",
+                format!("`{name}` is already a keyframed variable"),
+            )
+            .label(name_expr.span, "defined again here")
+            .help("rename one of them"));
+        }
         if let Some(previous) = self.definitions.get(name) {
             let mut diag = err(
                 "timbre::duplicate-define",
@@ -308,6 +341,7 @@ impl<'a> Lowerer<'a> {
                 name_span: name_expr.span,
                 source: origin.source.clone(),
                 dir: origin.dir.clone(),
+                class,
             },
         );
         self.definition_order.push(name.to_owned());
@@ -529,6 +563,26 @@ impl<'a> Lowerer<'a> {
                 );
             }
         }
+        let instance_forms = std::mem::take(&mut self.instance_forms);
+        for (form, origin) in &instance_forms {
+            match self.lower_instance(form, origin) {
+                Ok(instance) => self.instances.push(instance),
+                Err(diag) => self.errors.push(diag),
+            }
+        }
+        if let (Some((_, span, origin)), Some((form, _))) = (roots.first(), instance_forms.first())
+        {
+            self.errors.push(
+                Diag::new(
+                    "timbre::sound-and-instances",
+                    "the file has both a top-level sound and instances",
+                )
+                .label(*span, "top-level sound")
+                .label(form.span, "instance")
+                .help("in a scene every sound is an instance: make this one an instance too")
+                .in_source(&origin.source),
+            );
+        }
         if !self.errors.is_empty() {
             return Err(Diagnostics(self.errors));
         }
@@ -545,6 +599,7 @@ impl<'a> Lowerer<'a> {
             settings: self.settings,
             definitions: self.definition_order,
             unused_bindings,
+            instances: self.instances,
         })
     }
 
@@ -613,6 +668,10 @@ impl<'a> Lowerer<'a> {
         if let Some(value) = self.options.bindings.get(name) {
             self.used_bindings.insert(name.to_owned());
             return Ok(self.graph.constant(*value));
+        }
+        if let Some(track) = self.keyframes.get(name) {
+            let track = track.clone();
+            return Ok(self.keyframe_node(track));
         }
         if let Some(def) = self.definitions.get(name) {
             if def.params.is_empty() {
@@ -698,7 +757,7 @@ impl<'a> Lowerer<'a> {
         };
         match name {
             "let" => return self.lower_let(&call, origin, scope),
-            "define" | "include" | "scene" => {
+            "define" | "define-sound" | "include" | "scene" | "keyframes" | "instance" => {
                 return Err(self
                     .diag(
                         "timbre::misplaced-form",
@@ -1401,13 +1460,18 @@ impl<'a> Lowerer<'a> {
             return Err(self
                 .arity_error(call, required(params), max, origin)
                 .help(format!(
-                    "missing {}: {}",
+                    "missing {}: {} (its arguments are {})",
                     if missing.len() == 1 {
                         "argument"
                     } else {
                         "arguments"
                     },
-                    missing.join(", ")
+                    missing.join(", "),
+                    params
+                        .iter()
+                        .map(|p| format!(":{}", p.name))
+                        .collect::<Vec<_>>()
+                        .join(" ")
                 )));
         }
         bound.extend(extra.into_iter().map(Some));
@@ -1429,7 +1493,13 @@ impl<'a> Lowerer<'a> {
             Some(max) => format!("{min} to {max} arguments"),
             None => format!("at least {min} argument{}", plural(min)),
         };
-        let got = call.args.len();
+        // A `:name value` pair is one argument.
+        let keywords = call
+            .args
+            .iter()
+            .filter(|a| matches!(a.kind, ExprKind::Keyword(_)))
+            .count();
+        let got = call.args.len() - keywords;
         self.diag(
             "timbre::arity",
             format!("`{}` takes {expected}, got {got}", call.name),
@@ -1610,7 +1680,17 @@ pub fn did_you_mean<'n>(
 }
 
 fn is_reserved(name: &str) -> bool {
-    matches!(name, "t" | "pi" | "let" | "define" | "include" | "scene")
+    matches!(
+        name,
+        "t" | "pi"
+            | "let"
+            | "define"
+            | "define-sound"
+            | "include"
+            | "scene"
+            | "keyframes"
+            | "instance"
+    )
 }
 
 // ------------------------------------------------------------------- the catalogue

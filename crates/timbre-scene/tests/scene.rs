@@ -1,0 +1,236 @@
+//! Scenes measured from their output: onsets on the sample, amplitudes and frequencies
+//! following keyframes, silence after a stop, both engines agreeing.
+
+use std::path::Path;
+
+use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
+use timbre_ir::{
+    compile, compile_str, CompileOptions, FsLoader, Program, Registry, RenderConfig, SourceFile,
+};
+use timbre_scene::{Engine, SceneRenderer};
+
+const SR: f64 = 48_000.0;
+
+fn config() -> RenderConfig {
+    RenderConfig {
+        sample_rate: SR,
+        block_size: 256,
+    }
+}
+
+fn cubes() -> Program {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/cubes.tt");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &FsLoader);
+    compile(SourceFile::new("cubes.tt", text), path.parent(), &options).unwrap()
+}
+
+fn scene(text: &str) -> Program {
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &FsLoader);
+    compile_str(text, &options).unwrap_or_else(|e| panic!("{e:?}"))
+}
+
+fn render(program: &Program, seconds: f64, engine: Engine) -> Vec<f64> {
+    let mut renderer = SceneRenderer::new(program, config(), engine).unwrap();
+    let mut out = vec![0.0; (seconds * SR).round() as usize];
+    renderer.render(&mut out).unwrap();
+    out
+}
+
+/// The program with only the named instance.
+fn only(program: &Program, name: &str) -> Program {
+    let mut p = program.clone();
+    p.instances.retain(|i| i.name == name);
+    assert_eq!(p.instances.len(), 1);
+    p
+}
+
+fn first_sound(x: &[f64]) -> usize {
+    x.iter().position(|v| *v != 0.0).expect("a sound")
+}
+
+#[test]
+fn cubes_onsets_are_on_the_sample() {
+    let program = cubes();
+    assert_eq!(program.instances.len(), 3);
+    for (name, start) in [("wood1", 0.5), ("metal1", 1.25)] {
+        let x = render(&only(&program, name), 2.0, Engine::Jit);
+        let onset = first_sound(&x);
+        let expected = (start * SR) as usize;
+        // The timer's fade-in makes the start sample itself 0.
+        assert!(
+            onset == expected || onset == expected + 1,
+            "{name}: onset at {onset}, expected {expected}"
+        );
+    }
+    // In the full mix, the wood's strike stands out of the bee at its sample.
+    let x = render(&program, 1.0, Engine::Jit);
+    let bee = render(&only(&program, "buzz"), 1.0, Engine::Jit);
+    let wood: Vec<f64> = x.iter().zip(&bee).map(|(a, b)| a - b).collect();
+    let onset = wood.iter().position(|v| v.abs() > 1e-9).unwrap();
+    assert!(
+        (24_000..=24_001).contains(&onset),
+        "onset in the mix at {onset}"
+    );
+}
+
+#[test]
+fn metal_is_silent_after_its_stop_and_declick() {
+    let program = cubes();
+    let x = render(&only(&program, "metal1"), 4.0, Engine::Jit);
+    let silent_from = ((3.5 + timbre_ir::DECLICK_OUT) * SR).round() as usize;
+    assert!(x[silent_from..].iter().all(|v| *v == 0.0));
+    // …and not silent just before the stop: the fade-out is what ends it.
+    let before = &x[(3.4 * SR) as usize..(3.5 * SR) as usize];
+    assert!(before.iter().any(|v| v.abs() > 1e-4));
+}
+
+#[test]
+fn amplitude_follows_the_force_keyframes() {
+    // A class that does not decay, so its envelope is the keyframed amplitude.
+    let program = scene(
+        "(define-sound tone (amp) (* amp (sine (* t 440))))
+         (keyframes force :interp linear (0.0 0.2) (1.0 0.9) (2.0 0.4))
+         (instance a (tone :amp force) :start 1.25 :stop 3.5)",
+    );
+    let x = render(&program, 2.5, Engine::Jit);
+    let envelope = |t: f64| {
+        let c = (t * SR) as usize;
+        x[c - 120..c + 120]
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+    };
+    let track = KeyframeTrack::new(
+        vec![0.0, 1.0, 2.0],
+        vec![0.2, 0.9, 0.4],
+        Interpolation::Linear,
+    )
+    .unwrap();
+    // Scene times 1.3 s and 2.0 s: keyframe times are on the scene's timeline.
+    let measured = envelope(1.3) / envelope(2.0);
+    let expected = track.value(1.3) / track.value(2.0);
+    assert!(
+        (measured / expected - 1.0).abs() < 0.05,
+        "ratio {measured}, keyframes {expected}"
+    );
+    assert!((envelope(2.0) - 0.4).abs() < 0.01);
+}
+
+/// Frequency in a window from zero crossings.
+fn frequency(x: &[f64]) -> f64 {
+    let ups: Vec<f64> = (1..x.len())
+        .filter(|&i| x[i - 1] < 0.0 && x[i] >= 0.0)
+        .map(|i| (i - 1) as f64 + x[i - 1] / (x[i - 1] - x[i]))
+        .collect();
+    (ups.len() - 1) as f64 * SR / (ups[ups.len() - 1] - ups[0])
+}
+
+#[test]
+fn keyframed_frequency_follows_linear_and_smooth_keys() {
+    for (interp, mode) in [
+        ("linear", Interpolation::Linear),
+        ("smooth", Interpolation::Smooth),
+    ] {
+        let program = scene(&format!(
+            "(define-sound voice (f) (sine (phasor f)))
+             (keyframes freq :interp {interp} (0 300) (1 900) (2 500) (3 600))
+             (instance v (voice :f freq) :start 0.2)"
+        ));
+        let x = render(&program, 3.0, Engine::Jit);
+        let track = KeyframeTrack::new(
+            vec![0.0, 1.0, 2.0, 3.0],
+            vec![300.0, 900.0, 500.0, 600.0],
+            mode,
+        )
+        .unwrap();
+        for centre in [0.5, 0.9, 1.5, 2.4] {
+            let (a, b) = (
+                ((centre - 0.01) * SR) as usize,
+                ((centre + 0.01) * SR) as usize,
+            );
+            let measured = frequency(&x[a..b]);
+            let expected = track.value(centre);
+            assert!(
+                (measured / expected - 1.0).abs() < 0.005,
+                "{interp} at {centre} s: {measured} Hz, keys say {expected}"
+            );
+        }
+    }
+}
+
+#[test]
+fn keyframes_from_a_csv_column() {
+    let dir = std::env::temp_dir().join(format!("timbre-scene-csv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("motion.csv"), "frame,force\n0,0.1\n1,0.5\n2,0.3\n").unwrap();
+    let text = "(define-sound level (x) x)
+                (keyframes force :csv \"motion.csv\" :column \"force\" :frame-rate 24)
+                (instance a (level :x force) :start 0)";
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &FsLoader);
+    let program = compile(SourceFile::new("scene.tt", text), Some(&dir), &options).unwrap();
+    let x = render(&program, 0.2, Engine::Interpreter);
+    // Frame 1 is at 1/24 s: 0.5, and half way to frame 2: 0.4.
+    assert!((x[2000] - 0.5).abs() < 1e-9, "{}", x[2000]);
+    assert!((x[3000] - 0.4).abs() < 1e-9, "{}", x[3000]);
+}
+
+#[test]
+fn both_engines_render_the_cubes_alike() {
+    let program = cubes();
+    let a = render(&program, 4.0, Engine::Jit);
+    let b = render(&program, 4.0, Engine::Interpreter);
+    let diff = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(diff < 1e-5, "engines differ by {diff}");
+}
+
+#[test]
+fn instances_of_a_class_start_anywhere_in_a_block() {
+    // Strikes at arbitrary samples, including several in one block.
+    let starts = [0.0, 0.0013, 0.00271, 0.1, 0.10001];
+    let mut text = String::from("(define-sound click (f) (* (sine (* t f)) (damp (* t 30))))\n");
+    for (i, s) in starts.iter().enumerate() {
+        text += &format!("(instance c{i} (click :f {}) :start {s})\n", 300 + 100 * i);
+    }
+    let program = scene(&text);
+    for (i, s) in starts.iter().enumerate() {
+        let x = render(&only(&program, &format!("c{i}")), 0.2, Engine::Jit);
+        let start = (s * SR).round() as usize;
+        assert!(
+            x[..start].iter().all(|v| *v == 0.0),
+            "c{i} sounds before {start}"
+        );
+        assert!(x[start + 1] != 0.0, "c{i} silent after its start {start}");
+    }
+}
+
+#[test]
+fn a_missing_csv_column_names_the_ones_there_are() {
+    let dir = std::env::temp_dir().join(format!("timbre-scene-csv-err-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("motion.csv"), "frame,force,height\n0,0.1,2\n").unwrap();
+    let text = "(keyframes k :csv \"motion.csv\" :column \"speed\" :frame-rate 24)";
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &FsLoader);
+    let err = compile(SourceFile::new("scene.tt", text), Some(&dir), &options).unwrap_err();
+    let diag = &err.0[0];
+    assert_eq!(diag.code, "timbre::bad-keyframes");
+    assert!(
+        diag.message.contains("column `speed` not found"),
+        "{}",
+        diag.message
+    );
+    assert!(
+        diag.message.contains("force") && diag.message.contains("height"),
+        "{}",
+        diag.message
+    );
+    let span = diag.span().unwrap();
+    assert_eq!(&text[span.start..span.end], "\"speed\"");
+}
