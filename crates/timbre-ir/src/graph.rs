@@ -182,7 +182,7 @@ impl Graph {
         let widths = args.iter().map(|a| self.width(*a));
         match op {
             Op::Const(values) => values.len(),
-            Op::Time | Op::White { .. } | Op::Pink { .. } => 1,
+            Op::Time | Op::White { .. } | Op::Pink { .. } | Op::Variable(_) => 1,
             Op::Combine | Op::Index => 1,
             Op::Concat => widths.sum(),
             Op::Delay { .. } | Op::Conv(_) => self

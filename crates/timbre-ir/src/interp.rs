@@ -239,6 +239,7 @@ impl Interpreter {
                         *y = noise(*seed, *x);
                     }
                 }
+                (Op::Variable(variable), _) => o.fill(variable.get()),
                 (Op::Keyframe(track), _) => {
                     for (y, x) in o.iter_mut().zip(self.arg(i, 0, lane, n)) {
                         *y = track.value(*x);

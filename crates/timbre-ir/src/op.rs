@@ -73,6 +73,8 @@ pub enum Op {
     /// Made by [`crate::optimise`], never by lowering: it is a faster form of
     /// `(* (sine (* τ F)) (damp (* τ D)))`.
     DampedSine,
+    /// A value the host sets while rendering, read at the start of each block.
+    Variable(crate::lower::Variable),
     /// A keyframed variable: the track's value at the argument (scene time).
     Keyframe(Arc<KeyframeTrack>),
     /// An instance's timer: arguments the sound and its local time t; the sound times
@@ -154,6 +156,7 @@ impl Op {
             Op::Adsr => "adsr".into(),
             Op::DampedSine => "damped-sine".into(),
             Op::Keyframe(_) => "keyframe".into(),
+            Op::Variable(_) => "variable".into(),
             Op::Timer { .. } => "timer".into(),
             Op::Custom(node) => node.name().into(),
         }
@@ -232,6 +235,10 @@ impl Op {
             }
             Op::Adsr => tag(h, 22),
             Op::DampedSine => tag(h, 24),
+            Op::Variable(v) => {
+                tag(h, 27);
+                h.write_u64(v.address());
+            }
             Op::Keyframe(track) => {
                 tag(h, 25);
                 h.write_u64(Arc::as_ptr(track) as usize as u64);
@@ -305,6 +312,7 @@ impl Op {
             }
             (Op::Custom(a), Op::Custom(b)) => Arc::ptr_eq(a, b),
             (Op::Keyframe(a), Op::Keyframe(b)) => Arc::ptr_eq(a, b),
+            (Op::Variable(a), Op::Variable(b)) => a.same(b),
             (
                 Op::Timer {
                     length: a,

@@ -1,10 +1,11 @@
-//! Sonic scenes: the instances of a compiled program, each switched on at its start
-//! sample and off after its stop (or once it has decayed to silence), summed and
-//! rendered block by block so memory does not grow with the scene's length.
+//! Sonic scenes: instances switched on at their start sample and off after their stop
+//! (or once they have decayed to silence), summed and rendered block by block so
+//! memory does not grow with the scene's length.
 //!
-//! This crate does not parse or lower: `timbre-ir` turns `define-sound`, `keyframes`
-//! and `instance` forms into one graph with a timer-topped root per instance. It is
-//! not yet the embedding API (starting instances from code arrives with `timbre`).
+//! Instances come from a compiled program (`timbre render scene.tt`) or from a host
+//! that adds them while rendering (the `timbre` embedding API). This crate does not
+//! parse or lower: `timbre-ir` turns `define-sound`, `keyframes` and `instance` forms
+//! into trees with a timer at the root.
 
 use std::sync::Arc;
 
@@ -18,14 +19,18 @@ pub enum Engine {
     Interpreter,
 }
 
+/// Identifies an instance added by a host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct InstanceId(u64);
+
 /// Output below this is silence, for ending instances that have decayed (−120 dBFS).
 const SILENCE: f64 = 1e-6;
 /// An instance with no stop ends after this long below [`SILENCE`], once heard.
 const SILENT_SECONDS: f64 = 0.1;
 
 enum Voice {
-    Interpreter(Interpreter),
-    Jit(JitVoice),
+    Interpreter(Box<Interpreter>),
+    Jit(Box<JitVoice>),
 }
 
 impl Voice {
@@ -37,21 +42,34 @@ impl Voice {
     }
 }
 
+/// Where a pending instance's voice comes from.
+enum Source {
+    /// A root of the scene's own graph: the voice is made when it starts, so memory
+    /// follows the instances playing, not the instances in the scene.
+    Root(NodeId),
+    /// A voice made when the host added it (so rendering never allocates).
+    Voice(Voice),
+}
+
 struct Pending {
-    root: NodeId,
+    id: InstanceId,
+    source: Source,
     /// Whether it ends once it has decayed to silence (instances without a stop do;
     /// a file's one sound plays to the end).
     ends_when_silent: bool,
     start: u64,
-    /// First sample after the instance (its stop plus the fade-out), if it stops.
+    /// First sample after the instance, if it stops (its timer has faded it out).
     end: Option<u64>,
 }
 
 struct Active {
+    id: InstanceId,
     voice: Voice,
     /// Scene sample of the voice's next sample.
     next: u64,
     end: Option<u64>,
+    /// A stop the host asked for: the mixer fades out from this sample.
+    fade_from: Option<u64>,
     ends_when_silent: bool,
     heard: bool,
     silent_samples: u64,
@@ -69,38 +87,74 @@ pub struct SceneRenderer {
     position: u64,
     scratch: Vec<f64>,
     silent_limit: u64,
+    fade_samples: u64,
+    next_id: u64,
 }
 
 impl SceneRenderer {
-    /// A renderer of `program`'s instances (or of its one sound, as an instance
-    /// starting at 0).
-    pub fn new(program: &Program, config: RenderConfig, engine: Engine) -> Result<Self, JitError> {
-        let sr = config.sample_rate;
-        let mut pending: Vec<Pending> = match (&program.root, program.instances.as_slice()) {
-            (Some(root), _) => vec![Pending {
-                root: *root,
-                ends_when_silent: false,
-                start: 0,
-                end: None,
-            }],
-            (None, instances) => instances.iter().map(|i| pending(i, sr)).collect(),
-        };
-        pending.sort_by_key(|p| std::cmp::Reverse(p.start));
+    /// A renderer with no instances, for a host to add them.
+    pub fn new_empty(config: RenderConfig, engine: Engine) -> Result<Self, JitError> {
         let jit = match engine {
             Engine::Jit => Some(Jit::new()?),
             Engine::Interpreter => None,
         };
+        let sr = config.sample_rate;
         Ok(SceneRenderer {
-            graph: Arc::new(program.graph.clone()),
+            graph: Arc::new(Graph::new()),
             config,
             engine,
             jit,
-            pending,
+            pending: vec![],
             active: vec![],
             position: 0,
             scratch: vec![0.0; config.block_size.max(1)],
             silent_limit: (SILENT_SECONDS * sr) as u64,
+            fade_samples: (DECLICK_OUT * sr).round().max(1.0) as u64,
+            next_id: 0,
         })
+    }
+
+    /// A renderer of `program`'s instances (or of its one sound, as an instance
+    /// starting at 0 that plays to the end).
+    pub fn new(program: &Program, config: RenderConfig, engine: Engine) -> Result<Self, JitError> {
+        let mut renderer = Self::new_empty(config, engine)?;
+        renderer.graph = Arc::new(program.graph.clone());
+        let sr = config.sample_rate;
+        let mut pending: Vec<Pending> = match (&program.root, program.instances.as_slice()) {
+            (Some(root), _) => vec![Pending {
+                id: renderer.new_id(),
+                source: Source::Root(*root),
+                ends_when_silent: false,
+                start: 0,
+                end: None,
+            }],
+            (None, instances) => instances.iter().map(|i| renderer.pending(i, sr)).collect(),
+        };
+        pending.sort_by_key(|p| std::cmp::Reverse(p.start));
+        renderer.active.reserve(pending.len());
+        renderer.pending = pending;
+        Ok(renderer)
+    }
+
+    fn new_id(&mut self) -> InstanceId {
+        self.next_id += 1;
+        InstanceId(self.next_id)
+    }
+
+    fn pending(&mut self, instance: &Instance, sr: f64) -> Pending {
+        Pending {
+            id: self.new_id(),
+            source: Source::Root(instance.root),
+            ends_when_silent: true,
+            start: (instance.start * sr).round() as u64,
+            end: instance
+                .stop
+                .map(|stop| ((stop + DECLICK_OUT) * sr).round() as u64),
+        }
+    }
+
+    pub fn config(&self) -> RenderConfig {
+        self.config
     }
 
     /// Samples rendered so far.
@@ -111,6 +165,65 @@ impl SceneRenderer {
     /// Instances playing now.
     pub fn active_instances(&self) -> usize {
         self.active.len()
+    }
+
+    /// Adds an instance: `root` of `graph` (its timer at the root), starting at scene
+    /// sample `start` (a start already past begins now) and, if `end` is given, ending
+    /// there; without an end it ends once decayed. Its voice (and, the first time for
+    /// its shape, its kernel) is made here, so rendering stays free of allocation.
+    pub fn add(
+        &mut self,
+        graph: &Graph,
+        root: NodeId,
+        start: u64,
+        end: Option<u64>,
+    ) -> Result<InstanceId, JitError> {
+        let voice = self.voice(graph, root)?;
+        let id = self.new_id();
+        let start = start.max(self.position);
+        let at = self.pending.partition_point(|p| p.start > start);
+        self.pending.insert(
+            at,
+            Pending {
+                id,
+                source: Source::Voice(voice),
+                ends_when_silent: end.is_none(),
+                start,
+                end,
+            },
+        );
+        self.active.reserve(self.pending.len());
+        Ok(id)
+    }
+
+    /// Stops an instance at scene sample `at` (not before now) with a short fade-out.
+    /// Returns false if it has already ended.
+    pub fn stop(&mut self, id: InstanceId, at: u64) -> bool {
+        let at = at.max(self.position);
+        let end = at + self.fade_samples;
+        if let Some(p) = self.pending.iter_mut().find(|p| p.id == id) {
+            // Stopped before it starts: it never sounds.
+            p.end = Some(p.end.map_or(end, |e| e.min(end)));
+            if at <= p.start {
+                p.end = Some(p.start);
+            }
+            return true;
+        }
+        if let Some(a) = self.active.iter_mut().find(|a| a.id == id) {
+            a.fade_from = Some(a.fade_from.map_or(at, |f| f.min(at)));
+            a.end = Some(a.end.map_or(end, |e| e.min(end)));
+            return true;
+        }
+        false
+    }
+
+    fn voice(&mut self, graph: &Graph, root: NodeId) -> Result<Voice, JitError> {
+        Ok(match (self.engine, &mut self.jit) {
+            (Engine::Jit, Some(jit)) => {
+                Voice::Jit(Box::new(jit.voice(graph, root, self.config)?))
+            }
+            _ => Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config))),
+        })
     }
 
     /// Renders the next `out.len()` samples of the scene.
@@ -127,22 +240,25 @@ impl SceneRenderer {
         let end = self.position + out.len() as u64;
         while self.pending.last().is_some_and(|p| p.start < end) {
             let Some(p) = self.pending.pop() else { break };
-            let voice = match (self.engine, &mut self.jit) {
-                (Engine::Jit, Some(jit)) => {
-                    Voice::Jit(jit.voice(&self.graph, p.root, self.config)?)
+            let voice = match p.source {
+                Source::Voice(voice) => voice,
+                Source::Root(root) => {
+                    let graph = self.graph.clone();
+                    self.voice(&graph, root)?
                 }
-                _ => Voice::Interpreter(Interpreter::new(&self.graph, p.root, self.config)),
             };
             self.active.push(Active {
+                id: p.id,
                 voice,
                 next: p.start,
                 end: p.end,
+                fade_from: None,
                 ends_when_silent: p.ends_when_silent,
                 heard: false,
                 silent_samples: 0,
             });
         }
-        let silent_limit = self.silent_limit;
+        let (silent_limit, fade) = (self.silent_limit, self.fade_samples);
         for active in &mut self.active {
             // Sample-accurate start: the first block of a voice may begin mid-block.
             let from = active.next.max(self.position);
@@ -154,7 +270,23 @@ impl SceneRenderer {
             let n = (until - from) as usize;
             let scratch = &mut self.scratch[..n];
             active.voice.render(scratch);
-            for (y, x) in out[offset..offset + n].iter_mut().zip(scratch.iter()) {
+            for (k, (y, x)) in out[offset..offset + n]
+                .iter_mut()
+                .zip(scratch.iter())
+                .enumerate()
+            {
+                let gain = match active.fade_from {
+                    Some(f) => {
+                        let s = from + k as u64;
+                        if s < f {
+                            1.0
+                        } else {
+                            (1.0 - (s - f) as f64 / fade as f64).max(0.0)
+                        }
+                    }
+                    None => 1.0,
+                };
+                let x = x * gain;
                 *y += x;
                 if x.abs() >= SILENCE {
                     active.heard = true;
@@ -175,18 +307,5 @@ impl SceneRenderer {
         });
         self.position = end;
         Ok(())
-    }
-}
-
-fn pending(instance: &Instance, sr: f64) -> Pending {
-    let start = (instance.start * sr).round() as u64;
-    let end = instance
-        .stop
-        .map(|stop| ((stop + DECLICK_OUT) * sr).round() as u64);
-    Pending {
-        root: instance.root,
-        ends_when_silent: true,
-        start,
-        end,
     }
 }

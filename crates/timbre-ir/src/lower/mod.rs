@@ -6,8 +6,10 @@
 //! use a tree defined further down. Named trees are expanded at their call sites;
 //! hash-consing in [`Graph`] shares what the expansions have in common.
 
+mod library;
 mod scene;
 
+pub use library::{Instantiated, Library, ParamValue, Variable};
 pub use scene::{Instance, DECLICK_IN, DECLICK_OUT};
 
 use std::collections::{BTreeMap, HashMap, HashSet};

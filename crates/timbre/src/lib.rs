@@ -1,0 +1,247 @@
+//! timbre as a library: load sound classes written as timbre trees, start instances
+//! of them from a motion-control loop with parameters bound to constants, keyframe
+//! tracks or variables you set as frames go by, and render offline or block by block
+//! in real time.
+//!
+//! The compiled artefact is separate from per-instance state (as in wasmtime): an
+//! [`Engine`] holds settings, a [`SoundLibrary`] the classes, and a [`Scene`] the
+//! instances playing and their state. There are no globals: engines and scenes are
+//! independent, and a scene can render on its own thread. Rendering the next block
+//! allocates nothing and takes no lock; instances are built when you start them.
+//!
+//! ```
+//! use timbre::{Engine, ParamValue};
+//!
+//! let engine = Engine::new(48_000.0);
+//! let library = engine
+//!     .load_library("(define-sound ping (freq) (* (sine (* t freq)) (damp (* t 8))))")
+//!     .unwrap();
+//! let mut scene = engine.scene(&library).unwrap();
+//! scene.start("ping", &[("freq", ParamValue::Constant(880.0))], 0.25).unwrap();
+//! let mut block = vec![0.0; 512];
+//! scene.render(&mut block).unwrap(); // the next 512 samples
+//! ```
+
+use std::path::Path;
+use std::sync::Arc;
+
+use timbre_ir::{
+    CompileOptions, FsLoader, Library, Loader, NoFiles, Registry, RenderConfig, SourceFile,
+};
+use timbre_scene::SceneRenderer;
+
+pub use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
+pub use timbre_ir::{Diagnostics, ParamValue, Variable};
+pub use timbre_scene::InstanceId;
+
+/// What can go wrong: a script's diagnostics, or the code generator.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    #[error(transparent)]
+    Script(#[from] Diagnostics),
+    #[error(transparent)]
+    Compile(#[from] timbre_jit::JitError),
+}
+
+/// Which engine renders.
+pub use timbre_scene::Engine as Backend;
+
+/// Settings shared by the libraries and scenes it makes.
+#[derive(Clone)]
+pub struct Engine {
+    config: RenderConfig,
+    backend: Backend,
+    seed: u64,
+    registry: Registry,
+    loader: Arc<dyn Loader + Send + Sync>,
+}
+
+impl Engine {
+    /// An engine at `sample_rate`, compiling to native code, reading no files.
+    pub fn new(sample_rate: f64) -> Self {
+        Engine {
+            config: RenderConfig {
+                sample_rate,
+                block_size: 256,
+            },
+            backend: Backend::Jit,
+            seed: 0,
+            registry: Registry::new(),
+            loader: Arc::new(NoFiles),
+        }
+    }
+
+    /// Lets scripts read files (`include`, `sample`, CSV keyframes) from disk,
+    /// relative to the file naming them.
+    pub fn with_file_access(mut self) -> Self {
+        self.loader = Arc::new(FsLoader);
+        self
+    }
+
+    pub fn with_backend(mut self, backend: Backend) -> Self {
+        self.backend = backend;
+        self
+    }
+
+    /// The seed every random node derives its own from.
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// Nodes written in Rust, callable from scripts by name.
+    pub fn registry_mut(&mut self) -> &mut Registry {
+        &mut self.registry
+    }
+
+    pub fn sample_rate(&self) -> f64 {
+        self.config.sample_rate
+    }
+
+    fn options(&self) -> CompileOptions<'_> {
+        let mut options = CompileOptions::new(&self.registry, self.loader.as_ref());
+        options.seed = Some(self.seed);
+        options
+    }
+
+    /// Reads sound classes (`define-sound`), trees and keyframes from text.
+    pub fn load_library(&self, source: &str) -> Result<SoundLibrary, Diagnostics> {
+        self.load(SourceFile::new("<library>", source), None)
+    }
+
+    /// Reads a library from a file (needs [`Engine::with_file_access`]).
+    pub fn load_library_file(&self, path: &Path) -> Result<SoundLibrary, Diagnostics> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            Diagnostics::one(
+                timbre_ir::Diag::new(
+                    "timbre::library-unreadable",
+                    format!("cannot read `{}`: {e}", path.display()),
+                )
+                .help("check the path"),
+            )
+        })?;
+        self.load(
+            SourceFile::new(path.display().to_string(), text),
+            path.parent(),
+        )
+    }
+
+    fn load(
+        &self,
+        source: Arc<SourceFile>,
+        dir: Option<&Path>,
+    ) -> Result<SoundLibrary, Diagnostics> {
+        let library = Library::compile(source, dir, &self.options())?;
+        Ok(SoundLibrary(Arc::new(library)))
+    }
+
+    /// An empty scene of the library's classes.
+    pub fn scene(&self, library: &SoundLibrary) -> Result<Scene, Error> {
+        Ok(Scene {
+            engine: self.clone(),
+            library: library.clone(),
+            renderer: SceneRenderer::new_empty(self.config, self.backend)?,
+        })
+    }
+}
+
+/// Compiled sound classes; cheap to clone and share between scenes and threads.
+#[derive(Clone)]
+pub struct SoundLibrary(Arc<Library>);
+
+impl SoundLibrary {
+    /// The classes and their parameter names.
+    pub fn classes(&self) -> Vec<(String, Vec<String>)> {
+        self.0
+            .classes()
+            .map(|(c, ps)| (c.to_owned(), ps.into_iter().map(str::to_owned).collect()))
+            .collect()
+    }
+
+    /// A keyframe track the library defines with `keyframes`.
+    pub fn keyframes(&self, name: &str) -> Option<Arc<KeyframeTrack>> {
+        self.0.keyframes(name).cloned()
+    }
+}
+
+/// Instances playing, and their state. Times are seconds on the scene's timeline.
+pub struct Scene {
+    engine: Engine,
+    library: SoundLibrary,
+    renderer: SceneRenderer,
+}
+
+impl Scene {
+    fn sample(&self, seconds: f64) -> u64 {
+        (seconds.max(0.0) * self.engine.config.sample_rate).round() as u64
+    }
+
+    /// Starts an instance of `class` at scene time `at` (on its sample; a time already
+    /// rendered starts it now). It plays until it has decayed, or until [`Scene::stop`].
+    pub fn start(
+        &mut self,
+        class: &str,
+        params: &[(&str, ParamValue)],
+        at: f64,
+    ) -> Result<InstanceId, Error> {
+        self.start_instance(class, params, at, None)
+    }
+
+    /// Starts an instance that stops at scene time `stop`, with the declick ramp.
+    pub fn start_until(
+        &mut self,
+        class: &str,
+        params: &[(&str, ParamValue)],
+        at: f64,
+        stop: f64,
+    ) -> Result<InstanceId, Error> {
+        self.start_instance(class, params, at, Some(stop))
+    }
+
+    fn start_instance(
+        &mut self,
+        class: &str,
+        params: &[(&str, ParamValue)],
+        at: f64,
+        stop: Option<f64>,
+    ) -> Result<InstanceId, Error> {
+        let tree = self
+            .library
+            .0
+            .instantiate(class, params, at, stop, &self.engine.options())?;
+        let end = stop.map(|s| self.sample(s + timbre_ir::DECLICK_OUT));
+        let start = self.sample(at);
+        Ok(self.renderer.add(&tree.graph, tree.root, start, end)?)
+    }
+
+    /// Stops an instance at scene time `at` with a short fade-out. False if it has
+    /// already ended.
+    pub fn stop(&mut self, id: InstanceId, at: f64) -> bool {
+        let at = self.sample(at);
+        self.renderer.stop(id, at)
+    }
+
+    /// Renders the next `out.len()` samples. Allocates nothing, takes no lock.
+    pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {
+        Ok(self.renderer.render(out)?)
+    }
+
+    /// Renders until scene time `until` and returns the samples.
+    pub fn render_offline(&mut self, until: f64) -> Result<Vec<f64>, Error> {
+        let n = self.sample(until).saturating_sub(self.renderer.position()) as usize;
+        let mut out = vec![0.0; n];
+        self.render(&mut out)?;
+        Ok(out)
+    }
+
+    /// Scene time of the next sample to render.
+    pub fn time(&self) -> f64 {
+        self.renderer.position() as f64 / self.engine.config.sample_rate
+    }
+
+    /// Instances playing now.
+    pub fn playing(&self) -> usize {
+        self.renderer.active_instances()
+    }
+}

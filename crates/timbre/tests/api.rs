@@ -1,0 +1,270 @@
+//! The embedding API: instances started and stopped on the sample, parameters from
+//! constants, keyframes and variables, rendering without allocation, several engines
+//! on several threads.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use timbre::{Backend, Engine, Interpolation, KeyframeTrack, ParamValue, Variable};
+
+/// Counts the allocations a thread makes while its `COUNTING` is on (other tests run
+/// on other threads meanwhile).
+struct CountingAllocator;
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+const SR: f64 = 48_000.0;
+
+const LIBRARY: &str = "
+(define-sound ping (freq) (* (sine (* t freq)) (damp (* t 8))))
+(define-sound tone (amp freq) (* amp (sine (phasor freq))))
+(define-sound hit (amp n base max damping)
+  (let ((modes (rvector n base max)))
+    (* amp (/ 1 n) (combine (* (sine (* t modes)) (damp (* t damping modes)))))))
+(keyframes swell :interp linear (0 0.1) (1 0.9))";
+
+fn engine() -> Engine {
+    Engine::new(SR)
+}
+
+#[test]
+fn instances_start_on_their_sample_and_stop_with_a_fade() {
+    let engine = engine();
+    let library = engine.load_library(LIBRARY).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    let id = scene
+        .start(
+            "tone",
+            &[("amp", 0.5.into()), ("freq", 440.0.into())],
+            0.1234,
+        )
+        .unwrap();
+    assert!(scene.stop(id, 0.3));
+    let x = scene.render_offline(0.5).unwrap();
+    let start = (0.1234 * SR).round() as usize;
+    assert!(
+        x[..start + 1].iter().all(|v| *v == 0.0),
+        "nothing before (and at) the start sample"
+    );
+    assert!(x[start + 1] != 0.0);
+    let silent = ((0.3 + timbre_ir::DECLICK_OUT) * SR).round() as usize;
+    assert!(x[silent..].iter().all(|v| *v == 0.0));
+    assert!(x[(0.29 * SR) as usize..(0.3 * SR) as usize]
+        .iter()
+        .any(|v| v.abs() > 0.1));
+}
+
+#[test]
+fn a_timed_stop_and_decay_end_instances() {
+    let engine = engine();
+    let library = engine.load_library(LIBRARY).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    scene
+        .start_until(
+            "tone",
+            &[("amp", 0.5.into()), ("freq", 300.0.into())],
+            0.0,
+            0.2,
+        )
+        .unwrap();
+    scene.start("ping", &[("freq", 500.0.into())], 0.0).unwrap();
+    assert_eq!(scene.playing(), 0, "nothing plays before rendering");
+    scene.render_offline(0.1).unwrap();
+    assert_eq!(scene.playing(), 2);
+    // The ping decays at 8/s: below −120 dB (1e-6) after ~1.7 s, then 0.1 s of silence.
+    scene.render_offline(2.5).unwrap();
+    assert_eq!(scene.playing(), 0);
+}
+
+#[test]
+fn parameters_from_keyframes_and_variables() {
+    let engine = engine();
+    let library = engine.load_library(LIBRARY).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    // A track from the library, and one made in code; both on the scene's timeline.
+    let swell = library.keyframes("swell").unwrap();
+    let made = KeyframeTrack::new(vec![0.0, 1.0], vec![1.0, 0.0], Interpolation::Linear).unwrap();
+    let a = scene
+        .start(
+            "tone",
+            &[
+                ("amp", ParamValue::Keyframes(swell)),
+                ("freq", 400.0.into()),
+            ],
+            0.5,
+        )
+        .unwrap();
+    let x = scene.render_offline(1.0).unwrap();
+    let peak = |x: &[f64], t: f64| {
+        x[(t * SR) as usize - 120..(t * SR) as usize + 120]
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+    };
+    assert!(
+        (peak(&x, 0.75) - (0.1 + 0.8 * 0.75)).abs() < 0.01,
+        "swell at scene time 0.75"
+    );
+    scene.stop(a, 1.0);
+    let mut scene = engine.scene(&library).unwrap();
+    scene
+        .start(
+            "tone",
+            &[
+                ("amp", ParamValue::Keyframes(made.into())),
+                ("freq", 400.0.into()),
+            ],
+            0.0,
+        )
+        .unwrap();
+    let x = scene.render_offline(1.0).unwrap();
+    assert!((peak(&x, 0.25) - 0.75).abs() < 0.01);
+
+    // A variable set as frames go by: each block reads its current value.
+    let amp = Variable::new(0.2);
+    let mut scene = engine.scene(&library).unwrap();
+    scene
+        .start(
+            "tone",
+            &[
+                ("amp", ParamValue::Variable(amp.clone())),
+                ("freq", 500.0.into()),
+            ],
+            0.0,
+        )
+        .unwrap();
+    let mut frame = vec![0.0; 2000]; // one animation frame at 24 fps
+    scene.render(&mut frame).unwrap();
+    let first = frame[500..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    amp.set(0.8);
+    scene.render(&mut frame).unwrap();
+    let second = frame[256..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(
+        (first - 0.2).abs() < 0.01 && (second - 0.8).abs() < 0.01,
+        "{first} then {second}"
+    );
+}
+
+#[test]
+fn rendering_the_next_block_allocates_nothing() {
+    for backend in [Backend::Jit, Backend::Interpreter] {
+        let engine = engine().with_backend(backend);
+        let library = engine.load_library(LIBRARY).unwrap();
+        let mut scene = engine.scene(&library).unwrap();
+        let amp = Variable::new(0.3);
+        let hit = [
+            ("amp", 0.9.into()),
+            ("n", 40.0.into()),
+            ("base", 200.0.into()),
+            ("max", 3000.0.into()),
+            ("damping", 0.002.into()),
+        ];
+        scene.start("hit", &hit, 0.01).unwrap();
+        let later = scene.start("hit", &hit, 0.3).unwrap();
+        scene
+            .start(
+                "tone",
+                &[
+                    ("amp", ParamValue::Variable(amp.clone())),
+                    ("freq", 440.0.into()),
+                ],
+                0.0,
+            )
+            .unwrap();
+        scene.stop(later, 0.5);
+        let mut block = vec![0.0; 256];
+        ALLOCATIONS.store(0, Ordering::Relaxed);
+        COUNTING.with(|c| c.set(true));
+        // Starts, a stop and variable changes all happen inside these blocks.
+        for k in 0..200 {
+            amp.set(0.3 + 0.001 * k as f64);
+            scene.render(&mut block).unwrap();
+        }
+        COUNTING.with(|c| c.set(false));
+        assert_eq!(
+            ALLOCATIONS.load(Ordering::Relaxed),
+            0,
+            "{backend:?} allocated while rendering"
+        );
+    }
+}
+
+fn render_scene(seed: u64) -> Vec<f64> {
+    let engine = engine().with_seed(seed);
+    let library = engine.load_library(LIBRARY).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    for k in 0..5 {
+        let hit = [
+            ("amp", 0.5.into()),
+            ("n", 30.0.into()),
+            ("base", 300.0.into()),
+            ("max", 2000.0.into()),
+            ("damping", 0.003.into()),
+        ];
+        scene.start("hit", &hit, 0.1 * k as f64).unwrap();
+    }
+    scene.render_offline(1.0).unwrap()
+}
+
+#[test]
+fn engines_on_several_threads_render_independently() {
+    let alone = render_scene(3);
+    let threads: Vec<_> = (0..3)
+        .map(|_| std::thread::spawn(|| render_scene(3)))
+        .collect();
+    for thread in threads {
+        assert_eq!(
+            thread.join().unwrap(),
+            alone,
+            "same scene and seed, same samples"
+        );
+    }
+    assert_ne!(render_scene(4), alone, "another seed, other modes");
+}
+
+#[test]
+fn script_errors_are_diagnostics() {
+    let engine = engine();
+    let err = engine.load_library("(define-sound x (a) (sinee a))").err();
+    assert!(
+        err.is_none(),
+        "lowering of class bodies happens at instantiation"
+    );
+    let library = engine.load_library(LIBRARY).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    let message = |r: Result<timbre::InstanceId, timbre::Error>| r.unwrap_err().to_string();
+    assert_eq!(
+        message(scene.start("pong", &[], 0.0)),
+        "unknown sound class `pong`"
+    );
+    assert_eq!(
+        message(scene.start("ping", &[], 0.0)),
+        "`ping` needs a value for `freq`"
+    );
+    assert_eq!(
+        message(scene.start("ping", &[("freq", 1.0.into()), ("gain", 1.0.into())], 0.0)),
+        "`ping` has no parameter `gain`"
+    );
+    assert!(
+        engine.load_library("(sine t)").is_err(),
+        "a library only defines"
+    );
+}
