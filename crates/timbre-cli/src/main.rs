@@ -276,8 +276,9 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     };
     // A WAV file's sizes are 32-bit: refuse before rendering rather than write a file
     // whose header lies about its length.
-    if frames.saturating_mul(bytes_per_sample) > wav_out::MAX_DATA_BYTES {
-        let max_seconds = wav_out::MAX_DATA_BYTES / bytes_per_sample / sample_rate as u64;
+    let bytes_per_frame = bytes_per_sample * program.settings.channels.unwrap_or(1) as u64;
+    if frames.saturating_mul(bytes_per_frame) > wav_out::MAX_DATA_BYTES {
+        let max_seconds = wav_out::MAX_DATA_BYTES / bytes_per_frame / sample_rate as u64;
         return Err(Failure::Message(format!(
             "{duration} s at {sample_rate} Hz does not fit in a WAV file (4 GiB at most: {max_seconds} s in this format); \
              render shorter parts, or use --format s16 for twice the length"
@@ -304,6 +305,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     let job = WavJob {
         path: &args.output,
         sample_rate: sample_rate as u32,
+        channels: scene.channels() as u16,
         format: match args.format {
             Format::F32 => SampleFormat::F32,
             Format::S16 => SampleFormat::S16,

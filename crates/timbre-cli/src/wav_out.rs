@@ -23,6 +23,8 @@ pub enum SampleFormat {
 pub struct WavJob<'a> {
     pub path: &'a Path,
     pub sample_rate: u32,
+    /// Interleaved channels per frame.
+    pub channels: u16,
     pub format: SampleFormat,
     pub gain: f64,
     pub frames: u64,
@@ -94,7 +96,7 @@ fn write_to(
         SampleFormat::S24 => (24, hound::SampleFormat::Int),
     };
     let spec = hound::WavSpec {
-        channels: 1,
+        channels: job.channels,
         sample_rate: job.sample_rate,
         bits_per_sample: bits,
         sample_format,
@@ -102,14 +104,15 @@ fn write_to(
     let file = File::create(temp).map_err(io_error)?;
     let mut writer = hound::WavWriter::new(BufWriter::new(file), spec).map_err(wav_error)?;
     let mut summary = Summary::default();
-    let mut buffer = vec![0.0; CHUNK_FRAMES];
+    let channels = job.channels as usize;
+    let mut buffer = vec![0.0; CHUNK_FRAMES * channels];
     let mut remaining = job.frames;
     while remaining > 0 {
         if job.interrupted.load(Ordering::Relaxed) {
             return Err(WriteError::Interrupted);
         }
         let n = remaining.min(CHUNK_FRAMES as u64) as usize;
-        let chunk = &mut buffer[..n];
+        let chunk = &mut buffer[..n * channels];
         render(chunk).map_err(WriteError::Render)?;
         for x in chunk.iter() {
             let y = if x.is_finite() {

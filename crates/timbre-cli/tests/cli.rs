@@ -1101,3 +1101,21 @@ fn version_is_printed() {
         format!("timbre {}", env!("CARGO_PKG_VERSION"))
     );
 }
+
+#[test]
+fn a_stereo_scene_writes_two_interleaved_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("stereo.tt");
+    std::fs::write(
+        &script,
+        "(scene :channels 2 :duration 0.5)\n(define-sound tone (f) (sine (* t f)))\n(instance a (tone :f 440) :pan -1)\n",
+    )
+    .unwrap();
+    let wav = render_wav([script.as_os_str()]);
+    assert_eq!(wav.spec.channels, 2);
+    assert_eq!(wav.samples.len(), 2 * 24_000);
+    // Panned hard left: the left channel carries the tone, the right is silent.
+    let left: Vec<f64> = wav.samples.iter().step_by(2).copied().collect();
+    let right: Vec<f64> = wav.samples.iter().skip(1).step_by(2).copied().collect();
+    assert!(peak(&left) > 0.99 && peak(&right) < 1e-6);
+}

@@ -297,6 +297,9 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2) :speed 2)", "timbre::unknown-keyword", "`instance` has no option `:speed`", ":speed"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (sine t) (instance a (hit :amp 1 :freq 2))", "timbre::sound-and-instances", "the file has both a top-level sound and instances", "(sine t)"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k :csv \"m.csv\" :frame-rate 24)", "timbre::bad-keyframes", "a CSV track needs a `:column`", "(keyframes k :csv \"m.csv\" :frame-rate 24)"),
+    ("(define-sound a (f) (sine (* t f))) (instance x (a :f 1) :pan 0.5)", "timbre::bad-instance", "`:pan 0.5` needs a stereo scene", "0.5"),
+    ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (instance x (a :f 1) :channel 2)", "timbre::bad-instance", "channel 2 is not one of the scene's 2", "2"),
+    ("(scene :channels 0)", "timbre::bad-scene", "0 is not a number of channels", "0"),
 ];
 
 #[test]

@@ -1,6 +1,6 @@
 //! Sonic scenes: instances switched on at their start sample and off after their stop
-//! (or once they have decayed to silence), summed and rendered block by block so
-//! memory does not grow with the scene's length.
+//! (or once they have decayed to silence), summed into one or more channels and
+//! rendered block by block so memory does not grow with the scene's length.
 //!
 //! Instances come from a compiled program (`timbre render scene.tt`) or from a host
 //! that adds them while rendering (the `timbre` embedding API). This crate does not
@@ -60,6 +60,8 @@ struct Pending {
     start: u64,
     /// First sample after the instance, if it stops (its timer has faded it out).
     end: Option<u64>,
+    /// Gain into each output channel.
+    gains: Vec<f64>,
 }
 
 struct Active {
@@ -70,13 +72,15 @@ struct Active {
     end: Option<u64>,
     /// A stop the host asked for: the mixer fades out from this sample.
     fade_from: Option<u64>,
+    gains: Vec<f64>,
     ends_when_silent: bool,
     heard: bool,
     silent_samples: u64,
 }
 
-/// Renders a scene: the sum of its instances, mono.
+/// Renders a scene: the sum of its instances, in interleaved frames of `channels`.
 pub struct SceneRenderer {
+    channels: usize,
     graph: Arc<Graph>,
     config: RenderConfig,
     engine: Engine,
@@ -93,13 +97,18 @@ pub struct SceneRenderer {
 
 impl SceneRenderer {
     /// A renderer with no instances, for a host to add them.
-    pub fn new_empty(config: RenderConfig, engine: Engine) -> Result<Self, JitError> {
+    pub fn new_empty(
+        config: RenderConfig,
+        engine: Engine,
+        channels: usize,
+    ) -> Result<Self, JitError> {
         let jit = match engine {
             Engine::Jit => Some(Jit::new()?),
             Engine::Interpreter => None,
         };
         let sr = config.sample_rate;
         Ok(SceneRenderer {
+            channels: channels.max(1),
             graph: Arc::new(Graph::new()),
             config,
             engine,
@@ -117,7 +126,8 @@ impl SceneRenderer {
     /// A renderer of `program`'s instances (or of its one sound, as an instance
     /// starting at 0 that plays to the end).
     pub fn new(program: &Program, config: RenderConfig, engine: Engine) -> Result<Self, JitError> {
-        let mut renderer = Self::new_empty(config, engine)?;
+        let channels = program.settings.channels.unwrap_or(1);
+        let mut renderer = Self::new_empty(config, engine, channels)?;
         renderer.graph = Arc::new(program.graph.clone());
         let sr = config.sample_rate;
         let mut pending: Vec<Pending> = match (&program.root, program.instances.as_slice()) {
@@ -127,6 +137,7 @@ impl SceneRenderer {
                 ends_when_silent: false,
                 start: 0,
                 end: None,
+                gains: vec![1.0; channels],
             }],
             (None, instances) => instances.iter().map(|i| renderer.pending(i, sr)).collect(),
         };
@@ -150,11 +161,17 @@ impl SceneRenderer {
             end: instance
                 .stop
                 .map(|stop| ((stop + DECLICK_OUT) * sr).round() as u64),
+            gains: instance.channel_gains.clone(),
         }
     }
 
     pub fn config(&self) -> RenderConfig {
         self.config
+    }
+
+    /// Output channels: `render` writes frames of this many interleaved samples.
+    pub fn channels(&self) -> usize {
+        self.channels
     }
 
     /// Samples rendered so far.
@@ -190,6 +207,7 @@ impl SceneRenderer {
                 ends_when_silent: end.is_none(),
                 start,
                 end,
+                gains: vec![1.0; self.channels],
             },
         );
         self.active.reserve(self.pending.len());
@@ -226,9 +244,9 @@ impl SceneRenderer {
         })
     }
 
-    /// Renders the next `out.len()` samples of the scene.
+    /// Renders the next `out.len() / channels` frames of the scene (interleaved).
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), JitError> {
-        let block = self.config.block_size.max(1);
+        let block = self.config.block_size.max(1) * self.channels;
         for chunk in out.chunks_mut(block) {
             self.render_block(chunk)?;
         }
@@ -237,7 +255,8 @@ impl SceneRenderer {
 
     fn render_block(&mut self, out: &mut [f64]) -> Result<(), JitError> {
         out.fill(0.0);
-        let end = self.position + out.len() as u64;
+        let channels = self.channels;
+        let end = self.position + (out.len() / channels) as u64;
         while self.pending.last().is_some_and(|p| p.start < end) {
             let Some(p) = self.pending.pop() else { break };
             let voice = match p.source {
@@ -253,6 +272,7 @@ impl SceneRenderer {
                 next: p.start,
                 end: p.end,
                 fade_from: None,
+                gains: p.gains,
                 ends_when_silent: p.ends_when_silent,
                 heard: false,
                 silent_samples: 0,
@@ -270,11 +290,7 @@ impl SceneRenderer {
             let n = (until - from) as usize;
             let scratch = &mut self.scratch[..n];
             active.voice.render(scratch);
-            for (k, (y, x)) in out[offset..offset + n]
-                .iter_mut()
-                .zip(scratch.iter())
-                .enumerate()
-            {
+            for (k, x) in scratch.iter().enumerate() {
                 let gain = match active.fade_from {
                     Some(f) => {
                         let s = from + k as u64;
@@ -287,7 +303,10 @@ impl SceneRenderer {
                     None => 1.0,
                 };
                 let x = x * gain;
-                *y += x;
+                let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
+                for (y, g) in frame.iter_mut().zip(&active.gains) {
+                    *y += x * g;
+                }
                 if x.abs() >= SILENCE {
                     active.heard = true;
                     active.silent_samples = 0;

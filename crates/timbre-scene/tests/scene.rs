@@ -234,3 +234,48 @@ fn a_missing_csv_column_names_the_ones_there_are() {
     let span = diag.span().unwrap();
     assert_eq!(&text[span.start..span.end], "\"speed\"");
 }
+
+#[test]
+fn a_stereo_scene_pans_and_routes_its_instances() {
+    let program = scene(
+        "(scene :channels 2)
+         (define-sound tone (f) (sine (* t f)))
+         (instance left (tone :f 300) :pan -1)
+         (instance centre (tone :f 500) :pan 0)
+         (instance right (tone :f 700) :channel 1)
+         (instance both (tone :f 900))",
+    );
+    let mut renderer = SceneRenderer::new(&program, config(), Engine::Jit).unwrap();
+    assert_eq!(renderer.channels(), 2);
+    let mut frames = vec![0.0; 2 * 48_000];
+    renderer.render(&mut frames).unwrap();
+    let (l, r): (Vec<f64>, Vec<f64>) = frames.chunks(2).map(|f| (f[0], f[1])).unzip();
+    // Amplitude of each tone in each channel, from its Fourier coefficient.
+    let amplitude = |x: &[f64], f: f64| {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (k, v) in x.iter().enumerate() {
+            let phase = std::f64::consts::TAU * f * k as f64 / SR;
+            re += v * phase.cos();
+            im += v * phase.sin();
+        }
+        2.0 * (re * re + im * im).sqrt() / x.len() as f64
+    };
+    let near = |a: f64, b: f64| (a - b).abs() < 0.01;
+    assert!(
+        near(amplitude(&l, 300.0), 1.0) && near(amplitude(&r, 300.0), 0.0),
+        "hard left"
+    );
+    let half_power = std::f64::consts::FRAC_1_SQRT_2;
+    assert!(
+        near(amplitude(&l, 500.0), half_power) && near(amplitude(&r, 500.0), half_power),
+        "centre"
+    );
+    assert!(
+        near(amplitude(&l, 700.0), 0.0) && near(amplitude(&r, 700.0), 1.0),
+        "channel 1"
+    );
+    assert!(
+        near(amplitude(&l, 900.0), 1.0) && near(amplitude(&r, 900.0), 1.0),
+        "everywhere"
+    );
+}

@@ -141,7 +141,7 @@ impl Engine {
         Ok(Scene {
             engine: self.clone(),
             library: library.clone(),
-            renderer: SceneRenderer::new_empty(self.config, self.backend)?,
+            renderer: SceneRenderer::new_empty(self.config, self.backend, 1)?,
         })
     }
 }

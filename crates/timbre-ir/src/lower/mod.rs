@@ -77,6 +77,8 @@ pub struct Settings {
     pub sample_rate: Option<f64>,
     pub duration: Option<f64>,
     pub seed: u64,
+    /// Output channels of a scene (`:channels`); None means mono.
+    pub channels: Option<usize>,
 }
 
 /// A compiled file: its trees, the sound to render, and its settings.
@@ -447,7 +449,7 @@ impl<'a> Lowerer<'a> {
                 .help(help)
                 .in_source(&origin.source)
         };
-        let known = ":sample-rate, :duration, :seed";
+        let known = ":sample-rate, :duration, :seed, :channels";
         let mut i = 0;
         while i < args.len() {
             let ExprKind::Keyword(key) = &args[i].kind else {
@@ -506,6 +508,17 @@ impl<'a> Lowerer<'a> {
                 }
                 "seed" if value >= 0.0 && value.fract() == 0.0 && value < 2f64.powi(53) => {
                     self.settings.seed = value as u64
+                }
+                "channels" if (1.0..=64.0).contains(&value) && value.fract() == 0.0 => {
+                    self.settings.channels = Some(value as usize)
+                }
+                "channels" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("{value} is not a number of channels"),
+                        "expected 1 to 64",
+                        "write e.g. `:channels 2`",
+                    ))
                 }
                 "seed" => {
                     return Err(err(

@@ -34,6 +34,8 @@ pub struct Instance {
     pub start: f64,
     /// Scene time at which it is switched off (after the fade-out), if given.
     pub stop: Option<f64>,
+    /// Its gain into each of the scene's output channels.
+    pub channel_gains: Vec<f64>,
 }
 
 /// The options of a scene form: `:key value` pairs after the fixed parts.
@@ -433,7 +435,13 @@ impl Lowerer<'_> {
                     .help(help));
             }
         }
-        let options = self.options(&items[3..], "instance", &["start", "stop", "gain"], origin)?;
+        let options = self.options(
+            &items[3..],
+            "instance",
+            &["start", "stop", "gain", "pan", "channel"],
+            origin,
+        )?;
+        let channel_gains = self.channel_gains(&options, origin)?;
         let start = match options.get("start") {
             Some(e) => self.constant_option(e, "the start time", origin)?,
             None => 0.0,
@@ -509,7 +517,57 @@ impl Lowerer<'_> {
             root,
             start,
             stop: stop.map(|(s, _)| s),
+            channel_gains,
         })
+    }
+
+    /// Where an instance goes in a scene of several channels: `:pan` (stereo,
+    /// equal power: −1 left, 0 centre, 1 right) or `:channel k` (0-based).
+    fn channel_gains(&mut self, options: &Options<'_>, origin: &Origin) -> Result<Vec<f64>, Diag> {
+        let channels = self.settings.channels.unwrap_or(1);
+        match (options.get("pan"), options.get("channel")) {
+            (Some(_), Some(channel)) => Err(self
+                .diag(
+                    "timbre::bad-instance",
+                    "an instance has a `:pan` or a `:channel`, not both",
+                    origin,
+                )
+                .label(channel.span, "and a channel")
+                .help("pan between two channels, or route to one")),
+            (Some(pan_expr), None) => {
+                let pan = self.constant_option(pan_expr, "the pan position", origin)?;
+                if channels != 2 || !(-1.0..=1.0).contains(&pan) {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-instance",
+                            format!(
+                                "`:pan {pan}` needs a stereo scene and a position from -1 to 1"
+                            ),
+                            origin,
+                        )
+                        .label(pan_expr.span, "pan")
+                        .help(
+                            "add `:channels 2` to the scene form; -1 is left, 0 centre, 1 right",
+                        ));
+                }
+                let angle = (pan + 1.0) * std::f64::consts::FRAC_PI_4;
+                Ok(vec![angle.cos(), angle.sin()])
+            }
+            (None, Some(channel_expr)) => {
+                let channel = self.constant_option(channel_expr, "the channel", origin)?;
+                if channel.fract() != 0.0 || channel < 0.0 || channel >= channels as f64 {
+                    return Err(self
+                        .diag("timbre::bad-instance", format!("channel {channel} is not one of the scene's {channels}"), origin)
+                        .label(channel_expr.span, "no such channel")
+                        .help(format!("channels are numbered 0 to {}; set their number with (scene :channels N)", channels - 1)));
+                }
+                let mut gains = vec![0.0; channels];
+                gains[channel as usize] = 1.0;
+                Ok(gains)
+            }
+            // Neither: the sound plays in every channel.
+            (None, None) => Ok(vec![1.0; channels]),
+        }
     }
 
     /// A new global name must not clash with built-ins, trees or keyframes.
