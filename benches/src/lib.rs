@@ -15,12 +15,13 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 5] = [
+pub const WORKLOADS: [&str; 6] = [
     "bell-100",
     "wood-500",
     "bell-1000",
     "swarm-50",
     "bell-100-restruck",
+    "scene-500",
 ];
 
 /// The standard workload called `name` (one of [`WORKLOADS`]).
@@ -31,6 +32,7 @@ pub fn workload(name: &str) -> Option<Workload> {
         "bell-1000" => bell(1000),
         "swarm-50" => swarm(50),
         "bell-100-restruck" => bell_restruck(100),
+        "scene-500" => collisions(500),
         _ => return None,
     })
 }
@@ -197,5 +199,27 @@ mod tests {
         voice.render(&mut out);
         assert!(out.iter().all(|x| x.is_finite()));
         assert!(out.iter().any(|x| *x != out[0]), "the tree varies in time");
+    }
+}
+
+/// A scene of `n` overlapping collisions (the 1995 paper's class), one every 2 ms,
+/// each with its own loudness and modes: repeated starts of one class.
+pub fn collisions(n: usize) -> Workload {
+    let mut source = String::from(
+        "(define-sound collision (amp n_freq base max damp_ratio)
+           (let ((modes (rvector n_freq base max)))
+             (* amp (/ 1 n_freq) (combine (* (sine (* t modes)) (damp (* t damp_ratio modes)))))))\n",
+    );
+    for k in 0..n {
+        let amp = 0.02 + 0.01 * (k % 7) as f64;
+        let base = 300.0 + 10.0 * (k % 50) as f64;
+        source += &format!(
+            "(instance c{k} (collision :amp {amp} :n_freq 10 :base {base} :max 3000 :damp_ratio 0.01) :start {})\n",
+            0.002 * k as f64
+        );
+    }
+    Workload {
+        name: leak(format!("scene-{n}")),
+        source,
     }
 }

@@ -9,6 +9,7 @@
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
+use timbre_scene::{Engine as SceneEngine, SceneRenderer};
 
 use clap::builder::PossibleValuesParser;
 use clap::Args;
@@ -151,8 +152,36 @@ fn measure(
     buffer: &mut [f64],
 ) -> Result<Measured, Failure> {
     let program = compile(workload);
-    let root = program.root.expect("benchmark workloads have a sound");
     let (mut interp, mut jit, mut compile) = (vec![], vec![], vec![]);
+    let Some(root) = program.root else {
+        // A scene: its instances through the scene renderer, with both engines.
+        let first = program
+            .instances
+            .first()
+            .map(|i| i.root)
+            .expect("a scene has instances");
+        for _ in 0..runs {
+            for (engine, times) in [
+                (SceneEngine::Interpreter, &mut interp),
+                (SceneEngine::Jit, &mut jit),
+            ] {
+                let mut scene = SceneRenderer::new(&program, CONFIG, engine)
+                    .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
+                times.push(time_render(samples, buffer, |out| {
+                    scene.render(out).expect("kernels of a benchmark compile")
+                }));
+            }
+            let voice = fresh_jit()?
+                .voice(&program.graph, first, CONFIG)
+                .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
+            compile.push(voice.kernel().compile_time);
+        }
+        return Ok(Measured {
+            interp: median(&mut interp),
+            jit: median(&mut jit),
+            compile: median(&mut compile),
+        });
+    };
     for _ in 0..runs {
         let mut voice = interpreter(&program);
         interp.push(time_render(samples, buffer, |out| voice.render(out)));
