@@ -32,10 +32,18 @@ fn mem() -> MemFlagsData {
 }
 
 /// Imported helper functions, declared in the function being built.
+#[derive(Clone, Copy)]
 pub(crate) struct Helpers {
     pub step: FuncRef,
     pub unary: FuncRef,
     pub binary: FuncRef,
+}
+
+/// A region's inputs; see [`KernelBuilder::region_inputs`].
+struct RegionInputs {
+    outside: Vec<usize>,
+    tables: HashMap<usize, Value>,
+    state_tables: Vec<(usize, Value)>,
 }
 
 /// The signature of every kernel.
@@ -100,55 +108,20 @@ impl KernelBuilder<'_, '_> {
                 b.ins().store(mem(), zero, addr, 0);
             });
         }
-        // Everything the body reads from outside the region.
-        let in_region: Vec<bool> = {
-            let mut v = vec![false; self.steps.len()];
-            for &node in &region.nodes {
-                v[node] = true;
-            }
-            v
-        };
-        let mut outside: Vec<usize> = region
-            .nodes
-            .iter()
-            .flat_map(|&node| self.steps[node].args.iter().copied())
-            .filter(|a| !in_region[*a])
-            .collect();
-        outside.sort_unstable();
-        outside.dedup();
-        let written: Vec<usize> = region
-            .stored
-            .iter()
-            .chain(&region.combines)
-            .copied()
-            .collect();
-        let tables: HashMap<usize, Value> = outside
-            .iter()
-            .chain(&written)
-            .map(|&s| (s, self.buffer(s)))
-            .collect();
+        let RegionInputs {
+            outside,
+            tables,
+            state_tables,
+        } = self.region_inputs(region);
         let lane_bytes = (self.block_size * 8) as i64;
         let width = region.width as i64;
         let end_lane = self.b.ins().iconst(I64, width);
         let rate = self.b.ins().splat(F64X2, self.sample_rate);
         // The lane loop.
         let steps = self.steps;
-        let helpers = Helpers {
-            ..self.helpers_copy()
-        };
+        let helpers = self.helpers;
         let t0 = self.t0;
         let n = self.n;
-        let state_tables: Vec<(usize, Value)> = region
-            .nodes
-            .iter()
-            .filter(|s| matches!(steps[**s].op, Op::Phasor | Op::Noise { .. }))
-            .map(|&s| {
-                (
-                    s,
-                    self.b.ins().load(I64, mem(), self.states, (s * 8) as i32),
-                )
-            })
-            .collect();
         counted_loop(self.b, 0, end_lane, 1, |b, lane| {
             let lane_offset = b.ins().imul_imm_s(lane, lane_bytes);
             // State of inline nodes for this lane, carried through the sample loop in
@@ -241,37 +214,13 @@ impl KernelBuilder<'_, '_> {
                 b.ins().store(mem(), zero, addr, 0);
             });
         }
-        let mut in_region = vec![false; steps.len()];
-        for &node in &region.nodes {
-            in_region[node] = true;
-        }
-        let mut outside: Vec<usize> = region
-            .nodes
-            .iter()
-            .flat_map(|&node| steps[node].args.iter().copied())
-            .filter(|a| !in_region[*a])
-            .collect();
-        outside.sort_unstable();
-        outside.dedup();
-        let tables: HashMap<usize, Value> = outside
-            .iter()
-            .chain(&region.stored)
-            .chain(&region.combines)
-            .map(|&s| (s, self.buffer(s)))
-            .collect();
-        let state_tables: Vec<(usize, Value)> = region
-            .nodes
-            .iter()
-            .filter(|s| matches!(steps[**s].op, Op::Phasor | Op::Noise { .. }))
-            .map(|&s| {
-                (
-                    s,
-                    self.b.ins().load(I64, mem(), self.states, (s * 8) as i32),
-                )
-            })
-            .collect();
+        let RegionInputs {
+            outside,
+            tables,
+            state_tables,
+        } = self.region_inputs(region);
         let rate = self.b.ins().splat(F64X2, self.sample_rate);
-        let helpers = self.helpers_copy();
+        let helpers = self.helpers;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
         let body = |b: &mut FunctionBuilder, first: Value, second: Value, single: bool| {
@@ -385,11 +334,42 @@ impl KernelBuilder<'_, '_> {
         }
     }
 
-    fn helpers_copy(&self) -> Helpers {
-        Helpers {
-            step: self.helpers.step,
-            unary: self.helpers.unary,
-            binary: self.helpers.binary,
+    /// What a region's body reads from outside it (sorted), the buffer table entries of
+    /// those and of what it writes, and the state tables of its inline stateful nodes.
+    fn region_inputs(&mut self, region: &Region) -> RegionInputs {
+        let mut in_region = vec![false; self.steps.len()];
+        for &node in &region.nodes {
+            in_region[node] = true;
+        }
+        let mut outside: Vec<usize> = region
+            .nodes
+            .iter()
+            .flat_map(|&node| self.steps[node].args.iter().copied())
+            .filter(|a| !in_region[*a])
+            .collect();
+        outside.sort_unstable();
+        outside.dedup();
+        let tables = outside
+            .iter()
+            .chain(&region.stored)
+            .chain(&region.combines)
+            .map(|&s| (s, self.buffer(s)))
+            .collect();
+        let state_tables = region
+            .nodes
+            .iter()
+            .filter(|s| matches!(self.steps[**s].op, Op::Phasor | Op::Noise { .. }))
+            .map(|&s| {
+                (
+                    s,
+                    self.b.ins().load(I64, mem(), self.states, (s * 8) as i32),
+                )
+            })
+            .collect();
+        RegionInputs {
+            outside,
+            tables,
+            state_tables,
         }
     }
 }

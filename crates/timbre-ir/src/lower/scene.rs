@@ -107,17 +107,12 @@ impl Lowerer<'_> {
 
     fn constant_option(&mut self, value: &Expr, what: &str, origin: &Origin) -> Result<f64, Diag> {
         let node = self.lower(value, origin, &mut Scope::new())?;
-        match self.graph.scalar(node) {
-            Some(x) if x.is_finite() => Ok(x),
-            _ => Err(self
-                .diag(
-                    "timbre::not-constant",
-                    format!("{what} must be a constant number"),
-                    origin,
-                )
-                .label(value.span, "not a constant")
-                .help("use a number, or an expression of numbers")),
-        }
+        let arg = super::Arg {
+            node,
+            span: value.span,
+            given: true,
+        };
+        self.const_number(&arg, what, origin)
     }
 
     fn string_option(&self, value: &Expr, what: &str, origin: &Origin) -> Result<String, Diag> {
