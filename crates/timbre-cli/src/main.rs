@@ -6,6 +6,7 @@
 //! 130 when interrupted.
 
 mod bench;
+mod graph;
 mod wav_out;
 
 use std::collections::BTreeMap;
@@ -53,6 +54,15 @@ enum Command {
     ///   timbre check examples/bell.tt
     #[command(verbatim_doc_comment)]
     Check(SourceArgs),
+    /// Draw the timbre trees of a file as a schematic (Graphviz DOT, or SVG/PNG with `dot`).
+    ///
+    /// Shared subtrees are drawn once; keyframe, timer and instance nodes stand out.
+    ///
+    /// Examples:
+    ///   timbre graph examples/cubes.tt -o cubes.dot
+    ///   timbre graph examples/bell.tt -o bell.svg
+    #[command(verbatim_doc_comment)]
+    Graph(GraphArgs),
     /// Measure both engines on the benchmark workloads, and the JIT's compile time.
     ///
     /// Examples:
@@ -176,6 +186,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Check(args) => check(args),
+        Command::Graph(args) => draw_graph(args),
         Command::Bench(args) => bench::bench(args),
     };
     match result {
@@ -233,6 +244,31 @@ fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
         eprintln!("warning: `--set {name}=…` is not used by any expression");
     }
     Ok(program)
+}
+
+#[derive(Args, Debug)]
+struct GraphArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+
+    /// Where to write: .dot (text), or .svg/.png (needs Graphviz's `dot`); `-` for stdout.
+    #[arg(long, short = 'o', value_name = "FILE")]
+    output: PathBuf,
+}
+
+fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
+    let program = compile_source(&args.source)?;
+    let title = match (&args.source.file, &args.source.expr) {
+        (Some(path), _) => path.display().to_string(),
+        (None, Some(expr)) => expr.clone(),
+        _ => String::new(),
+    };
+    let text = graph::dot(&program, &title);
+    if args.output.as_os_str() == "-" {
+        print!("{text}");
+        return Ok(());
+    }
+    graph::write(&text, &args.output).map_err(Failure::Message)
 }
 
 fn check(args: SourceArgs) -> Result<(), Failure> {
@@ -315,10 +351,14 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         frames,
         interrupted: &interrupted,
     };
+    let mut progress = Progress::new(frames, sample_rate, args.quiet);
+    let channels = scene.channels();
     let render = |out: &mut [f64]| {
         scene
             .render(out)
-            .map_err(|e| format!("{e}; use --engine interp"))
+            .map_err(|e| format!("{e}; use --engine interp"))?;
+        progress.advance((out.len() / channels) as u64);
+        Ok(())
     };
     let summary = write_wav_atomically(&job, render).map_err(|e| match e {
         wav_out::WriteError::Interrupted => Failure::Interrupted,
@@ -352,6 +392,63 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// A progress bar for renders that take more than about a second: shown on a
+/// terminal only (indicatif hides it otherwise), never with `--quiet`.
+struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    started: std::time::Instant,
+    sample_rate: f64,
+    done: u64,
+}
+
+impl Progress {
+    /// Before this much wall time the bar stays hidden: short renders print nothing.
+    const DELAY: std::time::Duration = std::time::Duration::from_secs(1);
+
+    fn new(frames: u64, sample_rate: f64, quiet: bool) -> Self {
+        let bar = (!quiet).then(|| {
+            let bar = indicatif::ProgressBar::with_draw_target(
+                Some(frames),
+                indicatif::ProgressDrawTarget::hidden(),
+            );
+            let style =
+                indicatif::ProgressStyle::with_template("{bar:40} {percent:>3}%  {msg}  ETA {eta}")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+            bar.set_style(style);
+            bar
+        });
+        Progress {
+            bar,
+            started: std::time::Instant::now(),
+            sample_rate,
+            done: 0,
+        }
+    }
+
+    fn advance(&mut self, frames: u64) {
+        self.done += frames;
+        let Some(bar) = &self.bar else { return };
+        let elapsed = self.started.elapsed();
+        if bar.is_hidden() && elapsed >= Self::DELAY {
+            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        }
+        let audio = self.done as f64 / self.sample_rate;
+        bar.set_message(format!(
+            "{audio:.1} s of audio, {:.1}× real time",
+            audio / elapsed.as_secs_f64().max(1e-9)
+        ));
+        bar.set_position(self.done);
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
 }
 
 fn format_db(peak: f64) -> String {

@@ -1119,3 +1119,116 @@ fn a_stereo_scene_writes_two_interleaved_channels() {
     let right: Vec<f64> = wav.samples.iter().skip(1).step_by(2).copied().collect();
     assert!(peak(&left) > 0.99 && peak(&right) < 1e-6);
 }
+
+/// `timbre graph` of the paper's Figure 4 scene, as DOT text.
+fn cubes_dot() -> String {
+    let run = run(["graph", example("cubes").to_str().unwrap(), "-o", "-"]);
+    run.assert_success();
+    run.stdout
+}
+
+#[test]
+fn the_graph_draws_shared_subtrees_once() {
+    let dot = cubes_dot();
+    // The wood's 500 modes (one `let`-bound rvector) are one node with two consumers:
+    // the sine's phase and the damping.
+    let modes: Vec<&str> = dot
+        .lines()
+        .filter(|l| l.contains("500 lanes\"") && l.contains("shape=plaintext"))
+        .collect();
+    assert_eq!(modes.len(), 1, "{modes:?}");
+    let id = modes[0].trim().split(' ').next().unwrap();
+    let uses = dot
+        .lines()
+        .filter(|l| l.trim().starts_with(&format!("{id} ->")))
+        .count();
+    assert_eq!(uses, 2);
+    // `t` is shared by every instance: one node.
+    assert_eq!(
+        dot.lines().filter(|l| l.contains("[label=\"t\"]")).count(),
+        1
+    );
+    // Keyframe, timer and instance nodes stand out.
+    assert_eq!(
+        dot.lines()
+            .filter(|l| l.contains("keyframe") && l.contains("shape=cds"))
+            .count(),
+        1
+    );
+    assert_eq!(
+        dot.lines()
+            .filter(|l| l.contains("timer") && l.contains("shape=octagon"))
+            .count(),
+        3
+    );
+    assert_eq!(
+        dot.lines()
+            .filter(|l| l.contains("instance ") && l.contains("shape=house"))
+            .count(),
+        3
+    );
+}
+
+#[test]
+fn the_graph_parses_with_graphviz() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("cubes.svg");
+    // Graphviz's own parser reads the DOT (CI installs graphviz).
+    let run = run([
+        "graph",
+        example("cubes").to_str().unwrap(),
+        "-o",
+        svg.to_str().unwrap(),
+    ]);
+    run.assert_success();
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        text.contains("<svg") && text.contains("keyframe"),
+        "{}",
+        &text[..text.len().min(300)]
+    );
+}
+
+#[test]
+fn long_renders_show_progress_on_a_terminal_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("wood.wav");
+    let wood = example("wood");
+    // Four seconds of 500 modes with the interpreter: a couple of seconds of work.
+    let args = format!(
+        "{} render {} -d 4 --engine interp -o {}",
+        env!("CARGO_BIN_EXE_timbre"),
+        wood.display(),
+        out.display()
+    );
+    // Under a pseudo-terminal (util-linux's `script`): the bar, with the real-time
+    // factor and an ETA.
+    let tty = std::process::Command::new("script")
+        .args(["-qec", &args, "/dev/null"])
+        .output()
+        .expect("util-linux's `script`");
+    let shown = String::from_utf8_lossy(&tty.stdout);
+    assert!(tty.status.success());
+    assert!(
+        shown.contains("ETA") && shown.contains("real time") && shown.contains('%'),
+        "{shown}"
+    );
+    // Not a terminal, or --quiet: nothing but the summary (or nothing).
+    let piped = run([
+        "render",
+        wood.to_str().unwrap(),
+        "-d",
+        "4",
+        "--engine",
+        "interp",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    piped.assert_success();
+    assert!(!piped.stderr.contains("ETA"), "{}", piped.stderr);
+    let quiet = std::process::Command::new("script")
+        .args(["-qec", &format!("{args} --quiet"), "/dev/null"])
+        .output()
+        .unwrap();
+    assert!(!String::from_utf8_lossy(&quiet.stdout).contains("ETA"));
+}

@@ -1,0 +1,146 @@
+//! `timbre graph`: timbre trees drawn as the schematic of Tong et al. (2006): each node
+//! with its parameters, edges from children to parents, shared subtrees drawn once,
+//! and keyframe, timer and instance nodes visibly distinct. Writes Graphviz DOT, or
+//! SVG/PNG through Graphviz's `dot` when it is installed.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use timbre_ir::op::Op;
+use timbre_ir::{NodeId, Program};
+
+/// The DOT text of every tree in `program`: its sound, or each instance of a scene.
+pub fn dot(program: &Program, title: &str) -> String {
+    let graph = &program.graph;
+    let mut roots: Vec<(NodeId, String)> = vec![];
+    if let Some(root) = program.root {
+        roots.push((root, "sound".into()));
+    }
+    for instance in &program.instances {
+        let stop = instance.stop.map_or(String::new(), |s| format!(" – {s} s"));
+        roots.push((
+            instance.root,
+            format!("instance {}\\n{} s{stop}", instance.name, instance.start),
+        ));
+    }
+    // Every node any root needs, once, in evaluation order.
+    let mut needed = vec![false; graph.len()];
+    for (root, _) in &roots {
+        for id in graph.schedule(*root) {
+            needed[id.index()] = true;
+        }
+    }
+    let mut out = String::new();
+    let _ = writeln!(out, "digraph timbre {{");
+    let _ = writeln!(
+        out,
+        "  label=\"{}\"; labelloc=t; rankdir=BT;",
+        escape(title)
+    );
+    let _ = writeln!(
+        out,
+        "  node [fontname=\"Helvetica\", fontsize=10, shape=box, style=rounded];"
+    );
+    for (id, node) in graph.nodes().filter(|(id, _)| needed[id.index()]) {
+        let (label, style) = describe(&node.op);
+        let width = if node.width > 1 {
+            format!("\\n{} lanes", node.width)
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            out,
+            "  n{} [label=\"{}{width}\"{style}];",
+            id.0,
+            escape(&label)
+        );
+        for arg in &node.args {
+            let _ = writeln!(out, "  n{} -> n{};", arg.0, id.0);
+        }
+    }
+    for (k, (root, label)) in roots.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "  out{k} [label=\"{label}\", shape=house, style=filled, fillcolor=\"#dddddd\"];"
+        );
+        let _ = writeln!(out, "  n{} -> out{k};", root.0);
+    }
+    let _ = writeln!(out, "}}");
+    out
+}
+
+/// A node's label and extra DOT attributes.
+fn describe(op: &Op) -> (String, &'static str) {
+    const KEYFRAME: &str = ", shape=cds, style=filled, fillcolor=\"#ffe9a8\"";
+    const TIMER: &str = ", shape=octagon, style=filled, fillcolor=\"#c8e6ff\"";
+    const CONSTANT: &str = ", shape=plaintext";
+    match op {
+        Op::Const(values) if values.len() == 1 => (format!("{}", values[0]), CONSTANT),
+        Op::Const(values) => {
+            let shown: Vec<String> = values.iter().take(3).map(|v| format!("{v:.4}")).collect();
+            let more = if values.len() > 3 { ", …" } else { "" };
+            (format!("[{}{more}]", shown.join(", ")), CONSTANT)
+        }
+        Op::Keyframe(track) => (
+            format!(
+                "keyframe\\n{} keys, {}",
+                track.times().len(),
+                track.interpolation()
+            ),
+            KEYFRAME,
+        ),
+        Op::Timer {
+            length,
+            fade_in,
+            fade_out,
+        } => {
+            let length = length.map_or("until silent".into(), |l| format!("{l} s"));
+            (
+                format!("timer\\n{length}\\nfades {fade_in} / {fade_out} s"),
+                TIMER,
+            )
+        }
+        Op::Variable(_) => ("variable".into(), KEYFRAME),
+        Op::Delay { max_seconds } => (format!("delay\\nmax {max_seconds} s"), ""),
+        _ => (op.name(), ""),
+    }
+}
+
+fn escape(text: &str) -> String {
+    text.replace('"', "\\\"")
+}
+
+/// Writes DOT to `path`, or for `.svg`/`.png` renders it with `dot`.
+pub fn write(text: &str, path: &Path) -> Result<(), String> {
+    let format = path.extension().and_then(|e| e.to_str()).unwrap_or("dot");
+    match format {
+        "svg" | "png" => {
+            use std::io::Write as _;
+            let mut child = std::process::Command::new("dot")
+                .arg(format!("-T{format}"))
+                .arg("-o")
+                .arg(path)
+                .stdin(std::process::Stdio::piped())
+                .spawn()
+                .map_err(|e| {
+                    format!(
+                        "cannot run Graphviz's `dot` ({e}); install graphviz, or write a .dot file"
+                    )
+                })?;
+            child
+                .stdin
+                .take()
+                .ok_or("cannot write to `dot`")?
+                .write_all(text.as_bytes())
+                .map_err(|e| e.to_string())?;
+            let status = child.wait().map_err(|e| e.to_string())?;
+            if status.success() {
+                Ok(())
+            } else {
+                Err(format!("`dot` failed ({status})"))
+            }
+        }
+        _ => std::fs::write(path, text)
+            .map_err(|e| format!("cannot write `{}`: {e}", path.display())),
+    }
+}
