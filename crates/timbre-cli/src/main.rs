@@ -7,6 +7,9 @@
 
 mod bench;
 mod graph;
+mod playback;
+mod plot;
+mod repl;
 mod wav_out;
 
 use std::collections::BTreeMap;
@@ -63,6 +66,29 @@ enum Command {
     ///   timbre graph examples/bell.tt -o bell.svg
     #[command(verbatim_doc_comment)]
     Graph(GraphArgs),
+    /// Draw a WAV file's spectrogram and/or waveform as PNG pictures with labelled axes.
+    ///
+    /// Several channels are drawn as their mean. `timbre render` takes the same
+    /// --spectrogram and --wave flags to draw what it has just written.
+    ///
+    /// Examples:
+    ///   timbre plot bell.wav --spectrogram bell-spectrogram.png
+    ///   timbre plot siren.wav --spectrogram siren.png --log-frequency --wave siren-wave.png
+    #[command(verbatim_doc_comment)]
+    Plot(plot::PlotArgs),
+    /// Type timbre trees and hear them at once.
+    ///
+    /// An expression is rendered and played (with the `playback` feature and a sound
+    /// device) or written to a WAV, with a one-line summary; a definition joins the
+    /// session. Input continues until its parentheses balance; Tab completes node
+    /// names, definitions and commands; :help lists the commands.
+    ///
+    /// Example:
+    ///   timbre repl
+    ///   timbre> (define bell (f) (* (sine (* t f)) (damp (* t 3))))
+    ///   timbre> (bell 440)
+    #[command(verbatim_doc_comment)]
+    Repl(ReplArgs),
     /// Measure both engines on the benchmark workloads, and the JIT's compile time.
     ///
     /// Examples:
@@ -127,6 +153,10 @@ struct RenderArgs {
     /// Print nothing but errors.
     #[arg(long, short = 'q')]
     quiet: bool,
+
+    /// Pictures of the rendered sound, drawn from the WAV file once it is written.
+    #[command(flatten)]
+    pictures: plot::PictureArgs,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -187,6 +217,8 @@ fn main() -> ExitCode {
         Command::Render(args) => render(args),
         Command::Check(args) => check(args),
         Command::Graph(args) => draw_graph(args),
+        Command::Plot(args) => plot::plot(args).map_err(Failure::Message),
+        Command::Repl(args) => repl::run(args.audition).map_err(Failure::Message),
         Command::Bench(args) => bench::bench(args),
     };
     match result {
@@ -244,6 +276,13 @@ fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
         eprintln!("warning: `--set {name}=…` is not used by any expression");
     }
     Ok(program)
+}
+
+#[derive(Args, Debug)]
+struct ReplArgs {
+    /// Where auditions are written when they cannot be played.
+    #[arg(long, value_name = "FILE.wav", default_value = "timbre-audition.wav")]
+    audition: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -391,6 +430,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
             format_db(summary.peak),
         );
     }
+    plot::draw_pictures(&args.output, &args.pictures, args.quiet).map_err(Failure::Message)?;
     Ok(())
 }
 

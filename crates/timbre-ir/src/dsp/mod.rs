@@ -17,6 +17,7 @@
 //!   time and a gate-driven ADSR.
 //! - [`wav`]: WAV decoding to mono `f64`, cubic interpolation and resampling.
 
+pub mod analysis;
 pub mod conv;
 pub mod delay;
 pub mod envelope;
