@@ -767,7 +767,6 @@ impl<'a> Lowerer<'a> {
         let call = Call {
             name,
             span: expr.span,
-            head_span: head.span,
             args: &items[1..],
         };
         match name {
@@ -913,7 +912,6 @@ impl<'a> Lowerer<'a> {
         let call = Call {
             name,
             span,
-            head_span: span,
             args,
         };
         let bound = self.bind_args(&call, &params, false, origin, caller_scope)?;
@@ -1642,8 +1640,6 @@ impl<'a> Lowerer<'a> {
 struct Call<'e> {
     name: &'e str,
     span: Span,
-    #[allow(dead_code)]
-    head_span: Span,
     args: &'e [Expr],
 }
 
