@@ -103,6 +103,20 @@ impl Session {
         )
     }
 
+    /// Adds `text` (definitions that compiled as `program`) to the session; returns
+    /// the names it defines for the first time.
+    fn define(&mut self, text: &str, program: Program) -> Vec<String> {
+        self.definitions.push_str(text);
+        self.definitions.push('\n');
+        let new: Vec<String> = program
+            .definitions
+            .into_iter()
+            .filter(|d| !self.names.contains(d))
+            .collect();
+        self.names.extend(new.iter().cloned());
+        new
+    }
+
     fn config(&self) -> RenderConfig {
         RenderConfig {
             sample_rate: self.sample_rate,
@@ -298,15 +312,8 @@ fn evaluate(session: &mut Session, input: &str) {
     };
     if program.root.is_none() && program.instances.is_empty() {
         // Only definitions: they join the session.
-        session.definitions.push_str(input);
-        session.definitions.push('\n');
-        let new: Vec<String> = program
-            .definitions
-            .into_iter()
-            .filter(|d| !session.names.contains(d))
-            .collect();
+        let new = session.define(input, program);
         println!("defined {}", new.join(", "));
-        session.names.extend(new);
         return;
     }
     let samples = match session.render(&program, timbre_scene::Engine::Jit) {
@@ -447,13 +454,7 @@ fn load(session: &mut Session, path: &str) {
     let line = format!("(include {:?})", absolute.display().to_string());
     match session.compile(&line) {
         Ok(program) => {
-            session.definitions.push_str(&line);
-            session.definitions.push('\n');
-            let new: Vec<String> = program
-                .definitions
-                .into_iter()
-                .filter(|d| !session.names.contains(d))
-                .collect();
+            let new = session.define(&line, program);
             println!(
                 "loaded {path}: {}",
                 if new.is_empty() {
@@ -462,7 +463,6 @@ fn load(session: &mut Session, path: &str) {
                     new.join(", ")
                 }
             );
-            session.names.extend(new);
         }
         Err(diagnostics) => report(diagnostics),
     }

@@ -909,11 +909,7 @@ impl<'a> Lowerer<'a> {
                 default: None,
             })
             .collect();
-        let call = Call {
-            name,
-            span,
-            args,
-        };
+        let call = Call { name, span, args };
         let bound = self.bind_args(&call, &params, false, origin, caller_scope)?;
         let mut scope: Scope = def
             .params
