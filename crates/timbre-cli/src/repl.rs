@@ -528,13 +528,8 @@ fn tree_text(program: &Program) -> String {
     let graph = &program.graph;
     let mut out = String::new();
     let mut seen = vec![false; graph.len()];
-    let roots: Vec<_> = program
-        .root
-        .into_iter()
-        .chain(program.instances.iter().map(|i| i.root))
-        .collect();
     // Iterative depth-first walk (trees may be deep).
-    for root in roots {
+    for root in program.sound_roots() {
         let mut stack = vec![(root, 0usize)];
         while let Some((id, depth)) = stack.pop() {
             let node = graph.node(id);

@@ -83,12 +83,7 @@ fn every_example_renders_the_same_under_both_engines() {
             let program = compile_file(&path);
             let seconds = program.settings.duration.unwrap_or(1.0).min(2.0);
             // A file's sound, or each of a scene's instances from its start.
-            let roots: Vec<_> = program
-                .root
-                .into_iter()
-                .chain(program.instances.iter().map(|i| i.root))
-                .collect();
-            for root in roots {
+            for root in program.sound_roots() {
                 let (diff, at) =
                     compare_root(&mut jit, &program, root, (seconds * 48_000.0) as usize);
                 assert!(

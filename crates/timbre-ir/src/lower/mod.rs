@@ -96,6 +96,15 @@ pub struct Program {
     pub instances: Vec<Instance>,
 }
 
+impl Program {
+    /// The roots of its sounds: the file's sound, or each instance of a scene.
+    pub fn sound_roots(&self) -> impl Iterator<Item = NodeId> + '_ {
+        self.root
+            .into_iter()
+            .chain(self.instances.iter().map(|i| i.root))
+    }
+}
+
 /// Parses and lowers `source`. `base_dir` resolves relative `include` and `sample`
 /// paths.
 pub fn compile(
