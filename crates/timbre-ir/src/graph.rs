@@ -285,6 +285,17 @@ impl Graph {
                 }
             }
             Op::Combine if self.width(args[0]) == 1 => return Some(args[0]),
+            // A zero phase offset is left out: `(phasor f)` outputs its accumulator
+            // itself, which the engines compute without an add and a frac.
+            Op::Phasor
+                if args.len() == 2
+                    && self
+                        .const_value(args[1])
+                        .is_some_and(|v| v.iter().all(|x| *x == 0.0))
+                    && keeps_width(self, args[0], args[1]) =>
+            {
+                return Some(self.add_unfolded(Op::Phasor, vec![args[0]]));
+            }
             Op::Ternary(TernaryOp::If) => {
                 if let Some(c) = self.scalar(args[0]) {
                     let (chosen, other) = if c != 0.0 {
@@ -374,6 +385,21 @@ mod tests {
         let zeros = g.const_vector(vec![0.0, 0.0]);
         let widened = g.add(Op::Binary(BinaryOp::Add), vec![t, zeros]);
         assert_ne!(widened, t);
+        assert_eq!(g.width(widened), 2);
+    }
+
+    #[test]
+    fn a_zero_phase_offset_is_left_out_unless_it_widens() {
+        let mut g = Graph::new();
+        let t = g.add(Op::Time, vec![]);
+        let zero = g.constant(0.0);
+        let plain = g.add(Op::Phasor, vec![t, zero]);
+        assert_eq!(g.node(plain).args, vec![t]);
+        let quarter = g.constant(0.25);
+        let offset = g.add(Op::Phasor, vec![t, quarter]);
+        assert_eq!(g.node(offset).args, vec![t, quarter]);
+        let zeros = g.const_vector(vec![0.0, 0.0]);
+        let widened = g.add(Op::Phasor, vec![t, zeros]);
         assert_eq!(g.width(widened), 2);
     }
 

@@ -312,11 +312,23 @@ impl Interpreter {
                     }
                 }
                 (Op::Phasor, State::Phase(phases)) => {
-                    let (freq, offset) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    let freq = self.arg(i, 0, lane, n);
                     let phase = &mut phases[lane];
-                    for k in 0..n {
-                        o[k] = frac(*phase + offset[k]);
-                        *phase = frac(*phase + freq[k] / sr);
+                    // A multiplication by the sample period, not a division by the
+                    // rate: it is on the phase's critical path in compiled code.
+                    let period = 1.0 / sr;
+                    if step.args.len() == 1 {
+                        // No offset: frac(φ + 0) is φ itself, as φ is in [0, 1) or NaN.
+                        for k in 0..n {
+                            o[k] = *phase;
+                            *phase = frac(*phase + freq[k] * period);
+                        }
+                    } else {
+                        let offset = self.arg(i, 1, lane, n);
+                        for k in 0..n {
+                            o[k] = frac(*phase + offset[k]);
+                            *phase = frac(*phase + freq[k] * period);
+                        }
                     }
                 }
                 (Op::Biquad(kind), State::Biquad(lanes)) => {

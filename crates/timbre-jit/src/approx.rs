@@ -20,10 +20,9 @@ use cranelift_codegen::ir::condcodes::FloatCC;
 use cranelift_codegen::ir::{types, ConstantData, InstBuilder, MemFlagsData, Value};
 use cranelift_frontend::FunctionBuilder;
 
-/// A `F64X2` constant with `c` in both lanes, from the function's constant pool.
-/// (x64 loads it with a `movupd` next to its use rather than keeping it in a register;
-/// `splat(f64const)` gives the same code after cranelift's optimiser.)
-fn splat(b: &mut FunctionBuilder, c: f64) -> Value {
+/// A `F64X2` constant with `c` in both lanes, from the function's constant pool: one
+/// `movupd` next to its use, holding no register across loops.
+pub(crate) fn splat(b: &mut FunctionBuilder, c: f64) -> Value {
     let bytes: Vec<u8> = c
         .to_le_bytes()
         .iter()

@@ -4,7 +4,7 @@
 //! The kernel's signature is
 //! `kernel(interp, buffers, params, n, t0, states)`: the interpreter being driven (for
 //! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
-//! the sample rate), the samples in this block, the index of its first sample, and
+//! the sample rate, `params[1]` its reciprocal), the samples in this block, the index of its first sample, and
 //! the table of per-step state of nodes compiled inline (a phasor's phase per lane).
 //! Everything that differs between instances of one tree shape (constants, states,
 //! the sample rate) is reached through these pointers, so instances share the code.
@@ -66,6 +66,8 @@ pub(crate) struct KernelBuilder<'a, 'b> {
     pub t0: Value,
     pub states: Value,
     pub sample_rate: Value,
+    /// 1 / sample rate, as the interpreter computes it.
+    pub sample_period: Value,
 }
 
 impl KernelBuilder<'_, '_> {
@@ -117,6 +119,7 @@ impl KernelBuilder<'_, '_> {
         let width = region.width as i64;
         let end_lane = self.b.ins().iconst(I64, width);
         let rate = self.b.ins().splat(F64X2, self.sample_rate);
+        let period = self.b.ins().splat(F64X2, self.sample_period);
         // The lane loop.
         let steps = self.steps;
         let helpers = self.helpers;
@@ -164,15 +167,34 @@ impl KernelBuilder<'_, '_> {
                     let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
                     let value = match &step.op {
                         Op::Time => time(b, t0, i, rate),
-                        Op::Unary(op) => unary(b, &helpers, *op, args[0]),
-                        Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1]),
+                        Op::Unary(op) => unary(
+                            b,
+                            &helpers,
+                            *op,
+                            args[0],
+                            in_unit_interval(&steps[step.args[0]]),
+                        ),
+                        Op::Binary(op) => binary(
+                            b,
+                            &helpers,
+                            *op,
+                            args[0],
+                            args[1],
+                            in_unit_interval(&steps[step.args[0]]),
+                        ),
                         Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
                         Op::Noise { seed } => {
                             gradient_noise(b, *seed, &states[&node].vars, args[0])
                         }
-                        Op::Phasor => {
-                            phasor(b, states[&node].vars[0], args[0], args[1], rate, i, n)
-                        }
+                        Op::Phasor => phasor(
+                            b,
+                            states[&node].vars[0],
+                            args[0],
+                            args.get(1).copied(),
+                            period,
+                            i,
+                            n,
+                        ),
                         other => unreachable!("`{other}` is not compiled inline"),
                     };
                     values.insert(node, value);
@@ -215,11 +237,11 @@ impl KernelBuilder<'_, '_> {
             });
         }
         let RegionInputs {
-            outside,
+            outside: _,
             tables,
             state_tables,
         } = self.region_inputs(region);
-        let rate = self.b.ins().splat(F64X2, self.sample_rate);
+        let period = self.b.ins().splat(F64X2, self.sample_period);
         let helpers = self.helpers;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
@@ -242,8 +264,13 @@ impl KernelBuilder<'_, '_> {
                 };
                 if steps[s].constant {
                     let x0 = b.ins().load(types::F64, mem(), lanes[0], 0);
-                    let x1 = b.ins().load(types::F64, mem(), lanes[1], 0);
-                    constants.insert(s, pair(b, x0, x1));
+                    let value = if steps[s].width == 1 {
+                        b.ins().splat(F64X2, x0)
+                    } else {
+                        let x1 = b.ins().load(types::F64, mem(), lanes[1], 0);
+                        pair(b, x0, x1)
+                    };
+                    constants.insert(s, value);
                 } else {
                     bases.insert(s, lanes);
                 }
@@ -257,38 +284,69 @@ impl KernelBuilder<'_, '_> {
                 };
                 states.insert(s, LaneState::load(b, table, [first, second], slots));
             }
+
             counted_loop(b, 0, n, 1, |b, k| {
-                let mut values: HashMap<usize, Value> = constants.clone();
+                let mut values: HashMap<usize, Value> = HashMap::new();
                 let offset = b.ins().ishl_imm_u(k, 3);
-                for &s in &outside {
-                    if let Some(lanes) = bases.get(&s) {
-                        let a0 = b.ins().iadd(lanes[0], offset);
-                        let x0 = b.ins().load(types::F64, mem(), a0, 0);
-                        let value = if steps[s].width == 1 {
-                            b.ins().splat(F64X2, x0)
-                        } else {
-                            let a1 = b.ins().iadd(lanes[1], offset);
-                            let x1 = b.ins().load(types::F64, mem(), a1, 0);
-                            pair(b, x0, x1)
-                        };
-                        values.insert(s, value);
+                // Inputs from outside the region are loaded where they are used, so
+                // that they are not held (or spilled) across the whole body.
+                let input = |b: &mut FunctionBuilder, s: usize| {
+                    if let Some(&slot) = constants.get(&s) {
+                        return slot;
                     }
-                }
+                    let lanes = bases[&s];
+                    let a0 = b.ins().iadd(lanes[0], offset);
+                    let x0 = b.ins().load(types::F64, mem(), a0, 0);
+                    if steps[s].width == 1 {
+                        b.ins().splat(F64X2, x0)
+                    } else {
+                        let a1 = b.ins().iadd(lanes[1], offset);
+                        let x1 = b.ins().load(types::F64, mem(), a1, 0);
+                        pair(b, x0, x1)
+                    }
+                };
                 for &node in &region.nodes {
                     let step = &steps[node];
-                    let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
+                    let args: Vec<Value> = step
+                        .args
+                        .iter()
+                        .map(|&a| match values.get(&a) {
+                            Some(&v) => v,
+                            None => input(b, a),
+                        })
+                        .collect();
                     let value = match &step.op {
-                        Op::Unary(op) => unary(b, &helpers, *op, args[0]),
-                        Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1]),
+                        Op::Unary(op) => unary(
+                            b,
+                            &helpers,
+                            *op,
+                            args[0],
+                            in_unit_interval(&steps[step.args[0]]),
+                        ),
+                        Op::Binary(op) => binary(
+                            b,
+                            &helpers,
+                            *op,
+                            args[0],
+                            args[1],
+                            in_unit_interval(&steps[step.args[0]]),
+                        ),
                         Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
                         Op::Noise { seed } => lane_noise(b, *seed, &states[&node].vars, args[0]),
                         Op::Phasor => {
-                            // out = frac(phase + offset); phase = frac(phase + freq / rate)
+                            // out = frac(phase + offset), or phase without an offset;
+                            // phase = frac(phase + freq · period)
                             let phase = states[&node].vars[0];
                             let p = b.use_var(phase);
-                            let shifted = b.ins().fadd(p, args[1]);
-                            let out = approx::frac(b, shifted);
-                            let step = b.ins().fdiv(args[0], rate);
+                            let out = match args.get(1) {
+                                Some(&offset) => {
+                                    let shifted = b.ins().fadd(p, offset);
+                                    approx::frac(b, shifted)
+                                }
+                                None => p,
+                            };
+
+                            let step = b.ins().fmul(args[0], period);
                             let next = b.ins().fadd(p, step);
                             let next = approx::frac(b, next);
                             b.def_var(phase, next);
@@ -405,8 +463,7 @@ fn sample_address(b: &mut FunctionBuilder, base: Value, i: Value) -> Value {
 }
 
 fn splat(b: &mut FunctionBuilder, x: f64) -> Value {
-    let x = b.ins().f64const(x);
-    b.ins().splat(F64X2, x)
+    approx::splat(b, x)
 }
 
 /// t of samples t0+i and t0+i+1: (t0 + i) / rate, exactly as the interpreter does.
@@ -472,13 +529,33 @@ fn min_max(b: &mut FunctionBuilder, a: Value, c: Value, max: bool) -> Value {
     select(b, a_nan, c, m)
 }
 
-fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value) -> Value {
+/// Whether a step's values are all in [0, 1) or NaN, so that `frac` of them is the
+/// identity (bit for bit): a phasor without offset, or a frac.
+fn in_unit_interval(step: &Step) -> bool {
+    match step.op {
+        Op::Phasor => step.args.len() == 1,
+        Op::Unary(UnaryOp::Frac) => true,
+        _ => false,
+    }
+}
+
+/// frac(x), or x itself when it is known to be in [0, 1) (see [`in_unit_interval`]).
+fn frac_unless_unit(b: &mut FunctionBuilder, x: Value, unit: bool) -> Value {
+    if unit {
+        x
+    } else {
+        approx::frac(b, x)
+    }
+}
+
+/// A unary operation; `unit` says that x is in [0, 1) (see [`in_unit_interval`]).
+fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value, unit: bool) -> Value {
     match op {
         UnaryOp::Neg => b.ins().fneg(x),
         UnaryOp::Abs => b.ins().fabs(x),
         UnaryOp::Sqrt => b.ins().sqrt(x),
         UnaryOp::Floor => b.ins().floor(x),
-        UnaryOp::Frac => approx::frac(b, x),
+        UnaryOp::Frac => frac_unless_unit(b, x, unit),
         UnaryOp::Exp => approx::exp(b, x),
         UnaryOp::Damp => {
             let minus = b.ins().fneg(x);
@@ -486,14 +563,14 @@ fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value) -> V
         }
         UnaryOp::Sine => approx::sin_cycles(b, x),
         UnaryOp::Sawtooth => {
-            let f = approx::frac(b, x);
+            let f = frac_unless_unit(b, x, unit);
             let two = splat(b, 2.0);
             let one = splat(b, 1.0);
             let d = b.ins().fmul(two, f);
             b.ins().fsub(d, one)
         }
         UnaryOp::Square => {
-            let f = approx::frac(b, x);
+            let f = frac_unless_unit(b, x, unit);
             let half = splat(b, 0.5);
             let low = b.ins().fcmp(FloatCC::LessThan, f, half);
             let one = splat(b, 1.0);
@@ -529,7 +606,15 @@ fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value) -> V
     }
 }
 
-fn binary(b: &mut FunctionBuilder, helpers: &Helpers, op: BinaryOp, x: Value, y: Value) -> Value {
+/// A binary operation; `unit` says that x is in [0, 1) (see [`in_unit_interval`]).
+fn binary(
+    b: &mut FunctionBuilder,
+    helpers: &Helpers,
+    op: BinaryOp,
+    x: Value,
+    y: Value,
+    unit: bool,
+) -> Value {
     let compare = |b: &mut FunctionBuilder, cc: FloatCC| {
         let mask = b.ins().fcmp(cc, x, y);
         mask_to_truth(b, mask)
@@ -566,7 +651,7 @@ fn binary(b: &mut FunctionBuilder, helpers: &Helpers, op: BinaryOp, x: Value, y:
             mask_to_truth(b, mask)
         }
         BinaryOp::Pulse => {
-            let f = approx::frac(b, x);
+            let f = frac_unless_unit(b, x, unit);
             let high = b.ins().fcmp(FloatCC::LessThan, f, y);
             let one = splat(b, 1.0);
             let minus = splat(b, -1.0);
@@ -686,25 +771,26 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
     b.ins().fsub(x, one)
 }
 
-/// `timbre_ir::op::noise` (1-D gradient noise) of both lanes, inline and bit-exact:
+/// `timbre_ir::op::noise` (1-D gradient noise) of both samples, inline and bit-exact:
 /// the same operations in the same order. The gradients of a lattice cell are hashed
 /// only when the cell changes: `cache` holds the last cell's floor (NaN before the
-/// first) and its two gradients. For slow noise both samples of a pair are nearly
-/// always in the cached cell: one vector compare and one branch.
+/// first) and its two (doubled) gradients. For slow noise both samples of a pair are
+/// nearly always in the cached cell: one vector compare and one branch, and
+/// `u = x − cell` then does not wait for the floor.
 fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
     let fl = b.ins().floor(x);
-    let u = b.ins().fsub(x, fl);
     let last = b.use_var(cell);
     let last = b.ins().splat(F64X2, last);
     let same = b.ins().fcmp(FloatCC::Equal, fl, last);
-    let both_same = b.ins().vall_true(same);
+    let both_same = all_true(b, same);
     let fast = b.create_block();
     let slow = b.create_block();
     let join = b.create_block();
-    b.append_block_param(join, F64X2);
-    b.append_block_param(join, F64X2);
+    for _ in 0..3 {
+        b.append_block_param(join, F64X2);
+    }
     b.ins().brif(both_same, fast, &[], slow, &[]);
 
     b.switch_to_block(fast);
@@ -712,8 +798,14 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     let g1 = b.use_var(cached1);
     let g0 = b.ins().splat(F64X2, g0);
     let g1 = b.ins().splat(F64X2, g1);
-    b.ins()
-        .jump(join, &[BlockArg::Value(g0), BlockArg::Value(g1)]);
+    b.ins().jump(
+        join,
+        &[
+            BlockArg::Value(last),
+            BlockArg::Value(g0),
+            BlockArg::Value(g1),
+        ],
+    );
 
     // A new cell in either sample: hash both lanes' gradients, and remember the
     // second lane's cell (the later sample).
@@ -722,72 +814,93 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     let mut g1 = [x; 2];
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
-        // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
-        let i = b.ins().fcvt_to_sint_sat(I64, f);
-        let next = b.ins().iadd_imm_s(i, 1);
-        g0[lane as usize] = gradient(b, mixed_seed, i);
-        g1[lane as usize] = gradient(b, mixed_seed, next);
+        (g0[lane as usize], g1[lane as usize]) = cell_gradients(b, mixed_seed, f);
         if lane == 1 {
             b.def_var(cell, f);
         }
     }
     b.def_var(cached0, g0[1]);
     b.def_var(cached1, g1[1]);
-    let v0 = b.ins().splat(F64X2, g0[0]);
-    let v0 = b.ins().insertlane(v0, g0[1], 1);
-    let v1 = b.ins().splat(F64X2, g1[0]);
-    let v1 = b.ins().insertlane(v1, g1[1], 1);
-    b.ins()
-        .jump(join, &[BlockArg::Value(v0), BlockArg::Value(v1)]);
+    let v0 = pair(b, g0[0], g0[1]);
+    let v1 = pair(b, g1[0], g1[1]);
+    b.ins().jump(
+        join,
+        &[
+            BlockArg::Value(fl),
+            BlockArg::Value(v0),
+            BlockArg::Value(v1),
+        ],
+    );
 
     b.switch_to_block(join);
-    let g0 = b.block_params(join)[0];
-    let g1 = b.block_params(join)[1];
-    noise_from_gradients(b, x, u, g0, g1)
+    let [floor, g0, g1] = [0, 1, 2].map(|k| b.block_params(join)[k]);
+    let u = b.ins().fsub(x, floor);
+    noise_from_gradients(b, u, g0, g1)
 }
 
-/// The rest of gradient noise once the two gradients are known:
-/// lerp(g0·u, g1·(u − 1), fade(u)), doubled, clamped, and 0 for ±∞.
-fn noise_from_gradients(
-    b: &mut FunctionBuilder,
-    x: Value,
-    u: Value,
-    g0: Value,
-    g1: Value,
-) -> Value {
-    // fade(u) = u·u·u·(u·(u·6 − 15) + 10), evaluated left to right as in Rust.
-    let six = splat(b, 6.0);
-    let fifteen = splat(b, 15.0);
-    let ten = splat(b, 10.0);
+/// The rest of gradient noise once the two (doubled) gradients are known:
+/// `clamp(a + (b − a)·fade(u), −1, 1)` with `a = g0·u`, `b = g1·(u − 1)` and
+/// `fade(u) = u³·((10 − 15u) + 6u²)`, as `timbre_ir::dsp::noise` evaluates them.
+///
+/// `u = x − ⌊x⌋` is NaN for non-finite x; it is taken as 1 there, so that the
+/// gradients [`cell_gradients`] gives such cells yield the interpreter's answers
+/// (0 for ±∞, NaN for NaN) with no per-sample test. For finite x, u ≤ 1 is kept.
+fn noise_from_gradients(b: &mut FunctionBuilder, u: Value, g0: Value, g1: Value) -> Value {
     let one = splat(b, 1.0);
-    let t = b.ins().fmul(u, six);
-    let t = b.ins().fsub(t, fifteen);
-    let t = b.ins().fmul(u, t);
-    let t = b.ins().fadd(t, ten);
+    // u < 1 ? u : 1, which is x86's `minpd` (NaN gives the second operand).
+    let below_one = b.ins().fcmp(FloatCC::LessThan, u, one);
+    let u = select(b, below_one, u, one);
+    let a = b.ins().fmul(g0, u);
+    let w = b.ins().fsub(u, one);
+    let c = b.ins().fmul(g1, w);
+    let d = b.ins().fsub(c, a);
+    let [six, ten, fifteen] = [6.0, 10.0, 15.0].map(|k| splat(b, k));
     let u2 = b.ins().fmul(u, u);
     let u3 = b.ins().fmul(u2, u);
-    let fade = b.ins().fmul(u3, t);
-    let a = b.ins().fmul(g0, u);
-    let u1 = b.ins().fsub(u, one);
-    let c = b.ins().fmul(g1, u1);
-    let d = b.ins().fsub(c, a);
-    let d = b.ins().fmul(d, fade);
-    let v = b.ins().fadd(a, d);
-    let two = splat(b, 2.0);
-    let v = b.ins().fmul(two, v);
+    let fifteen_u = b.ins().fmul(fifteen, u);
+    let low = b.ins().fsub(ten, fifteen_u);
+    let six_u2 = b.ins().fmul(six, u2);
+    let p = b.ins().fadd(low, six_u2);
+    let fade = b.ins().fmul(u3, p);
+    let m = b.ins().fmul(d, fade);
+    let v = b.ins().fadd(a, m);
     // clamp(−1, 1) keeping NaN, like f64::clamp: each select keeps v unless the
-    // bound is exceeded, and a comparison with NaN is false.
+    // bound is exceeded, and a comparison with NaN is false. The operands are
+    // ordered as x86's `maxpd`/`minpd` are, so each is one instruction.
     let minus = splat(b, -1.0);
-    let below = b.ins().fcmp(FloatCC::GreaterThan, minus, v);
+    let below = b.ins().fcmp(FloatCC::LessThan, v, minus);
     let v = select(b, below, minus, v);
     let above = b.ins().fcmp(FloatCC::LessThan, one, v);
-    let v = select(b, above, one, v);
-    // ±∞ gives 0.
-    let abs = b.ins().fabs(x);
-    let infinity = splat(b, f64::INFINITY);
-    let infinite = b.ins().fcmp(FloatCC::Equal, abs, infinity);
-    let zero = splat(b, 0.0);
-    select(b, infinite, zero, v)
+    select(b, above, one, v)
+}
+
+/// The doubled gradients of lattice cell `floor` (scalar), hashed, or for a
+/// non-finite floor (x = ±∞ or NaN) the ones that give the interpreter's answers with
+/// u taken as 1 (see [`noise_from_gradients`]): g0 = 0 for ±∞ and NaN for NaN, g1 = 0.
+fn cell_gradients(b: &mut FunctionBuilder, mixed_seed: i64, floor: Value) -> (Value, Value) {
+    // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
+    let i = b.ins().fcvt_to_sint_sat(I64, floor);
+    let next = b.ins().iadd_imm_s(i, 1);
+    let two = b.ins().f64const(2.0);
+    let g0 = gradient(b, mixed_seed, i);
+    let g0 = b.ins().fmul(two, g0);
+    let g1 = gradient(b, mixed_seed, next);
+    let g1 = b.ins().fmul(two, g1);
+    let zero = b.ins().f64const(0.0);
+    let nan = b.ins().f64const(f64::NAN);
+    let difference = b.ins().fsub(floor, floor);
+    let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
+    let is_nan = b.ins().fcmp(FloatCC::Unordered, floor, floor);
+    let special = b.ins().select(is_nan, nan, zero);
+    let g0 = b.ins().select(finite, g0, special);
+    let g1 = b.ins().select(finite, g1, zero);
+    (g0, g1)
+}
+
+/// Whether both lanes of an `fcmp` mask are set: `movmskpd` and one compare.
+fn all_true(b: &mut FunctionBuilder, mask: Value) -> Value {
+    let bits = b.ins().vhigh_bits(types::I8, mask);
+    b.ins().icmp_imm_u(IntCC::Equal, bits, 0b11)
 }
 
 /// x − floor(x) of a scalar, with 1.0 mapped to 0.0, as `timbre_ir::op::frac`.
@@ -801,19 +914,21 @@ fn frac_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
 }
 
 /// Two samples of a phasor whose phase is carried in `phase`: each sample outputs
-/// frac(phase + offset), then phase = frac(phase + freq / rate), as the interpreter
-/// does (the same operations, so the same bits). The second sample of the pair
-/// advances the phase only if it is within the block (`i + 1 < n`).
+/// frac(phase + offset) (the phase itself without an offset), then
+/// phase = frac(phase + freq · period), as the interpreter does (the same operations,
+/// so the same bits). The second sample of the pair advances the phase only if it
+/// is within the block (`i + 1 < n`).
+#[allow(clippy::too_many_arguments)]
 fn phasor(
     b: &mut FunctionBuilder,
     phase: Variable,
     freq: Value,
-    offset: Value,
-    rate: Value,
+    offset: Option<Value>,
+    period: Value,
     i: Value,
     n: Value,
 ) -> Value {
-    let steps = b.ins().fdiv(freq, rate);
+    let steps = b.ins().fmul(freq, period);
     let s0 = b.ins().extractlane(steps, 0);
     let s1 = b.ins().extractlane(steps, 1);
     let p0 = b.use_var(phase);
@@ -827,8 +942,13 @@ fn phasor(
     b.def_var(phase, p);
     let phases = b.ins().splat(F64X2, p0);
     let phases = b.ins().insertlane(phases, p1, 1);
-    let shifted = b.ins().fadd(phases, offset);
-    approx::frac(b, shifted)
+    match offset {
+        Some(offset) => {
+            let shifted = b.ins().fadd(phases, offset);
+            approx::frac(b, shifted)
+        }
+        None => phases,
+    }
 }
 
 fn pair(b: &mut FunctionBuilder, x0: Value, x1: Value) -> Value {
@@ -880,15 +1000,15 @@ impl LaneState {
 
 /// Gradient noise of two lanes (two different signals) at one sample, inline and
 /// bit-exact. `cache` holds, per lane, the floor of the last lattice cell and its
-/// gradients, as vectors; they are rehashed only when a lane's cell changes.
+/// (doubled) gradients, as vectors; they are rehashed only when a lane's cell changes,
+/// and otherwise `u = x − cell` does not wait for the floor.
 fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
     let fl = b.ins().floor(x);
-    let u = b.ins().fsub(x, fl);
     let last = b.use_var(cell);
     let same = b.ins().fcmp(FloatCC::Equal, fl, last);
-    let both_same = b.ins().vall_true(same);
+    let both_same = all_true(b, same);
     let slow = b.create_block();
     let join = b.create_block();
     b.ins().brif(both_same, join, &[], slow, &[]);
@@ -897,10 +1017,7 @@ fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) 
     let mut g1 = [x; 2];
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
-        let i = b.ins().fcvt_to_sint_sat(I64, f);
-        let next = b.ins().iadd_imm_s(i, 1);
-        g0[lane as usize] = gradient(b, mixed_seed, i);
-        g1[lane as usize] = gradient(b, mixed_seed, next);
+        (g0[lane as usize], g1[lane as usize]) = cell_gradients(b, mixed_seed, f);
     }
     let v0 = pair(b, g0[0], g0[1]);
     let v1 = pair(b, g1[0], g1[1]);
@@ -909,7 +1026,9 @@ fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) 
     b.def_var(cached1, v1);
     b.ins().jump(join, &[]);
     b.switch_to_block(join);
+    let floor = b.use_var(cell);
     let g0 = b.use_var(cached0);
     let g1 = b.use_var(cached1);
-    noise_from_gradients(b, x, u, g0, g1)
+    let u = b.ins().fsub(x, floor);
+    noise_from_gradients(b, u, g0, g1)
 }
