@@ -207,12 +207,15 @@ pub(crate) fn exp(b: &mut FunctionBuilder, x: Value) -> Value {
 
 /// `x − floor(x)`, in [0, 1): bit-for-bit the interpreter's `frac` (a result that rounds
 /// up to 1.0, as for tiny negative x, becomes 0.0; ±0 gives +0; NaN and ±∞ give NaN).
+///
+/// `f = x − floor(x)` is in [0, 1] or NaN, so `f − floor(f)` is f itself, or +0 for
+/// f = 1: the interpreter's `if f >= 1 { 0 } else { f }` in two instructions, with
+/// no constant.
 pub(crate) fn frac(b: &mut FunctionBuilder, x: Value) -> Value {
     let fl = b.ins().floor(x);
     let f = b.ins().fsub(x, fl);
-    let one = splat(b, 1.0);
-    let zero = splat(b, 0.0);
-    select_f64x2(b, FloatCC::GreaterThanOrEqual, f, one, zero, f)
+    let whole = b.ins().floor(f);
+    b.ins().fsub(f, whole)
 }
 
 #[cfg(test)]

@@ -13,7 +13,8 @@ use std::collections::HashMap;
 
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{
-    types, AbiParam, BlockArg, FuncRef, InstBuilder, MemFlagsData, Signature, Value,
+    types, AbiParam, BlockArg, FuncRef, InstBuilder, MemFlagsData, Signature, StackSlot,
+    StackSlotData, StackSlotKind, Value,
 };
 use cranelift_codegen::isa::CallConv;
 use cranelift_frontend::{FunctionBuilder, Variable};
@@ -227,15 +228,22 @@ impl KernelBuilder<'_, '_> {
         let n = self.n;
         let lane_bytes = (self.block_size * 8) as i64;
         let width = region.width;
-        // Sums start from zero.
-        for &c in &region.combines {
-            let base = self.buffer(c);
-            counted_loop(self.b, 0, n, 1, |b, k| {
-                let zero = b.ins().f64const(0.0);
-                let addr = sample_address(b, base, k);
-                b.ins().store(mem(), zero, addr, 0);
-            });
-        }
+        // Each combine sums even and odd lanes apart, in the two halves of a vector per
+        // sample (its state), and adds the halves at the end. They start from zero.
+        let partial_sums: HashMap<usize, Value> = region
+            .combines
+            .iter()
+            .map(|&c| {
+                let sums = self.b.ins().load(I64, mem(), self.states, (c * 8) as i32);
+                counted_loop(self.b, 0, n, 1, |b, k| {
+                    let zero = splat(b, 0.0);
+                    let offset = b.ins().ishl_imm_u(k, 4);
+                    let addr = b.ins().iadd(sums, offset);
+                    b.ins().store(mem(), zero, addr, 0);
+                });
+                (c, sums)
+            })
+            .collect();
         let RegionInputs {
             outside: _,
             tables,
@@ -243,8 +251,11 @@ impl KernelBuilder<'_, '_> {
         } = self.region_inputs(region);
         let period = self.b.ins().splat(F64X2, self.sample_period);
         let helpers = self.helpers;
+        let (buffers, state_table) = (self.buffers, self.states);
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
+        // Buffer and state pointers are loaded here, per pair of lanes, rather than
+        // held in registers across the whole region.
         let body = |b: &mut FunctionBuilder, first: Value, second: Value, single: bool| {
             let offsets = [
                 b.ins().imul_imm_s(first, lane_bytes),
@@ -252,8 +263,9 @@ impl KernelBuilder<'_, '_> {
             ];
             // Where each buffer's two lanes start; constants as vectors.
             let mut bases: HashMap<usize, [Value; 2]> = HashMap::new();
-            let mut constants: HashMap<usize, Value> = HashMap::new();
-            for (&s, &table) in &tables {
+            let mut constants: HashMap<usize, StackSlot> = HashMap::new();
+            for &s in tables.keys() {
+                let table = b.ins().load(I64, mem(), buffers, (s * 8) as i32);
                 let lanes = if steps[s].width == 1 {
                     [table, table]
                 } else {
@@ -270,19 +282,29 @@ impl KernelBuilder<'_, '_> {
                         let x1 = b.ins().load(types::F64, mem(), lanes[1], 0);
                         pair(b, x0, x1)
                     };
-                    constants.insert(s, value);
+                    // Kept in a stack slot and loaded where used: as a value, the
+                    // register allocator reloads it and stores it back every
+                    // iteration.
+                    let slot = b.create_sized_stack_slot(StackSlotData::new(
+                        StackSlotKind::ExplicitSlot,
+                        16,
+                        4,
+                    ));
+                    b.ins().stack_store(I64, value, slot, 0);
+                    constants.insert(s, slot);
                 } else {
                     bases.insert(s, lanes);
                 }
             }
             let mut states: HashMap<usize, LaneState> = HashMap::new();
-            for &(s, table) in &state_tables {
+            for &(s, _) in &state_tables {
                 let slots = if matches!(steps[s].op, Op::Phasor) {
                     1
                 } else {
                     3
                 };
-                states.insert(s, LaneState::load(b, table, [first, second], slots));
+                let state = LaneState::load(b, state_table, s, [first, second], slots);
+                states.insert(s, state);
             }
 
             counted_loop(b, 0, n, 1, |b, k| {
@@ -292,7 +314,7 @@ impl KernelBuilder<'_, '_> {
                 // that they are not held (or spilled) across the whole body.
                 let input = |b: &mut FunctionBuilder, s: usize| {
                     if let Some(&slot) = constants.get(&s) {
-                        return slot;
+                        return b.ins().stack_load(I64, F64X2, slot, 0);
                     }
                     let lanes = bases[&s];
                     let a0 = b.ins().iadd(lanes[0], offset);
@@ -364,15 +386,17 @@ impl KernelBuilder<'_, '_> {
                     }
                 }
                 for &c in &region.combines {
-                    // Lane by lane, in the interpreter's order of summation.
-                    let addr = b.ins().iadd(tables[&c], offset);
-                    let lanes: &[u8] = if single { &[0] } else { &[0, 1] };
-                    for &lane in lanes {
-                        let sum = b.ins().load(types::F64, mem(), addr, 0);
-                        let x = b.ins().extractlane(values[&steps[c].args[0]], lane);
-                        let sum = b.ins().fadd(sum, x);
-                        b.ins().store(mem(), sum, addr, 0);
+                    let mut x = values[&steps[c].args[0]];
+                    if single {
+                        // Both halves hold the one lane left: count it once.
+                        let zero = b.ins().f64const(0.0);
+                        x = b.ins().insertlane(x, zero, 1);
                     }
+                    let offset = b.ins().ishl_imm_u(k, 4);
+                    let addr = b.ins().iadd(partial_sums[&c], offset);
+                    let sum = b.ins().load(F64X2, mem(), addr, 0);
+                    let sum = b.ins().fadd(sum, x);
+                    b.ins().store(mem(), sum, addr, 0);
                 }
             });
             for state in states.values() {
@@ -389,6 +413,19 @@ impl KernelBuilder<'_, '_> {
         if width % 2 == 1 {
             let last = self.b.ins().iconst(I64, (width - 1) as i64);
             body(self.b, last, last, true);
+        }
+        for &c in &region.combines {
+            let out = self.buffer(c);
+            let sums = partial_sums[&c];
+            counted_loop(self.b, 0, n, 1, |b, k| {
+                let offset = b.ins().ishl_imm_u(k, 4);
+                let addr = b.ins().iadd(sums, offset);
+                let even = b.ins().load(types::F64, mem(), addr, 0);
+                let odd = b.ins().load(types::F64, mem(), addr, 8);
+                let sum = b.ins().fadd(even, odd);
+                let addr = sample_address(b, out, k);
+                b.ins().store(mem(), sum, addr, 0);
+            });
         }
     }
 
@@ -440,20 +477,21 @@ fn counted_loop(
     step: i64,
     body: impl FnOnce(&mut FunctionBuilder, Value),
 ) {
-    let header = b.create_block();
+    // Tested at the bottom: one branch per iteration, taken back to the top.
     let block = b.create_block();
     let exit = b.create_block();
-    b.append_block_param(header, I64);
+    b.append_block_param(block, I64);
     let start = b.ins().iconst(I64, start);
-    b.ins().jump(header, &[BlockArg::Value(start)]);
-    b.switch_to_block(header);
-    let i = b.block_params(header)[0];
-    let more = b.ins().icmp(IntCC::UnsignedLessThan, i, end);
-    b.ins().brif(more, block, &[], exit, &[]);
+    let any = b.ins().icmp(IntCC::UnsignedLessThan, start, end);
+    b.ins()
+        .brif(any, block, &[BlockArg::Value(start)], exit, &[]);
     b.switch_to_block(block);
+    let i = b.block_params(block)[0];
     body(b, i);
     let next = b.ins().iadd_imm_s(i, step);
-    b.ins().jump(header, &[BlockArg::Value(next)]);
+    let more = b.ins().icmp(IntCC::UnsignedLessThan, next, end);
+    b.ins()
+        .brif(more, block, &[BlockArg::Value(next)], exit, &[]);
     b.switch_to_block(exit);
 }
 
@@ -563,10 +601,10 @@ fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value, unit
         }
         UnaryOp::Sine => approx::sin_cycles(b, x),
         UnaryOp::Sawtooth => {
+            // 2·f − 1, with 2·f as f + f (exact, and no constant).
             let f = frac_unless_unit(b, x, unit);
-            let two = splat(b, 2.0);
             let one = splat(b, 1.0);
-            let d = b.ins().fmul(two, f);
+            let d = b.ins().fadd(f, f);
             b.ins().fsub(d, one)
         }
         UnaryOp::Square => {
@@ -774,9 +812,9 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
 /// `timbre_ir::op::noise` (1-D gradient noise) of both samples, inline and bit-exact:
 /// the same operations in the same order. The gradients of a lattice cell are hashed
 /// only when the cell changes: `cache` holds the last cell's floor (NaN before the
-/// first) and its two (doubled) gradients. For slow noise both samples of a pair are
-/// nearly always in the cached cell: one vector compare and one branch, and
-/// `u = x − cell` then does not wait for the floor.
+/// first, and after a non-finite x) and its two gradients. For slow noise both
+/// samples of a pair are nearly always in the cached cell: one vector compare and
+/// one branch, and `u = x − cell` then does not wait for the floor.
 fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
@@ -787,6 +825,7 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     let both_same = all_true(b, same);
     let fast = b.create_block();
     let slow = b.create_block();
+    b.set_cold_block(slow);
     let join = b.create_block();
     for _ in 0..3 {
         b.append_block_param(join, F64X2);
@@ -794,21 +833,18 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     b.ins().brif(both_same, fast, &[], slow, &[]);
 
     b.switch_to_block(fast);
+    let u = b.ins().fsub(x, last);
     let g0 = b.use_var(cached0);
     let g1 = b.use_var(cached1);
     let g0 = b.ins().splat(F64X2, g0);
     let g1 = b.ins().splat(F64X2, g1);
     b.ins().jump(
         join,
-        &[
-            BlockArg::Value(last),
-            BlockArg::Value(g0),
-            BlockArg::Value(g1),
-        ],
+        &[BlockArg::Value(u), BlockArg::Value(g0), BlockArg::Value(g1)],
     );
 
-    // A new cell in either sample: hash both lanes' gradients, and remember the
-    // second lane's cell (the later sample).
+    // A new cell in either sample: hash both samples' gradients, and remember the
+    // second sample's cell (the later one).
     b.switch_to_block(slow);
     let mut g0 = [x; 2];
     let mut g1 = [x; 2];
@@ -816,40 +852,52 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
         let f = b.ins().extractlane(fl, lane);
         (g0[lane as usize], g1[lane as usize]) = cell_gradients(b, mixed_seed, f);
         if lane == 1 {
-            b.def_var(cell, f);
+            let finite = is_finite_scalar(b, f);
+            let nan = b.ins().f64const(f64::NAN);
+            let remembered = b.ins().select(finite, f, nan);
+            b.def_var(cell, remembered);
         }
     }
     b.def_var(cached0, g0[1]);
     b.def_var(cached1, g1[1]);
     let v0 = pair(b, g0[0], g0[1]);
     let v1 = pair(b, g1[0], g1[1]);
+    let u = slow_path_u(b, x, fl);
     b.ins().jump(
         join,
-        &[
-            BlockArg::Value(fl),
-            BlockArg::Value(v0),
-            BlockArg::Value(v1),
-        ],
+        &[BlockArg::Value(u), BlockArg::Value(v0), BlockArg::Value(v1)],
     );
 
     b.switch_to_block(join);
-    let [floor, g0, g1] = [0, 1, 2].map(|k| b.block_params(join)[k]);
-    let u = b.ins().fsub(x, floor);
+    let [u, g0, g1] = [0, 1, 2].map(|k| b.block_params(join)[k]);
     noise_from_gradients(b, u, g0, g1)
 }
 
-/// The rest of gradient noise once the two (doubled) gradients are known:
-/// `clamp(a + (b − a)·fade(u), −1, 1)` with `a = g0·u`, `b = g1·(u − 1)` and
-/// `fade(u) = u³·((10 − 15u) + 6u²)`, as `timbre_ir::dsp::noise` evaluates them.
-///
-/// `u = x − ⌊x⌋` is NaN for non-finite x; it is taken as 1 there, so that the
-/// gradients [`cell_gradients`] gives such cells yield the interpreter's answers
-/// (0 for ±∞, NaN for NaN) with no per-sample test. For finite x, u ≤ 1 is kept.
+/// `u = x − ⌊x⌋` where x is finite, and 1 where it is not: with the gradients
+/// [`cell_gradients`] gives non-finite cells, that yields the interpreter's answers
+/// (0 for ±∞, NaN for NaN). Non-finite x always take the slow path (their cell is
+/// remembered as NaN), so the fast path needs no test.
+fn slow_path_u(b: &mut FunctionBuilder, x: Value, floor: Value) -> Value {
+    let u = b.ins().fsub(x, floor);
+    let difference = b.ins().fsub(floor, floor);
+    let zero = splat(b, 0.0);
+    let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
+    let one = splat(b, 1.0);
+    select(b, finite, u, one)
+}
+
+fn is_finite_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
+    let difference = b.ins().fsub(x, x);
+    let zero = b.ins().f64const(0.0);
+    b.ins().fcmp(FloatCC::Equal, difference, zero)
+}
+
+/// The rest of gradient noise once the two (scaled) gradients are known:
+/// `a + (b − a)·fade(u)` with `a = g0·u`, `b = g1·(u − 1)` and
+/// `fade(u) = u³·((10 − 15u) + 6u²)`, as `timbre_ir::dsp::noise` evaluates them. The
+/// gradients' scale keeps the result inside (−1, 1), so there is no clamp.
 fn noise_from_gradients(b: &mut FunctionBuilder, u: Value, g0: Value, g1: Value) -> Value {
     let one = splat(b, 1.0);
-    // u < 1 ? u : 1, which is x86's `minpd` (NaN gives the second operand).
-    let below_one = b.ins().fcmp(FloatCC::LessThan, u, one);
-    let u = select(b, below_one, u, one);
     let a = b.ins().fmul(g0, u);
     let w = b.ins().fsub(u, one);
     let c = b.ins().fmul(g1, w);
@@ -863,33 +911,24 @@ fn noise_from_gradients(b: &mut FunctionBuilder, u: Value, g0: Value, g1: Value)
     let p = b.ins().fadd(low, six_u2);
     let fade = b.ins().fmul(u3, p);
     let m = b.ins().fmul(d, fade);
-    let v = b.ins().fadd(a, m);
-    // clamp(−1, 1) keeping NaN, like f64::clamp: each select keeps v unless the
-    // bound is exceeded, and a comparison with NaN is false. The operands are
-    // ordered as x86's `maxpd`/`minpd` are, so each is one instruction.
-    let minus = splat(b, -1.0);
-    let below = b.ins().fcmp(FloatCC::LessThan, v, minus);
-    let v = select(b, below, minus, v);
-    let above = b.ins().fcmp(FloatCC::LessThan, one, v);
-    select(b, above, one, v)
+    b.ins().fadd(a, m)
 }
 
-/// The doubled gradients of lattice cell `floor` (scalar), hashed, or for a
+/// The scaled gradients of lattice cell `floor` (scalar), hashed, or for a
 /// non-finite floor (x = ±∞ or NaN) the ones that give the interpreter's answers with
-/// u taken as 1 (see [`noise_from_gradients`]): g0 = 0 for ±∞ and NaN for NaN, g1 = 0.
+/// u taken as 1 (see [`slow_path_u`]): g0 = 0 for ±∞ and NaN for NaN, g1 = 0.
 fn cell_gradients(b: &mut FunctionBuilder, mixed_seed: i64, floor: Value) -> (Value, Value) {
     // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
     let i = b.ins().fcvt_to_sint_sat(I64, floor);
     let next = b.ins().iadd_imm_s(i, 1);
-    let two = b.ins().f64const(2.0);
+    let scale = b.ins().f64const(timbre_ir::dsp::noise::GRADIENT_SCALE);
     let g0 = gradient(b, mixed_seed, i);
-    let g0 = b.ins().fmul(two, g0);
+    let g0 = b.ins().fmul(scale, g0);
     let g1 = gradient(b, mixed_seed, next);
-    let g1 = b.ins().fmul(two, g1);
+    let g1 = b.ins().fmul(scale, g1);
     let zero = b.ins().f64const(0.0);
     let nan = b.ins().f64const(f64::NAN);
-    let difference = b.ins().fsub(floor, floor);
-    let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
+    let finite = is_finite_scalar(b, floor);
     let is_nan = b.ins().fcmp(FloatCC::Unordered, floor, floor);
     let special = b.ins().select(is_nan, nan, zero);
     let g0 = b.ins().select(finite, g0, special);
@@ -905,12 +944,11 @@ fn all_true(b: &mut FunctionBuilder, mask: Value) -> Value {
 
 /// x − floor(x) of a scalar, with 1.0 mapped to 0.0, as `timbre_ir::op::frac`.
 fn frac_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
+    // As `approx::frac`: f − floor(f) maps f = 1 to +0 and keeps the rest.
     let fl = b.ins().floor(x);
     let f = b.ins().fsub(x, fl);
-    let one = b.ins().f64const(1.0);
-    let whole = b.ins().fcmp(FloatCC::GreaterThanOrEqual, f, one);
-    let zero = b.ins().f64const(0.0);
-    b.ins().select(whole, zero, f)
+    let whole = b.ins().floor(f);
+    b.ins().fsub(f, whole)
 }
 
 /// Two samples of a phasor whose phase is carried in `phase`: each sample outputs
@@ -959,17 +997,39 @@ fn pair(b: &mut FunctionBuilder, x0: Value, x1: Value) -> Value {
 /// Per-lane state of an inline node in a lane-vectorised region: `slots` scalars per
 /// lane in the state table, each held as a vector of the two lanes' values.
 struct LaneState {
-    addresses: [Value; 2],
+    /// The kernel's table of state pointers and this node's index in it.
+    table: Value,
+    step: usize,
+    lanes: [Value; 2],
     vars: Vec<Variable>,
 }
 
 impl LaneState {
-    fn load(b: &mut FunctionBuilder, table: Value, lanes: [Value; 2], slots: usize) -> Self {
-        let addresses = lanes.map(|lane| {
+    /// Where the slots of `lanes` start. Computed again for the final store, so that
+    /// no address is held in a register through the sample loop.
+    fn addresses(&self, b: &mut FunctionBuilder, slots: usize) -> [Value; 2] {
+        let table = b.ins().load(I64, mem(), self.table, (self.step * 8) as i32);
+        self.lanes.map(|lane| {
             let offset = b.ins().imul_imm_s(lane, 8 * slots as i64);
             b.ins().iadd(table, offset)
-        });
-        let vars = (0..slots)
+        })
+    }
+
+    fn load(
+        b: &mut FunctionBuilder,
+        table: Value,
+        step: usize,
+        lanes: [Value; 2],
+        slots: usize,
+    ) -> Self {
+        let mut state = LaneState {
+            table,
+            step,
+            lanes,
+            vars: vec![],
+        };
+        let addresses = state.addresses(b, slots);
+        state.vars = (0..slots)
             .map(|k| {
                 let x0 = b
                     .ins()
@@ -983,14 +1043,15 @@ impl LaneState {
                 var
             })
             .collect();
-        LaneState { addresses, vars }
+        state
     }
 
     /// Stores lane 0 then lane 1 (which, for a lone lane, is the same slot and value).
     fn store(&self, b: &mut FunctionBuilder) {
+        let addresses = self.addresses(b, self.vars.len());
         for (k, var) in self.vars.iter().enumerate() {
             let value = b.use_var(*var);
-            for (lane, address) in self.addresses.iter().enumerate() {
+            for (lane, address) in addresses.iter().enumerate() {
                 let x = b.ins().extractlane(value, lane as u8);
                 b.ins().store(mem(), x, *address, (8 * k) as i32);
             }
@@ -999,9 +1060,9 @@ impl LaneState {
 }
 
 /// Gradient noise of two lanes (two different signals) at one sample, inline and
-/// bit-exact. `cache` holds, per lane, the floor of the last lattice cell and its
-/// (doubled) gradients, as vectors; they are rehashed only when a lane's cell changes,
-/// and otherwise `u = x − cell` does not wait for the floor.
+/// bit-exact. `cache` holds, per lane, the floor of the last lattice cell (NaN after
+/// a non-finite x) and its gradients, as vectors; they are rehashed only when a
+/// lane's cell changes, and otherwise `u = x − cell` does not wait for the floor.
 fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
@@ -1009,9 +1070,17 @@ fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) 
     let last = b.use_var(cell);
     let same = b.ins().fcmp(FloatCC::Equal, fl, last);
     let both_same = all_true(b, same);
+    let fast = b.create_block();
     let slow = b.create_block();
+    b.set_cold_block(slow);
     let join = b.create_block();
-    b.ins().brif(both_same, join, &[], slow, &[]);
+    b.append_block_param(join, F64X2);
+    b.ins().brif(both_same, fast, &[], slow, &[]);
+
+    b.switch_to_block(fast);
+    let u = b.ins().fsub(x, last);
+    b.ins().jump(join, &[BlockArg::Value(u)]);
+
     b.switch_to_block(slow);
     let mut g0 = [x; 2];
     let mut g1 = [x; 2];
@@ -1021,14 +1090,20 @@ fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) 
     }
     let v0 = pair(b, g0[0], g0[1]);
     let v1 = pair(b, g1[0], g1[1]);
-    b.def_var(cell, fl);
+    let difference = b.ins().fsub(fl, fl);
+    let zero = splat(b, 0.0);
+    let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
+    let nan = splat(b, f64::NAN);
+    let remembered = select(b, finite, fl, nan);
+    b.def_var(cell, remembered);
     b.def_var(cached0, v0);
     b.def_var(cached1, v1);
-    b.ins().jump(join, &[]);
+    let u = slow_path_u(b, x, fl);
+    b.ins().jump(join, &[BlockArg::Value(u)]);
+
     b.switch_to_block(join);
-    let floor = b.use_var(cell);
+    let u = b.block_params(join)[0];
     let g0 = b.use_var(cached0);
     let g1 = b.use_var(cached1);
-    let u = b.ins().fsub(x, floor);
     noise_from_gradients(b, u, g0, g1)
 }

@@ -239,7 +239,8 @@ impl Jit {
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
         // floor of the last lattice cell (none yet: NaN equals nothing) and its two
-        // gradients per lane of each noise.
+        // gradients per lane of each noise; two partial sums per sample of each
+        // combine (used when its argument is summed in a lane region).
         let no_cell = f64::NAN;
         let mut states: Vec<Vec<f64>> = interp
             .steps()
@@ -247,6 +248,7 @@ impl Jit {
             .map(|s| match s.op {
                 Op::Phasor => vec![0.0; s.width],
                 Op::Noise { .. } => [no_cell, 0.0, 0.0].repeat(s.width),
+                Op::Combine => vec![0.0; 2 * config.block_size],
                 _ => vec![],
             })
             .collect();

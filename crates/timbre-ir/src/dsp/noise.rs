@@ -58,16 +58,22 @@ fn fade(u: f64) -> f64 {
     (u2 * u) * ((10.0 - 15.0 * u) + 6.0 * u2)
 }
 
-/// One-dimensional Perlin gradient noise of `x`, in `[-1, 1]`.
+/// The gradients' scale: twice `1 − 2⁻²⁰`. Doubled, so that the result needs no
+/// final scaling; just short of 2, so that `|noise| ≤ 1 − 2⁻²⁰` plus a few rounding
+/// errors (the lerp of `G0·u` and `G1·(u − 1)` is at most `max|G|/2` in magnitude),
+/// and no clamp is needed.
+pub const GRADIENT_SCALE: f64 = 2.0 - 1.0 / (1u64 << 19) as f64;
+
+/// One-dimensional Perlin gradient noise of `x`, in `(-1, 1)`.
 ///
-/// With `i = ⌊x⌋`, `u = x − i` and random gradients `g(i) ∈ [-1, 1)` taken from
-/// `hash2(seed, i as u64)`:
+/// With `i = ⌊x⌋`, `u = x − i` and random gradients `G(i) = s·b(i)`, `b(i) ∈ [-1, 1)`
+/// taken from `hash2(seed, i as u64)` and `s` = [`GRADIENT_SCALE`] (just short of 2):
 ///
-/// `noise(x) = clamp(lerp(2g(i)·u, 2g(i+1)·(u − 1), fade(u)), −1, 1)`,
+/// `noise(x) = lerp(G(i)·u, G(i+1)·(u − 1), fade(u))`,
 /// `fade(u) = 6u⁵ − 15u⁴ + 10u³`.
 ///
 /// It is zero at every integer, has a continuous first derivative (equal to
-/// `2·g(i)` at `x = i`), and most of its energy lies below about half a cycle
+/// `G(i)` at `x = i`), and most of its energy lies below about half a cycle
 /// per unit of `x`. Negative and huge arguments are fine (the lattice index is
 /// the saturating `i64` conversion of `⌊x⌋`; beyond ±2⁵³ every f64 is an
 /// integer, so the noise is 0 there). NaN gives NaN, ±∞ gives 0.
@@ -81,12 +87,18 @@ pub fn gradient_noise(seed: u64, x: f64) -> f64 {
     let fl = x.floor();
     let u = x - fl; // exact for all finite x, in [0, 1)
     let i = fl as i64; // saturating
-                       // The gradients doubled (exactly), so that the result needs no scaling.
-    let g0 = 2.0 * unit_bipolar(hash2(seed, i as u64));
-    let g1 = 2.0 * unit_bipolar(hash2(seed, i.wrapping_add(1) as u64));
+    let g0 = GRADIENT_SCALE * unit_bipolar(hash2(seed, i as u64));
+    let g1 = GRADIENT_SCALE * unit_bipolar(hash2(seed, i.wrapping_add(1) as u64));
+    gradient_lerp(g0, g1, u)
+}
+
+/// The noise between two lattice points with (scaled) gradients `g0`, `g1`, at
+/// `u ∈ [0, 1]` from the first.
+#[inline]
+fn gradient_lerp(g0: f64, g1: f64, u: f64) -> f64 {
     let a = g0 * u;
     let b = g1 * (u - 1.0);
-    (a + (b - a) * fade(u)).clamp(-1.0, 1.0)
+    a + (b - a) * fade(u)
 }
 
 /// Output scale of [`Pink`]: chosen so that uniform white input in `[-1, 1)`
@@ -298,17 +310,38 @@ mod tests {
     }
 
     #[test]
+    fn the_most_extreme_gradients_stay_inside_the_unit_interval() {
+        // The largest magnitudes come from opposing extreme gradients near u = 1/2:
+        // the bound max|G|/2 = 1 − 2⁻²⁰, plus rounding, must stay below 1 (so the
+        // compiled engine, which has no clamp either, agrees).
+        let extremes = [-1.0, 1.0 - f64::EPSILON, -(1.0 - f64::EPSILON), 1.0];
+        let mut max: f64 = 0.0;
+        for b0 in extremes {
+            for b1 in extremes {
+                for k in -2000..=2000 {
+                    for u in [0.5 + k as f64 * 1e-7, 0.5 + k as f64 * 2.5e-4] {
+                        let v = gradient_lerp(GRADIENT_SCALE * b0, GRADIENT_SCALE * b1, u);
+                        max = max.max(v.abs());
+                    }
+                }
+            }
+        }
+        assert!(max < 1.0 - 0.9 / (1u64 << 20) as f64, "max {max}");
+        assert!(max > 1.0 - 1.1 / (1u64 << 20) as f64, "max {max}");
+    }
+
+    #[test]
     fn gradient_noise_is_c1() {
         let h = 1e-6;
         for seed in 0..5u64 {
             for k in -50..50 {
-                // At lattice points: one-sided derivatives agree (= 2·g(i)).
+                // At lattice points: one-sided derivatives agree (= G(i)).
                 let x = k as f64;
                 let right = (gradient_noise(seed, x + h) - gradient_noise(seed, x)) / h;
                 let left = (gradient_noise(seed, x) - gradient_noise(seed, x - h)) / h;
                 assert!((right - left).abs() < 1e-4, "x={x} {left} {right}");
                 let g = unit_bipolar(hash2(seed, k as i64 as u64));
-                assert!((right - 2.0 * g).abs() < 1e-4);
+                assert!((right - GRADIENT_SCALE * g).abs() < 1e-4);
                 // And the function value is continuous everywhere.
                 let y = k as f64 + 0.37;
                 assert!((gradient_noise(seed, y + 1e-9) - gradient_noise(seed, y)).abs() < 1e-8);
