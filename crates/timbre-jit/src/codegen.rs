@@ -5,7 +5,8 @@
 //! `kernel(interp, buffers, params, n, t0, states)`: the interpreter being driven (for
 //! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
 //! the sample rate, `params[1]` its reciprocal), the samples in this block, the index of its first sample, and
-//! the table of per-step state of nodes compiled inline (a phasor's phase per lane).
+//! the table of per-step state of nodes compiled inline (a phasor's phase per lane),
+//! followed by one entry per step for splatted copies (`Region::splatted`).
 //! Everything that differs between instances of one tree shape (constants, states,
 //! the sample rate) is reached through these pointers, so instances share the code.
 
@@ -69,6 +70,9 @@ pub(crate) struct KernelBuilder<'a, 'b> {
     pub sample_rate: Value,
     /// 1 / sample rate, as the interpreter computes it.
     pub sample_period: Value,
+    /// Per step: whether a one-lane region keeps splatted copies of it
+    /// ([`Region::splatted`]).
+    pub splatted: Vec<bool>,
 }
 
 impl KernelBuilder<'_, '_> {
@@ -85,6 +89,13 @@ impl KernelBuilder<'_, '_> {
                 PlanStep::Region(region) => self.emit_region(region),
             }
         }
+    }
+
+    /// The state table entry of a step.
+    fn state_pointer(&mut self, step: usize) -> Value {
+        self.b
+            .ins()
+            .load(I64, mem(), self.states, (step * 8) as i32)
     }
 
     fn buffer(&mut self, step: usize) -> Value {
@@ -121,6 +132,11 @@ impl KernelBuilder<'_, '_> {
         let end_lane = self.b.ins().iconst(I64, width);
         let rate = self.b.ins().splat(F64X2, self.sample_rate);
         let period = self.b.ins().splat(F64X2, self.sample_period);
+        let splatted: Vec<(usize, Value)> = region
+            .splatted
+            .iter()
+            .map(|&s| (s, self.state_pointer(self.steps.len() + s)))
+            .collect();
         // The lane loop.
         let steps = self.steps;
         let helpers = self.helpers;
@@ -204,6 +220,16 @@ impl KernelBuilder<'_, '_> {
                     let addr = b.ins().iadd(bases[&s], offset);
                     b.ins().store(mem(), values[&s], addr, 0);
                 }
+                for &(s, copies) in &splatted {
+                    // Sample i+k at copies[i+k] = [x, x], 16 bytes each.
+                    let addr = b.ins().ishl_imm_u(i, 4);
+                    let addr = b.ins().iadd(copies, addr);
+                    for k in 0..2u8 {
+                        let x = b.ins().extractlane(values[&s], k);
+                        let both = b.ins().splat(F64X2, x);
+                        b.ins().store(mem(), both, addr, 16 * k as i32);
+                    }
+                }
                 for &c in &region.combines {
                     // Combines write lane 0 of a one-lane buffer: no lane offset.
                     let addr = b.ins().iadd(tables[&c], offset);
@@ -252,6 +278,7 @@ impl KernelBuilder<'_, '_> {
         let period = self.b.ins().splat(F64X2, self.sample_period);
         let helpers = self.helpers;
         let (buffers, state_table) = (self.buffers, self.states);
+        let splatted_inputs = &self.splatted;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
         // Buffer and state pointers are loaded here, per pair of lanes, rather than
@@ -264,7 +291,15 @@ impl KernelBuilder<'_, '_> {
             // Where each buffer's two lanes start; constants as vectors.
             let mut bases: HashMap<usize, [Value; 2]> = HashMap::new();
             let mut constants: HashMap<usize, StackSlot> = HashMap::new();
+            // One-lane inputs computed inline are read from their splatted copies.
+            let mut copies: HashMap<usize, Value> = HashMap::new();
             for &s in tables.keys() {
+                if splatted_inputs[s] {
+                    let entry = (steps.len() + s) * 8;
+                    let table = b.ins().load(I64, mem(), state_table, entry as i32);
+                    copies.insert(s, table);
+                    continue;
+                }
                 let table = b.ins().load(I64, mem(), buffers, (s * 8) as i32);
                 let lanes = if steps[s].width == 1 {
                     [table, table]
@@ -315,6 +350,11 @@ impl KernelBuilder<'_, '_> {
                 let input = |b: &mut FunctionBuilder, s: usize| {
                     if let Some(&slot) = constants.get(&s) {
                         return b.ins().stack_load(I64, F64X2, slot, 0);
+                    }
+                    if let Some(&base) = copies.get(&s) {
+                        let offset = b.ins().ishl_imm_u(k, 4);
+                        let addr = b.ins().iadd(base, offset);
+                        return b.ins().load(F64X2, mem(), addr, 0);
                     }
                     let lanes = bases[&s];
                     let a0 = b.ins().iadd(lanes[0], offset);

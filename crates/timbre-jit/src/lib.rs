@@ -53,6 +53,10 @@ pub struct Kernel {
     /// Nodes computed inline, and nodes left to the interpreter.
     pub inline_nodes: usize,
     pub callback_nodes: usize,
+    /// Steps whose splatted copies the kernel keeps (`plan::Region::splatted`), in
+    /// the state table after the states, at `steps + step`: room for two values per
+    /// sample of a block.
+    splatted: Vec<usize>,
 }
 
 impl std::fmt::Debug for Kernel {
@@ -185,6 +189,7 @@ impl Jit {
                 states: params[5],
                 sample_rate,
                 sample_period,
+                splatted: splatted_steps(&plan, steps.len()),
             };
             kb.emit(&plan);
             b.ins().return_(&[]);
@@ -208,6 +213,11 @@ impl Jit {
             PlanStep::Region(r) => (i + r.nodes.len() + r.combines.len(), c),
             PlanStep::Callback(_) => (i, c + 1),
         });
+        let splatted = splatted_steps(&plan, steps.len())
+            .iter()
+            .enumerate()
+            .filter_map(|(s, &yes)| yes.then_some(s))
+            .collect();
         let kernel = Arc::new(Kernel {
             // SAFETY: `code` was generated with `kernel_signature`, which matches
             // `KernelFn`, and generated code is never freed.
@@ -215,6 +225,7 @@ impl Jit {
             compile_time: start.elapsed(),
             inline_nodes,
             callback_nodes,
+            splatted,
         });
         self.cache.insert(shape, kernel.clone());
         Ok(kernel)
@@ -252,6 +263,13 @@ impl Jit {
                 _ => vec![],
             })
             .collect();
+        // After them, one entry per step: the splatted copies of the steps that have
+        // them (see `Kernel::splatted`).
+        let mut copies = vec![vec![]; states.len()];
+        for &s in &kernel.splatted {
+            copies[s] = vec![0.0; 2 * config.block_size];
+        }
+        states.extend(copies);
         let state_pointers = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
         Ok(JitVoice {
             interp,
@@ -316,6 +334,19 @@ impl JitVoice {
             chunk.copy_from_slice(self.interp.root_output(n));
         }
     }
+}
+
+/// Per step: whether a region of the plan keeps splatted copies of it.
+fn splatted_steps(plan: &[PlanStep], steps: usize) -> Vec<bool> {
+    let mut splatted = vec![false; steps];
+    for step in plan {
+        if let PlanStep::Region(region) = step {
+            for &s in &region.splatted {
+                splatted[s] = true;
+            }
+        }
+    }
+    splatted
 }
 
 /// Computes one step in the interpreter; called by kernels.

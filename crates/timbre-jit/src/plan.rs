@@ -29,6 +29,10 @@ pub(crate) struct Region {
     pub combines: Vec<usize>,
     /// Nodes whose values are read outside the region and so are stored.
     pub stored: Vec<usize>,
+    /// Nodes of a one-lane region read by a region of lanes: also stored with each
+    /// sample in both halves of a vector (in their state), so that the lane region
+    /// loads it as it is.
+    pub splatted: Vec<usize>,
 }
 
 /// Whether a step is computed inline in a region.
@@ -67,6 +71,7 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
                         nodes: vec![],
                         combines: vec![],
                         stored: vec![],
+                        splatted: vec![],
                     }));
                     plan.len() - 1
                 }
@@ -102,6 +107,7 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
 fn mark_stored(steps: &[Step], plan: &mut [PlanStep], home: &[Option<usize>], attached: &[bool]) {
     let root = steps.len() - 1;
     let mut read_outside = vec![false; steps.len()];
+    let mut read_by_lanes = vec![false; steps.len()];
     read_outside[root] = true;
     for (i, step) in steps.iter().enumerate() {
         if attached[i] {
@@ -110,6 +116,9 @@ fn mark_stored(steps: &[Step], plan: &mut [PlanStep], home: &[Option<usize>], at
         for a in &step.args {
             if home[*a].is_some() && home[i] != home[*a] {
                 read_outside[*a] = true;
+                if home[i].is_some() && step.width >= 2 && steps[*a].width == 1 {
+                    read_by_lanes[*a] = true;
+                }
             }
         }
     }
@@ -120,6 +129,12 @@ fn mark_stored(steps: &[Step], plan: &mut [PlanStep], home: &[Option<usize>], at
                 .iter()
                 .copied()
                 .filter(|n| read_outside[*n])
+                .collect();
+            r.splatted = r
+                .nodes
+                .iter()
+                .copied()
+                .filter(|n| read_by_lanes[*n])
                 .collect();
         }
     }
