@@ -275,7 +275,11 @@ impl KernelBuilder<'_, '_> {
             tables,
             state_tables,
         } = self.region_inputs(region);
-        let period = self.b.ins().splat(F64X2, self.sample_period);
+        // In a stack slot, loaded where used (see the lane constants below).
+        let period = {
+            let value = self.b.ins().splat(F64X2, self.sample_period);
+            vector_slot(self.b, value)
+        };
         let helpers = self.helpers;
         let (buffers, state_table) = (self.buffers, self.states);
         let splatted_inputs = &self.splatted;
@@ -320,13 +324,7 @@ impl KernelBuilder<'_, '_> {
                     // Kept in a stack slot and loaded where used: as a value, the
                     // register allocator reloads it and stores it back every
                     // iteration.
-                    let slot = b.create_sized_stack_slot(StackSlotData::new(
-                        StackSlotKind::ExplicitSlot,
-                        16,
-                        4,
-                    ));
-                    b.ins().stack_store(I64, value, slot, 0);
-                    constants.insert(s, slot);
+                    constants.insert(s, vector_slot(b, value));
                 } else {
                     bases.insert(s, lanes);
                 }
@@ -408,6 +406,7 @@ impl KernelBuilder<'_, '_> {
                                 None => p,
                             };
 
+                            let period = b.ins().stack_load(I64, F64X2, period, 0);
                             let step = b.ins().fmul(args[0], period);
                             let next = b.ins().fadd(p, step);
                             let next = approx::frac(b, next);
@@ -1027,6 +1026,13 @@ fn phasor(
         }
         None => phases,
     }
+}
+
+/// A stack slot holding `value` (a vector).
+fn vector_slot(b: &mut FunctionBuilder, value: Value) -> StackSlot {
+    let slot = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 4));
+    b.ins().stack_store(I64, value, slot, 0);
+    slot
 }
 
 fn pair(b: &mut FunctionBuilder, x0: Value, x1: Value) -> Value {

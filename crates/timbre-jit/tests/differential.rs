@@ -157,7 +157,7 @@ fn every_inline_operation_matches() {
         "(pulse (phasor 440) Y)",
         "(frac (frac (* t -7)))",
         "(sawtooth (phasor 220 (* 0.3 X)))",
-                "(combine (sawtooth (phasor (* (rvector 5 100 300) (+ 1 (* 0.1 X))))))",
+        "(combine (sawtooth (phasor (* (rvector 5 100 300) (+ 1 (* 0.1 X))))))",
         // One-lane nodes computed inline and read by a region of lanes (their
         // splatted copies), stateful ones among them.
         "(combine (* (rvector 3 1 2) (noise (* t 30)) (sine (* t (rvector 3 200 400)))))",
