@@ -341,8 +341,10 @@ impl KernelBuilder<'_, '_> {
             }
 
             counted_loop(b, 0, n, 1, |b, k| {
-                let mut values: HashMap<usize, Value> = HashMap::new();
+                                let mut values: HashMap<usize, Value> = HashMap::new();
+                // Byte offsets of this sample in one-lane buffers and in vectors.
                 let offset = b.ins().ishl_imm_u(k, 3);
+                let vector_offset = b.ins().ishl_imm_u(k, 4);
                 // Inputs from outside the region are loaded where they are used, so
                 // that they are not held (or spilled) across the whole body.
                 let input = |b: &mut FunctionBuilder, s: usize| {
@@ -350,8 +352,7 @@ impl KernelBuilder<'_, '_> {
                         return b.ins().stack_load(I64, F64X2, slot, 0);
                     }
                     if let Some(&base) = copies.get(&s) {
-                        let offset = b.ins().ishl_imm_u(k, 4);
-                        let addr = b.ins().iadd(base, offset);
+                        let addr = b.ins().iadd(base, vector_offset);
                         return b.ins().load(F64X2, mem(), addr, 0);
                     }
                     let lanes = bases[&s];
@@ -431,8 +432,7 @@ impl KernelBuilder<'_, '_> {
                         let zero = b.ins().f64const(0.0);
                         x = b.ins().insertlane(x, zero, 1);
                     }
-                    let offset = b.ins().ishl_imm_u(k, 4);
-                    let addr = b.ins().iadd(partial_sums[&c], offset);
+                                        let addr = b.ins().iadd(partial_sums[&c], vector_offset);
                     let sum = b.ins().load(F64X2, mem(), addr, 0);
                     let sum = b.ins().fadd(sum, x);
                     b.ins().store(mem(), sum, addr, 0);
