@@ -150,7 +150,7 @@ impl KernelBuilder<'_, '_> {
             for &(s, table) in &state_tables {
                 let state = match steps[s].op {
                     Op::Phasor => InlineState::load(b, table, lane, &[types::F64]),
-                    _ => InlineState::load(b, table, lane, &[types::F64; 3]),
+                    _ => InlineState::load(b, table, lane, &[types::F64; NOISE_SLOTS]),
                 };
                 states.insert(s, state);
             }
@@ -330,18 +330,25 @@ impl KernelBuilder<'_, '_> {
                 }
             }
             let mut states: HashMap<usize, LaneState> = HashMap::new();
+            let mut noise_rows: HashMap<usize, NoiseRows> = HashMap::new();
             for &(s, _) in &state_tables {
-                let slots = if matches!(steps[s].op, Op::Phasor) {
-                    1
-                } else {
-                    3
-                };
-                let state = LaneState::load(b, state_table, s, [first, second], slots);
+                // A phasor's phase, a noise's cell: one vector variable. A noise's
+                // coefficients stay in its state table, loaded where they are used.
+                let state = LaneState::load(b, state_table, s, [first, second], 1);
+                if matches!(steps[s].op, Op::Noise { .. }) {
+                    let table = b.ins().load(I64, mem(), state_table, (s * 8) as i32);
+                    let lanes = [first, second].map(|lane| {
+                        let offset = b.ins().ishl_imm_u(lane, 3);
+                        b.ins().iadd(table, offset)
+                    });
+                    let row = (steps[s].width * 8) as i32;
+                    noise_rows.insert(s, NoiseRows { lanes, row, single });
+                }
                 states.insert(s, state);
             }
 
             counted_loop(b, 0, n, 1, |b, k| {
-                                let mut values: HashMap<usize, Value> = HashMap::new();
+                let mut values: HashMap<usize, Value> = HashMap::new();
                 // Byte offsets of this sample in one-lane buffers and in vectors.
                 let offset = b.ins().ishl_imm_u(k, 3);
                 let vector_offset = b.ins().ishl_imm_u(k, 4);
@@ -393,7 +400,9 @@ impl KernelBuilder<'_, '_> {
                             in_unit_interval(&steps[step.args[0]]),
                         ),
                         Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
-                        Op::Noise { seed } => lane_noise(b, *seed, &states[&node].vars, args[0]),
+                        Op::Noise { seed } => {
+                            lane_noise(b, *seed, states[&node].vars[0], &noise_rows[&node], args[0])
+                        }
                         Op::Phasor => {
                             // out = frac(phase + offset), or phase without an offset;
                             // phase = frac(phase + freq · period)
@@ -432,7 +441,7 @@ impl KernelBuilder<'_, '_> {
                         let zero = b.ins().f64const(0.0);
                         x = b.ins().insertlane(x, zero, 1);
                     }
-                                        let addr = b.ins().iadd(partial_sums[&c], vector_offset);
+                    let addr = b.ins().iadd(partial_sums[&c], vector_offset);
                     let sum = b.ins().load(F64X2, mem(), addr, 0);
                     let sum = b.ins().fadd(sum, x);
                     b.ins().store(mem(), sum, addr, 0);
@@ -848,15 +857,23 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
     b.ins().fsub(x, one)
 }
 
-/// `timbre_ir::op::noise` (1-D gradient noise) of both samples, inline and bit-exact:
-/// the same operations in the same order. The gradients of a lattice cell are hashed
-/// only when the cell changes: `cache` holds the last cell's floor (NaN before the
-/// first, and after a non-finite x) and its two gradients. For slow noise both
-/// samples of a pair are nearly always in the cached cell: one vector compare and
-/// one branch, and `u = x − cell` then does not wait for the floor.
+/// Slots of a noise's state per lane: the floor of the last lattice cell (NaN before
+/// the first, and after a non-finite x), then the cell's five polynomial coefficients
+/// g0, c3, c4, c5, c6 (see [`noise_polynomial`]).
+pub(crate) const NOISE_SLOTS: usize = 6;
+
+/// `timbre_ir::op::noise` (1-D gradient noise) of both samples, inline.
+///
+/// Within a lattice cell the noise is a polynomial in `u = x − ⌊x⌋` whose coefficients
+/// depend only on the cell's gradients ([`cell_coefficients`]); they are computed only
+/// when the cell changes: `cache` holds the last cell's floor and coefficients. For
+/// slow noise both samples of a pair are nearly always in the cached cell: one vector
+/// compare and one branch, and `u = x − cell` then does not wait for the floor. The
+/// gradients and u are the interpreter's, bit for bit; the expanded polynomial
+/// differs from the interpreter's lerp by rounding only (below 1e-13, tested).
 fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
-    let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
+    let cell = cache[0];
     let fl = b.ins().floor(x);
     let last = b.use_var(cell);
     let last = b.ins().splat(F64X2, last);
@@ -866,54 +883,52 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     let slow = b.create_block();
     b.set_cold_block(slow);
     let join = b.create_block();
-    for _ in 0..3 {
+    for _ in 0..NOISE_SLOTS {
         b.append_block_param(join, F64X2);
     }
     b.ins().brif(both_same, fast, &[], slow, &[]);
 
     b.switch_to_block(fast);
-    let u = b.ins().fsub(x, last);
-    let g0 = b.use_var(cached0);
-    let g1 = b.use_var(cached1);
-    let g0 = b.ins().splat(F64X2, g0);
-    let g1 = b.ins().splat(F64X2, g1);
-    b.ins().jump(
-        join,
-        &[BlockArg::Value(u), BlockArg::Value(g0), BlockArg::Value(g1)],
-    );
+    let mut params = vec![BlockArg::Value(b.ins().fsub(x, last))];
+    for &var in &cache[1..] {
+        let c = b.use_var(var);
+        params.push(BlockArg::Value(b.ins().splat(F64X2, c)));
+    }
+    b.ins().jump(join, &params);
 
-    // A new cell in either sample: hash both samples' gradients, and remember the
-    // second sample's cell (the later one).
+    // A new cell in either sample: the coefficients of both samples' cells, and the
+    // second sample's (the later one) remembered.
     b.switch_to_block(slow);
-    let mut g0 = [x; 2];
-    let mut g1 = [x; 2];
+    let mut coefficients = [[x; 5]; 2];
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
-        (g0[lane as usize], g1[lane as usize]) = cell_gradients(b, mixed_seed, f);
-        if lane == 1 {
-            let finite = is_finite_scalar(b, f);
-            let nan = b.ins().f64const(f64::NAN);
-            let remembered = b.ins().select(finite, f, nan);
-            b.def_var(cell, remembered);
-        }
+        coefficients[lane as usize] = cell_coefficients(b, mixed_seed, f);
     }
-    b.def_var(cached0, g0[1]);
-    b.def_var(cached1, g1[1]);
-    let v0 = pair(b, g0[0], g0[1]);
-    let v1 = pair(b, g1[0], g1[1]);
-    let u = slow_path_u(b, x, fl);
-    b.ins().jump(
-        join,
-        &[BlockArg::Value(u), BlockArg::Value(v0), BlockArg::Value(v1)],
-    );
+    let f = b.ins().extractlane(fl, 1);
+    let finite = is_finite_scalar(b, f);
+    let nan = b.ins().f64const(f64::NAN);
+    let remembered = b.ins().select(finite, f, nan);
+    b.def_var(cell, remembered);
+    let mut params = vec![BlockArg::Value(slow_path_u(b, x, fl))];
+    for k in 0..5 {
+        b.def_var(cache[1 + k], coefficients[1][k]);
+        params.push(BlockArg::Value(pair(
+            b,
+            coefficients[0][k],
+            coefficients[1][k],
+        )));
+    }
+    b.ins().jump(join, &params);
 
     b.switch_to_block(join);
-    let [u, g0, g1] = [0, 1, 2].map(|k| b.block_params(join)[k]);
-    noise_from_gradients(b, u, g0, g1)
+    let u = b.block_params(join)[0];
+    let c: Vec<Value> = b.block_params(join)[1..].to_vec();
+    let mut coefficient = |_: &mut FunctionBuilder, k: usize| c[k];
+    noise_polynomial(b, u, &mut coefficient)
 }
 
 /// `u = x − ⌊x⌋` where x is finite, and 1 where it is not: with the gradients
-/// [`cell_gradients`] gives non-finite cells, that yields the interpreter's answers
+/// [`cell_coefficients`] gives non-finite cells, that yields the interpreter's answers
 /// (0 for ±∞, NaN for NaN). Non-finite x always take the slow path (their cell is
 /// remembered as NaN), so the fast path needs no test.
 fn slow_path_u(b: &mut FunctionBuilder, x: Value, floor: Value) -> Value {
@@ -931,32 +946,48 @@ fn is_finite_scalar(b: &mut FunctionBuilder, x: Value) -> Value {
     b.ins().fcmp(FloatCC::Equal, difference, zero)
 }
 
-/// The rest of gradient noise once the two (scaled) gradients are known:
-/// `a + (b − a)·fade(u)` with `a = g0·u`, `b = g1·(u − 1)` and
-/// `fade(u) = u³·((10 − 15u) + 6u²)`, as `timbre_ir::dsp::noise` evaluates them. The
-/// gradients' scale keeps the result inside (−1, 1), so there is no clamp.
-fn noise_from_gradients(b: &mut FunctionBuilder, u: Value, g0: Value, g1: Value) -> Value {
-    let one = splat(b, 1.0);
-    let a = b.ins().fmul(g0, u);
-    let w = b.ins().fsub(u, one);
-    let c = b.ins().fmul(g1, w);
-    let d = b.ins().fsub(c, a);
-    let [six, ten, fifteen] = [6.0, 10.0, 15.0].map(|k| splat(b, k));
+/// The noise within a cell whose ends have the (scaled) gradients G0 and G1:
+///
+/// ```text
+/// G0·u + (G1·(u − 1) − G0·u)·(10u³ − 15u⁴ + 6u⁵)
+///   = (g0·u + u³·(c3 + c4·u)) + u⁵·(c5 + c6·u)
+/// g0 = G0,  c3 = −10·G1,  c4 = 10·E + 15·G1,  c5 = −15·E − 6·G1,  c6 = 6·E,  E = G1 − G0
+/// ```
+///
+/// evaluated so that no dependency chain is longer than five operations (the lerp
+/// form's is six). `coefficient(b, k)` gives g0, c3, c4, c5, c6 for k = 0..5, asked
+/// for where each is used. Rounding aside it is the interpreter's noise, so it stays
+/// within (−1, 1) without a clamp (its terms are at most about 70 in magnitude:
+/// rounding moves it by less than 1e-13, far below the 2⁻²⁰ margin).
+fn noise_polynomial(
+    b: &mut FunctionBuilder,
+    u: Value,
+    coefficient: &mut dyn FnMut(&mut FunctionBuilder, usize) -> Value,
+) -> Value {
     let u2 = b.ins().fmul(u, u);
     let u3 = b.ins().fmul(u2, u);
-    let fifteen_u = b.ins().fmul(fifteen, u);
-    let low = b.ins().fsub(ten, fifteen_u);
-    let six_u2 = b.ins().fmul(six, u2);
-    let p = b.ins().fadd(low, six_u2);
-    let fade = b.ins().fmul(u3, p);
-    let m = b.ins().fmul(d, fade);
-    b.ins().fadd(a, m)
+    let u5 = b.ins().fmul(u2, u3);
+    let g0 = coefficient(b, 0);
+    let g0u = b.ins().fmul(u, g0);
+    let c4 = coefficient(b, 2);
+    let c4u = b.ins().fmul(u, c4);
+    let c3 = coefficient(b, 1);
+    let low = b.ins().fadd(c4u, c3);
+    let low = b.ins().fmul(u3, low);
+    let low = b.ins().fadd(g0u, low);
+    let c6 = coefficient(b, 4);
+    let c6u = b.ins().fmul(u, c6);
+    let c5 = coefficient(b, 3);
+    let high = b.ins().fadd(c6u, c5);
+    let high = b.ins().fmul(u5, high);
+    b.ins().fadd(low, high)
 }
 
-/// The scaled gradients of lattice cell `floor` (scalar), hashed, or for a
-/// non-finite floor (x = ±∞ or NaN) the ones that give the interpreter's answers with
-/// u taken as 1 (see [`slow_path_u`]): g0 = 0 for ±∞ and NaN for NaN, g1 = 0.
-fn cell_gradients(b: &mut FunctionBuilder, mixed_seed: i64, floor: Value) -> (Value, Value) {
+/// The coefficients ([`noise_polynomial`]) of lattice cell `floor` (scalar), from its
+/// hashed gradients, or for a non-finite floor (x = ±∞ or NaN) from the gradients
+/// that give the interpreter's answers with u taken as 1 (see [`slow_path_u`]):
+/// G0 = 0 for ±∞ and NaN for NaN, G1 = 0.
+fn cell_coefficients(b: &mut FunctionBuilder, mixed_seed: i64, floor: Value) -> [Value; 5] {
     // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
     let i = b.ins().fcvt_to_sint_sat(I64, floor);
     let next = b.ins().iadd_imm_s(i, 1);
@@ -972,7 +1003,20 @@ fn cell_gradients(b: &mut FunctionBuilder, mixed_seed: i64, floor: Value) -> (Va
     let special = b.ins().select(is_nan, nan, zero);
     let g0 = b.ins().select(finite, g0, special);
     let g1 = b.ins().select(finite, g1, zero);
-    (g0, g1)
+    let k = |b: &mut FunctionBuilder, x: f64| b.ins().f64const(x);
+    let e = b.ins().fsub(g1, g0);
+    let m10 = k(b, -10.0);
+    let c3 = b.ins().fmul(m10, g1);
+    let (ten, fifteen) = (k(b, 10.0), k(b, 15.0));
+    let ten_e = b.ins().fmul(ten, e);
+    let fifteen_g1 = b.ins().fmul(fifteen, g1);
+    let c4 = b.ins().fadd(ten_e, fifteen_g1);
+    let (m15, six) = (k(b, -15.0), k(b, 6.0));
+    let m15_e = b.ins().fmul(m15, e);
+    let six_g1 = b.ins().fmul(six, g1);
+    let c5 = b.ins().fsub(m15_e, six_g1);
+    let c6 = b.ins().fmul(six, e);
+    [g0, c3, c4, c5, c6]
 }
 
 /// Whether both lanes of an `fcmp` mask are set: `movmskpd` and one compare.
@@ -1105,13 +1149,29 @@ impl LaneState {
     }
 }
 
-/// Gradient noise of two lanes (two different signals) at one sample, inline and
-/// bit-exact. `cache` holds, per lane, the floor of the last lattice cell (NaN after
-/// a non-finite x) and its gradients, as vectors; they are rehashed only when a
-/// lane's cell changes, and otherwise `u = x − cell` does not wait for the floor.
-fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
+/// Where a lane pair's noise coefficients are: `lanes` holds the address of each
+/// lane's slot 0 in the node's state table (slot-major, so coefficient k of the pair
+/// is the vector at `lanes[0] + (1 + k)·row`); `single` when both are one lane.
+struct NoiseRows {
+    lanes: [Value; 2],
+    row: i32,
+    single: bool,
+}
+
+/// Gradient noise of two lanes (two different signals) at one sample, inline (as
+/// [`gradient_noise`]). `cell` holds, per lane, the floor of the last lattice cell
+/// (NaN after a non-finite x); the cells' coefficients are in the state table and are
+/// computed again only when a lane's cell changes. Otherwise `u = x − cell` does not
+/// wait for the floor, and the coefficients are read from memory, off the critical
+/// path, rather than held in registers.
+fn lane_noise(
+    b: &mut FunctionBuilder,
+    seed: u64,
+    cell: Variable,
+    rows: &NoiseRows,
+    x: Value,
+) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
-    let (cell, cached0, cached1) = (cache[0], cache[1], cache[2]);
     let fl = b.ins().floor(x);
     let last = b.use_var(cell);
     let same = b.ins().fcmp(FloatCC::Equal, fl, last);
@@ -1128,28 +1188,33 @@ fn lane_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) 
     b.ins().jump(join, &[BlockArg::Value(u)]);
 
     b.switch_to_block(slow);
-    let mut g0 = [x; 2];
-    let mut g1 = [x; 2];
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
-        (g0[lane as usize], g1[lane as usize]) = cell_gradients(b, mixed_seed, f);
+        let coefficients = cell_coefficients(b, mixed_seed, f);
+        for (k, c) in coefficients.into_iter().enumerate() {
+            let offset = (1 + k as i32) * rows.row;
+            b.ins().store(mem(), c, rows.lanes[lane as usize], offset);
+        }
     }
-    let v0 = pair(b, g0[0], g0[1]);
-    let v1 = pair(b, g1[0], g1[1]);
     let difference = b.ins().fsub(fl, fl);
     let zero = splat(b, 0.0);
     let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
     let nan = splat(b, f64::NAN);
     let remembered = select(b, finite, fl, nan);
     b.def_var(cell, remembered);
-    b.def_var(cached0, v0);
-    b.def_var(cached1, v1);
     let u = slow_path_u(b, x, fl);
     b.ins().jump(join, &[BlockArg::Value(u)]);
 
     b.switch_to_block(join);
     let u = b.block_params(join)[0];
-    let g0 = b.use_var(cached0);
-    let g1 = b.use_var(cached1);
-    noise_from_gradients(b, u, g0, g1)
+    let mut coefficient = |b: &mut FunctionBuilder, k: usize| {
+        let offset = (1 + k as i32) * rows.row;
+        if rows.single {
+            let x = b.ins().load(types::F64, mem(), rows.lanes[0], offset);
+            b.ins().splat(F64X2, x)
+        } else {
+            b.ins().load(F64X2, mem(), rows.lanes[0], offset)
+        }
+    };
+    noise_polynomial(b, u, &mut coefficient)
 }

@@ -29,7 +29,7 @@ use cranelift_module::{FuncId, Linkage, Module};
 use timbre_ir::op::Op;
 use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
 
-use crate::codegen::{kernel_signature, Helpers, KernelBuilder};
+use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SLOTS};
 use crate::plan::PlanStep;
 
 /// Why a tree could not be compiled.
@@ -249,8 +249,8 @@ impl Jit {
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
-        // floor of the last lattice cell (none yet: NaN equals nothing) and its two
-        // gradients per lane of each noise; two partial sums per sample of each
+        // floor of the last lattice cell (none yet: NaN equals nothing) and its five
+        // polynomial coefficients per lane of each noise; two partial sums per sample of each
         // combine (used when its argument is summed in a lane region).
         let no_cell = f64::NAN;
         let mut states: Vec<Vec<f64>> = interp
@@ -258,7 +258,12 @@ impl Jit {
             .iter()
             .map(|s| match s.op {
                 Op::Phasor => vec![0.0; s.width],
-                Op::Noise { .. } => [no_cell, 0.0, 0.0].repeat(s.width),
+                Op::Noise { .. } => {
+                    // Slot-major: each slot's lanes side by side (see NOISE_SLOTS).
+                    let mut state = vec![0.0; NOISE_SLOTS * s.width];
+                    state[..s.width].fill(no_cell);
+                    state
+                }
                 Op::Combine => vec![0.0; 2 * config.block_size],
                 _ => vec![],
             })

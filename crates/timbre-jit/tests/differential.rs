@@ -183,6 +183,23 @@ fn every_inline_operation_matches() {
     }
 }
 
+/// The compiled noise evaluates each lattice cell's polynomial in expanded form: the
+/// same function as the interpreter's, to rounding.
+#[test]
+fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
+    let mut jit = Jit::new().unwrap();
+    for text in [
+        "(noise (* t 977.7))",
+        "(noise (- 3.3 (* t 411.1)))",
+        "(noise (+ 1000000 (* t 123.4)))",
+        "(combine (noise (+ (rvector 8 -50 50) (* t 311.3))))",
+        "(combine (noise (* (rvector 7 -900 900) t)))",
+    ] {
+        let (diff, at) = compare(&mut jit, &compile_text(text), 96_000);
+        assert!(diff < 1e-13, "{text}: differs by {diff} at sample {at}");
+    }
+}
+
 #[test]
 fn odd_block_lengths_and_split_renders_match() {
     let program = compile_text("(+ (lowpass (white) 800) (* 0.3 (sine (* t 440))))");
