@@ -282,6 +282,7 @@ impl KernelBuilder<'_, '_> {
         };
         let helpers = self.helpers;
         let (buffers, state_table) = (self.buffers, self.states);
+        let scaled = scaled_noises(steps, region);
         let splatted_inputs = &self.splatted;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
@@ -342,7 +343,16 @@ impl KernelBuilder<'_, '_> {
                         b.ins().iadd(table, offset)
                     });
                     let row = (steps[s].width * 8) as i32;
-                    noise_rows.insert(s, NoiseRows { lanes, row, single });
+                    let scale = scaled.get(&s).map(|&(_, k)| constants[&k]);
+                    noise_rows.insert(
+                        s,
+                        NoiseRows {
+                            lanes,
+                            row,
+                            single,
+                            scale,
+                        },
+                    );
                 }
                 states.insert(s, state);
             }
@@ -391,6 +401,11 @@ impl KernelBuilder<'_, '_> {
                             args[0],
                             in_unit_interval(&steps[step.args[0]]),
                         ),
+                        Op::Binary(_) if scaled.values().any(|&(m, _)| m == node) => {
+                            // k · noise: the noise's own value (see NoiseRows::scale).
+                            let noise = step.args.iter().copied().find(|a| scaled.contains_key(a));
+                            values[&noise.expect("a scaled noise")]
+                        }
                         Op::Binary(op) => binary(
                             b,
                             &helpers,
@@ -1149,6 +1164,40 @@ impl LaneState {
     }
 }
 
+/// Noises of a region whose one use is a multiplication by a constant
+/// (`(* k (noise x))`, a noise's usual use): each noise with that multiplication and
+/// the constant. k is folded into the cell's coefficients, so that the polynomial is
+/// the product (to rounding) and the multiplication is not on the critical path.
+fn scaled_noises(steps: &[Step], region: &Region) -> HashMap<usize, (usize, usize)> {
+    let mut uses = vec![0usize; steps.len()];
+    for step in steps {
+        for &a in &step.args {
+            uses[a] += 1;
+        }
+    }
+    let root = steps.len() - 1;
+    let mut scaled = HashMap::new();
+    for &node in &region.nodes {
+        if !matches!(steps[node].op, Op::Binary(BinaryOp::Mul)) {
+            continue;
+        }
+        let args = &steps[node].args;
+        for (noise, k) in [(args[0], args[1]), (args[1], args[0])] {
+            if matches!(steps[noise].op, Op::Noise { .. })
+                && steps[k].constant
+                && uses[noise] == 1
+                && noise != root
+                && region.nodes.contains(&noise)
+                && !region.stored.contains(&noise)
+            {
+                scaled.insert(noise, (node, k));
+                break;
+            }
+        }
+    }
+    scaled
+}
+
 /// Where a lane pair's noise coefficients are: `lanes` holds the address of each
 /// lane's slot 0 in the node's state table (slot-major, so coefficient k of the pair
 /// is the vector at `lanes[0] + (1 + k)·row`); `single` when both are one lane.
@@ -1156,6 +1205,9 @@ struct NoiseRows {
     lanes: [Value; 2],
     row: i32,
     single: bool,
+    /// A constant the noise is multiplied by, folded into its coefficients
+    /// ([`scaled_noises`]).
+    scale: Option<StackSlot>,
 }
 
 /// Gradient noise of two lanes (two different signals) at one sample, inline (as
@@ -1190,7 +1242,12 @@ fn lane_noise(
     b.switch_to_block(slow);
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
-        let coefficients = cell_coefficients(b, mixed_seed, f);
+        let mut coefficients = cell_coefficients(b, mixed_seed, f);
+        if let Some(slot) = rows.scale {
+            let scale = b.ins().stack_load(I64, F64X2, slot, 0);
+            let scale = b.ins().extractlane(scale, lane);
+            coefficients = coefficients.map(|c| b.ins().fmul(scale, c));
+        }
         for (k, c) in coefficients.into_iter().enumerate() {
             let offset = (1 + k as i32) * rows.row;
             b.ins().store(mem(), c, rows.lanes[lane as usize], offset);

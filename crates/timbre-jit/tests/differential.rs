@@ -193,7 +193,12 @@ fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
         "(noise (- 3.3 (* t 411.1)))",
         "(noise (+ 1000000 (* t 123.4)))",
         "(combine (noise (+ (rvector 8 -50 50) (* t 311.3))))",
-        "(combine (noise (* (rvector 7 -900 900) t)))",
+                "(combine (noise (* (rvector 7 -900 900) t)))",
+        // A constant factor folded into the cell's coefficients, one per lane or
+        // one for all.
+        "(* 0.1 (combine (* (rvector 5 1 9) (noise (+ (rvector 5 0 99) (* t 71.3))))))",
+        "(* 0.1 (combine (* 3 (noise (+ (rvector 4 0 99) (* t 71.3))))))",
+        "(* 0.1 (combine (* (noise (* (rvector 3 -40 40) (/ 1 (floor (* t 3))))) 2)))",
     ] {
         let (diff, at) = compare(&mut jit, &compile_text(text), 96_000);
         assert!(diff < 1e-13, "{text}: differs by {diff} at sample {at}");
