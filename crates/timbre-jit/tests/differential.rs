@@ -193,7 +193,7 @@ fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
         "(noise (- 3.3 (* t 411.1)))",
         "(noise (+ 1000000 (* t 123.4)))",
         "(combine (noise (+ (rvector 8 -50 50) (* t 311.3))))",
-                "(combine (noise (* (rvector 7 -900 900) t)))",
+        "(combine (noise (* (rvector 7 -900 900) t)))",
         // A constant factor folded into the cell's coefficients, one per lane or
         // one for all.
         "(* 0.1 (combine (* (rvector 5 1 9) (noise (+ (rvector 5 0 99) (* t 71.3))))))",

@@ -50,8 +50,8 @@ pub fn white(seed: u64, index: u64) -> f64 {
 }
 
 /// Quintic fade `6u⁵ − 15u⁴ + 10u³` (zero first and second derivative at 0 and 1),
-/// evaluated as `u³·((10 − 15u) + 6u²)`: its dependency chains are short, which
-/// matters in compiled code (which does the same operations, for the same bits).
+/// evaluated as `u³·((10 − 15u) + 6u²)`. (The compiled engine evaluates the whole
+/// lerp as one polynomial per lattice cell; the two agree to rounding.)
 #[inline]
 fn fade(u: f64) -> f64 {
     let u2 = u * u;
