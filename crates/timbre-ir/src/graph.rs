@@ -221,7 +221,7 @@ impl Graph {
             Op::Env => (0..width)
                 .map(|l| crate::op::env(std::array::from_fn(|i| lane(consts[i], l))))
                 .collect(),
-            Op::Combine => vec![consts[0].iter().sum()],
+            Op::Combine => vec![crate::op::combine(consts[0])],
             Op::Index => {
                 let i = index_lane(consts[1][0], consts[0].len());
                 vec![consts[0][i]]
@@ -373,7 +373,9 @@ mod tests {
             .collect();
         assert_eq!(g.const_value(s).unwrap(), &expected[..]);
         let c = g.add(Op::Combine, vec![s]);
-        assert_eq!(g.scalar(c), Some(expected.iter().sum()));
+        // Even lanes, then odd lanes (`op::combine`).
+        let sum = (0.0 + expected[0] + expected[2]) + (0.0 + expected[1]);
+        assert_eq!(g.scalar(c), Some(sum));
     }
 
     #[test]

@@ -77,6 +77,8 @@ enum State {
     },
     Adsr(Vec<Adsr>),
     DampedSine(RotatorBank),
+    /// A combine's sum of its odd lanes, beside the even ones in its output.
+    OddSum(Vec<f64>),
     Custom(Box<dyn Any + Send>),
 }
 
@@ -264,13 +266,20 @@ impl Interpreter {
                         o[k] = env(std::array::from_fn(|a| args[a][k]));
                     }
                 }
-                (Op::Combine, _) => {
+                (Op::Combine, State::OddSum(odd)) => {
+                    // Even and odd lanes summed apart, then added (`op::combine`).
+                    let odd = &mut odd[..n];
                     o.fill(0.0);
+                    odd.fill(0.0);
                     let src = step.args[0];
                     for l in 0..self.steps[src].width {
-                        for (y, x) in o.iter_mut().zip(&self.buffers[src][l * bs..l * bs + n]) {
+                        let sum: &mut [f64] = if l % 2 == 0 { o } else { odd };
+                        for (y, x) in sum.iter_mut().zip(&self.buffers[src][l * bs..l * bs + n]) {
                             *y += x;
                         }
+                    }
+                    for (y, x) in o.iter_mut().zip(odd.iter()) {
+                        *y += x;
                     }
                 }
                 (Op::Index, _) => {
@@ -486,6 +495,7 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
     let sr = config.sample_rate;
     match &step.op {
         Op::Phasor => State::Phase(vec![0.0; w]),
+        Op::Combine => State::OddSum(vec![0.0; config.block_size]),
         Op::Pink { .. } => State::Pink(Pink::new()),
         Op::Markov { .. } => State::Markov((0..w).map(|_| Markov::new()).collect()),
         Op::Biquad(_) => State::Biquad(vec![

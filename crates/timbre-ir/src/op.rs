@@ -555,6 +555,17 @@ fn truth(b: bool) -> f64 {
     }
 }
 
+/// The `combine` node: the sum of the even lanes plus the sum of the odd lanes, each
+/// from 0 in lane order. (Two lanes side by side in a vector are summed this way.)
+#[inline]
+pub fn combine(lanes: &[f64]) -> f64 {
+    let mut sums = [0.0; 2];
+    for (l, x) in lanes.iter().enumerate() {
+        sums[l % 2] += x;
+    }
+    sums[0] + sums[1]
+}
+
 /// Smooth noise as the `noise` node computes it.
 #[inline]
 pub fn noise(seed: u64, x: f64) -> f64 {

@@ -219,6 +219,15 @@ fn vector_nodes() {
         assert!((100.0..200.0).contains(&v));
     }
     assert_eq!(c("(combine (- (rvector 20 0 1) (rvector 20 0 1)))"), 0.0);
+    // Even lanes and odd lanes are summed apart: (1e16 − 1e16) + (1 + 1), where
+    // summing in lane order would lose a 1 to rounding. Folded and rendered alike.
+    assert_eq!(c("(combine (vector 1e16 1 -1e16 1))"), 2.0);
+    let rendered = render(
+        "(combine (* (+ 1 (* 0 t)) (vector 1e16 1 -1e16 1)))",
+        &[],
+        0.01,
+    );
+    assert!(rendered.iter().all(|x| *x == 2.0), "{:?}", &rendered[..4]);
     assert_ne!(
         c("(combine (- (rvector 20 0 1) (rvector 20 0 1 :seed 1)))"),
         0.0

@@ -132,6 +132,7 @@ impl KernelBuilder<'_, '_> {
         let end_lane = self.b.ins().iconst(I64, width);
         let rate = self.b.ins().splat(F64X2, self.sample_rate);
         let period = self.b.ins().splat(F64X2, self.sample_period);
+        let scaled = scaled_noises(self.steps, region);
         let splatted: Vec<(usize, Value)> = region
             .splatted
             .iter()
@@ -191,6 +192,11 @@ impl KernelBuilder<'_, '_> {
                             args[0],
                             in_unit_interval(&steps[step.args[0]]),
                         ),
+                        Op::Binary(_) if scaled.values().any(|&(m, _)| m == node) => {
+                            // k · noise: the noise's own value (see `scaled_noises`).
+                            let noise = step.args.iter().copied().find(|a| scaled.contains_key(a));
+                            values[&noise.expect("a scaled noise")]
+                        }
                         Op::Binary(op) => binary(
                             b,
                             &helpers,
@@ -201,7 +207,8 @@ impl KernelBuilder<'_, '_> {
                         ),
                         Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
                         Op::Noise { seed } => {
-                            gradient_noise(b, *seed, &states[&node].vars, args[0])
+                            let scale = scaled.get(&node).map(|&(_, k)| values[&k]);
+                            gradient_noise(b, *seed, &states[&node].vars, args[0], scale)
                         }
                         Op::Phasor => phasor(
                             b,
@@ -886,7 +893,13 @@ pub(crate) const NOISE_SLOTS: usize = 6;
 /// compare and one branch, and `u = x − cell` then does not wait for the floor. The
 /// gradients and u are the interpreter's, bit for bit; the expanded polynomial
 /// differs from the interpreter's lerp by rounding only (below 1e-13, tested).
-fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Value) -> Value {
+fn gradient_noise(
+    b: &mut FunctionBuilder,
+    seed: u64,
+    cache: &[Variable],
+    x: Value,
+    scale: Option<Value>,
+) -> Value {
     let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let cell = cache[0];
     let fl = b.ins().floor(x);
@@ -918,6 +931,11 @@ fn gradient_noise(b: &mut FunctionBuilder, seed: u64, cache: &[Variable], x: Val
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
         coefficients[lane as usize] = cell_coefficients(b, mixed_seed, f);
+        if let Some(scale) = scale {
+            // A constant factor folded in (see `scaled_noises`).
+            let k = b.ins().extractlane(scale, 0);
+            coefficients[lane as usize] = coefficients[lane as usize].map(|c| b.ins().fmul(k, c));
+        }
     }
     let f = b.ins().extractlane(fl, 1);
     let finite = is_finite_scalar(b, f);

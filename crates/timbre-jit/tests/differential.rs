@@ -172,6 +172,8 @@ fn every_inline_operation_matches() {
         "(combine (noise (/ (* t (rvector 3 10 50)) (floor (* t 3)))))",
         "(combine (noise (* (rvector 3 10 50) (sqrt (- (* 2 (frac (* t 3))) 1)))))",
         "(combine (* (rvector 7 1 2) (sine (* t (rvector 7 100 900)))))",
+        // combine's order of summation (even lanes, odd lanes) decides this one.
+        "(* 1e-16 (combine (* (+ 1 (* 0 t)) (vector 1e16 1 -1e16 1 3))))",
     ];
     for template in templates {
         let text = template.replace('X', x).replace('Y', y);
@@ -188,20 +190,36 @@ fn every_inline_operation_matches() {
 #[test]
 fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
     let mut jit = Jit::new().unwrap();
-    for text in [
-        "(noise (* t 977.7))",
-        "(noise (- 3.3 (* t 411.1)))",
-        "(noise (+ 1000000 (* t 123.4)))",
-        "(combine (noise (+ (rvector 8 -50 50) (* t 311.3))))",
-        "(combine (noise (* (rvector 7 -900 900) t)))",
+    // Each tree with the sum of the factors its noises are scaled by: the bound is
+    // 1e-13 per unit of noise.
+    for (text, factors) in [
+        ("(noise (* t 977.7))", 1.0),
+        ("(noise (- 3.3 (* t 411.1)))", 1.0),
+        ("(noise (+ 1000000 (* t 123.4)))", 1.0),
+        ("(combine (noise (+ (rvector 8 -50 50) (* t 311.3))))", 8.0),
+        ("(combine (noise (* (rvector 7 -900 900) t)))", 7.0),
         // A constant factor folded into the cell's coefficients, one per lane or
-        // one for all.
-        "(* 0.1 (combine (* (rvector 5 1 9) (noise (+ (rvector 5 0 99) (* t 71.3))))))",
-        "(* 0.1 (combine (* 3 (noise (+ (rvector 4 0 99) (* t 71.3))))))",
-        "(* 0.1 (combine (* (noise (* (rvector 3 -40 40) (/ 1 (floor (* t 3))))) 2)))",
+        // one for all, of a region of lanes or of one lane.
+        (
+            "(* 0.1 (combine (* (rvector 5 1 9) (noise (+ (rvector 5 0 99) (* t 71.3))))))",
+            4.5,
+        ),
+        (
+            "(* 0.1 (combine (* 3 (noise (+ (rvector 4 0 99) (* t 71.3))))))",
+            1.2,
+        ),
+        (
+            "(* 0.1 (combine (* (noise (* (rvector 3 -40 40) (/ 1 (floor (* t 3))))) 2)))",
+            0.6,
+        ),
+        ("(* 12 (noise (* t 30.7)))", 12.0),
+        ("(* (noise (- 1e6 (* t 30.7))) 0.25)", 0.25),
     ] {
         let (diff, at) = compare(&mut jit, &compile_text(text), 96_000);
-        assert!(diff < 1e-13, "{text}: differs by {diff} at sample {at}");
+        assert!(
+            diff < 1e-13 * f64::max(factors, 1.0),
+            "{text}: differs by {diff} at sample {at}"
+        );
     }
 }
 
