@@ -290,6 +290,9 @@ impl KernelBuilder<'_, '_> {
         let helpers = self.helpers;
         let (buffers, state_table) = (self.buffers, self.states);
         let scaled = scaled_noises(steps, region);
+        // The multiplications folded into a noise, and that noise.
+        let fused: HashMap<usize, usize> =
+            scaled.iter().map(|(&noise, &(m, _))| (m, noise)).collect();
         let splatted_inputs = &self.splatted;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
@@ -392,14 +395,24 @@ impl KernelBuilder<'_, '_> {
                 };
                 for &node in &region.nodes {
                     let step = &steps[node];
-                    let args: Vec<Value> = step
-                        .args
-                        .iter()
-                        .map(|&a| match values.get(&a) {
+                    if let Some(&noise) = fused.get(&node) {
+                        // k · noise: the noise's own value (see `scaled_noises`).
+                        values.insert(node, values[&noise]);
+                        continue;
+                    }
+                    // An input is loaded once per sample, where first used.
+                    let mut args: Vec<Value> = vec![];
+                    for &a in &step.args {
+                        let value = match values.get(&a) {
                             Some(&v) => v,
-                            None => input(b, a),
-                        })
-                        .collect();
+                            None => {
+                                let v = input(b, a);
+                                values.insert(a, v);
+                                v
+                            }
+                        };
+                        args.push(value);
+                    }
                     let value = match &step.op {
                         Op::Unary(op) => unary(
                             b,
@@ -408,11 +421,6 @@ impl KernelBuilder<'_, '_> {
                             args[0],
                             in_unit_interval(&steps[step.args[0]]),
                         ),
-                        Op::Binary(_) if scaled.values().any(|&(m, _)| m == node) => {
-                            // k · noise: the noise's own value (see NoiseRows::scale).
-                            let noise = step.args.iter().copied().find(|a| scaled.contains_key(a));
-                            values[&noise.expect("a scaled noise")]
-                        }
                         Op::Binary(op) => binary(
                             b,
                             &helpers,
