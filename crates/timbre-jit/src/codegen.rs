@@ -367,8 +367,58 @@ impl KernelBuilder<'_, '_> {
                 states.insert(s, state);
             }
 
+            // Nodes computed only from constants and splatted one-lane inputs are
+            // computed a sample ahead and carried to the next iteration, so that the
+            // chains through them start with the iteration (see `docs/performance.md`).
+            let ahead = |b: &mut FunctionBuilder, node: usize, k: Value| {
+                let vector_offset = b.ins().ishl_imm_u(k, 4);
+                let step = &steps[node];
+                let args: Vec<Value> = step
+                    .args
+                    .iter()
+                    .map(|&a| match constants.get(&a) {
+                        Some(&slot) => b.ins().stack_load(I64, F64X2, slot, 0),
+                        None => {
+                            let addr = b.ins().iadd(copies[&a], vector_offset);
+                            b.ins().load(F64X2, mem(), addr, 0)
+                        }
+                    })
+                    .collect();
+                let unit = in_unit_interval(&steps[step.args[0]]);
+                match &step.op {
+                    Op::Unary(op) => unary(b, &helpers, *op, args[0], unit),
+                    Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1], unit),
+                    Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
+                    other => unreachable!("`{other}` is not computed ahead"),
+                }
+            };
+            let carried: Vec<(usize, Variable)> = region
+                .nodes
+                .iter()
+                .copied()
+                .filter(|&node| {
+                    let step = &steps[node];
+                    matches!(step.op, Op::Unary(_) | Op::Binary(_) | Op::Ternary(_))
+                        && !fused.contains_key(&node)
+                        && step
+                            .args
+                            .iter()
+                            .all(|a| constants.contains_key(a) || copies.contains_key(a))
+                })
+                .map(|node| {
+                    let var = b.declare_var(F64X2);
+                    let zero = b.ins().iconst(I64, 0);
+                    let first = ahead(b, node, zero);
+                    b.def_var(var, first);
+                    (node, var)
+                })
+                .collect();
+
             counted_loop(b, 0, n, 1, |b, k| {
                 let mut values: HashMap<usize, Value> = HashMap::new();
+                for &(node, var) in &carried {
+                    values.insert(node, b.use_var(var));
+                }
                 // Byte offsets of this sample in one-lane buffers and in vectors.
                 let offset = b.ins().ishl_imm_u(k, 3);
                 let vector_offset = b.ins().ishl_imm_u(k, 4);
@@ -395,6 +445,9 @@ impl KernelBuilder<'_, '_> {
                 };
                 for &node in &region.nodes {
                     let step = &steps[node];
+                    if values.contains_key(&node) {
+                        continue; // computed ahead
+                    }
                     if let Some(&noise) = fused.get(&node) {
                         // k · noise: the noise's own value (see `scaled_noises`).
                         values.insert(node, values[&noise]);
@@ -475,6 +528,13 @@ impl KernelBuilder<'_, '_> {
                     let sum = b.ins().load(F64X2, mem(), addr, 0);
                     let sum = b.ins().fadd(sum, x);
                     b.ins().store(mem(), sum, addr, 0);
+                }
+                // The next sample's values of the nodes computed ahead (the last
+                // iteration reads one sample past the block: the copies have room).
+                let next = b.ins().iadd_imm_s(k, 1);
+                for &(node, var) in &carried {
+                    let value = ahead(b, node, next);
+                    b.def_var(var, value);
                 }
             });
             for state in states.values() {

@@ -272,7 +272,8 @@ impl Jit {
         // them (see `Kernel::splatted`).
         let mut copies = vec![vec![]; states.len()];
         for &s in &kernel.splatted {
-            copies[s] = vec![0.0; 2 * config.block_size];
+            // One sample more than a block: lane regions read a sample ahead.
+            copies[s] = vec![0.0; 2 * (config.block_size + 1)];
         }
         states.extend(copies);
         let state_pointers = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
