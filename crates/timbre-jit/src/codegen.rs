@@ -133,6 +133,7 @@ impl KernelBuilder<'_, '_> {
         let rate = self.b.ins().splat(F64X2, self.sample_rate);
         let period = self.b.ins().splat(F64X2, self.sample_period);
         let scaled = scaled_noises(self.steps, region);
+        let fused = fused_multiplications(&scaled);
         let splatted: Vec<(usize, Value)> = region
             .splatted
             .iter()
@@ -183,29 +184,16 @@ impl KernelBuilder<'_, '_> {
                 for &node in &region.nodes {
                     let step = &steps[node];
                     let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
+                    if let Some(&noise) = fused.get(&node) {
+                        // k · noise: the noise's own value (see `scaled_noises`).
+                        values.insert(node, values[&noise]);
+                        continue;
+                    }
                     let value = match &step.op {
                         Op::Time => time(b, t0, i, rate),
-                        Op::Unary(op) => unary(
-                            b,
-                            &helpers,
-                            *op,
-                            args[0],
-                            in_unit_interval(&steps[step.args[0]]),
-                        ),
-                        Op::Binary(_) if scaled.values().any(|&(m, _)| m == node) => {
-                            // k · noise: the noise's own value (see `scaled_noises`).
-                            let noise = step.args.iter().copied().find(|a| scaled.contains_key(a));
-                            values[&noise.expect("a scaled noise")]
+                        _ if is_elementwise(&step.op) => {
+                            elementwise(b, &helpers, steps, step, &args)
                         }
-                        Op::Binary(op) => binary(
-                            b,
-                            &helpers,
-                            *op,
-                            args[0],
-                            args[1],
-                            in_unit_interval(&steps[step.args[0]]),
-                        ),
-                        Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
                         Op::Noise { seed } => {
                             let scale = scaled.get(&node).map(|&(_, k)| values[&k]);
                             gradient_noise(b, *seed, &states[&node].vars, args[0], scale)
@@ -384,13 +372,7 @@ impl KernelBuilder<'_, '_> {
                         }
                     })
                     .collect();
-                let unit = in_unit_interval(&steps[step.args[0]]);
-                match &step.op {
-                    Op::Unary(op) => unary(b, &helpers, *op, args[0], unit),
-                    Op::Binary(op) => binary(b, &helpers, *op, args[0], args[1], unit),
-                    Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
-                    other => unreachable!("`{other}` is not computed ahead"),
-                }
+                elementwise(b, &helpers, steps, step, &args)
             };
             let carried: Vec<(usize, Variable)> = region
                 .nodes
@@ -398,7 +380,7 @@ impl KernelBuilder<'_, '_> {
                 .copied()
                 .filter(|&node| {
                     let step = &steps[node];
-                    matches!(step.op, Op::Unary(_) | Op::Binary(_) | Op::Ternary(_))
+                    is_elementwise(&step.op)
                         && !fused.contains_key(&node)
                         && step
                             .args
@@ -467,22 +449,9 @@ impl KernelBuilder<'_, '_> {
                         args.push(value);
                     }
                     let value = match &step.op {
-                        Op::Unary(op) => unary(
-                            b,
-                            &helpers,
-                            *op,
-                            args[0],
-                            in_unit_interval(&steps[step.args[0]]),
-                        ),
-                        Op::Binary(op) => binary(
-                            b,
-                            &helpers,
-                            *op,
-                            args[0],
-                            args[1],
-                            in_unit_interval(&steps[step.args[0]]),
-                        ),
-                        Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
+                        _ if is_elementwise(&step.op) => {
+                            elementwise(b, &helpers, steps, step, &args)
+                        }
                         Op::Noise { seed } => {
                             lane_noise(b, *seed, states[&node].vars[0], &noise_rows[&node], args[0])
                         }
@@ -703,6 +672,29 @@ fn min_max(b: &mut FunctionBuilder, a: Value, c: Value, max: bool) -> Value {
     let m = select(b, c_nan, a, m);
     let a_nan = is_nan(b, a);
     select(b, a_nan, c, m)
+}
+
+/// Whether an op is an element-wise function of its operands (see [`elementwise`]).
+fn is_elementwise(op: &Op) -> bool {
+    matches!(op, Op::Unary(_) | Op::Binary(_) | Op::Ternary(_))
+}
+
+/// An element-wise op of `step` (see [`is_elementwise`]) on `args`: both samples or
+/// both lanes of each vector.
+fn elementwise(
+    b: &mut FunctionBuilder,
+    helpers: &Helpers,
+    steps: &[Step],
+    step: &Step,
+    args: &[Value],
+) -> Value {
+    let unit = in_unit_interval(&steps[step.args[0]]);
+    match &step.op {
+        Op::Unary(op) => unary(b, helpers, *op, args[0], unit),
+        Op::Binary(op) => binary(b, helpers, *op, args[0], args[1], unit),
+        Op::Ternary(op) => ternary(b, *op, args[0], args[1], args[2]),
+        other => unreachable!("`{other}` is not element-wise"),
+    }
 }
 
 /// Whether a step's values are all in [0, 1) or NaN, so that `frac` of them is the
@@ -1282,6 +1274,11 @@ fn scaled_noises(steps: &[Step], region: &Region) -> HashMap<usize, (usize, usiz
         }
     }
     scaled
+}
+
+/// The multiplications folded into a noise ([`scaled_noises`]), each with its noise.
+fn fused_multiplications(scaled: &HashMap<usize, (usize, usize)>) -> HashMap<usize, usize> {
+    scaled.iter().map(|(&noise, &(m, _))| (m, noise)).collect()
 }
 
 /// Where a lane pair's noise coefficients are: `lanes` holds the address of each
