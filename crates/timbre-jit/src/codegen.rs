@@ -4,9 +4,10 @@
 //! The kernel's signature is
 //! `kernel(interp, buffers, params, n, t0, states)`: the interpreter being driven (for
 //! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
-//! the sample rate, `params[1]` its reciprocal), the samples in this block, the index of its first sample, and
-//! the table of per-step state of nodes compiled inline (a phasor's phase per lane),
-//! followed by one entry per step for splatted copies (`Region::splatted`).
+//! the sample rate, `params[1]` its reciprocal), the samples in this block, the index
+//! of its first sample, and the table of per-step state of nodes compiled inline (a
+//! phasor's phase per lane, a noise's cell and coefficients, a combine's partial
+//! sums), followed by one entry per step for splatted copies (`Region::splatted`).
 //! Everything that differs between instances of one tree shape (constants, states,
 //! the sample rate) is reached through these pointers, so instances share the code.
 
@@ -183,12 +184,12 @@ impl KernelBuilder<'_, '_> {
                 }
                 for &node in &region.nodes {
                     let step = &steps[node];
-                    let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
                     if let Some(&noise) = fused.get(&node) {
                         // k · noise: the noise's own value (see `scaled_noises`).
                         values.insert(node, values[&noise]);
                         continue;
                     }
+                    let args: Vec<Value> = step.args.iter().map(|a| values[a]).collect();
                     let value = match &step.op {
                         Op::Time => time(b, t0, i, rate),
                         _ if is_elementwise(&step.op) => {
@@ -278,9 +279,7 @@ impl KernelBuilder<'_, '_> {
         let helpers = self.helpers;
         let (buffers, state_table) = (self.buffers, self.states);
         let scaled = scaled_noises(steps, region);
-        // The multiplications folded into a noise, and that noise.
-        let fused: HashMap<usize, usize> =
-            scaled.iter().map(|(&noise, &(m, _))| (m, noise)).collect();
+        let fused = fused_multiplications(&scaled);
         let splatted_inputs = &self.splatted;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
