@@ -45,8 +45,10 @@ pub(crate) struct Helpers {
 /// A region's inputs; see [`KernelBuilder::region_inputs`].
 struct RegionInputs {
     outside: Vec<usize>,
-    tables: HashMap<usize, Value>,
-    state_tables: Vec<(usize, Value)>,
+    /// Steps whose buffers the region reads or writes.
+    buffers: Vec<usize>,
+    /// The region's nodes with state (phasors, noises).
+    stateful: Vec<usize>,
 }
 
 /// The signature of every kernel.
@@ -125,9 +127,14 @@ impl KernelBuilder<'_, '_> {
         }
         let RegionInputs {
             outside,
-            tables,
-            state_tables,
+            buffers,
+            stateful,
         } = self.region_inputs(region);
+        let tables: HashMap<usize, Value> = buffers.iter().map(|&s| (s, self.buffer(s))).collect();
+        let state_tables: Vec<(usize, Value)> = stateful
+            .iter()
+            .map(|&s| (s, self.state_pointer(s)))
+            .collect();
         let lane_bytes = (self.block_size * 8) as i64;
         let width = region.width as i64;
         let end_lane = self.b.ins().iconst(I64, width);
@@ -256,7 +263,7 @@ impl KernelBuilder<'_, '_> {
             .combines
             .iter()
             .map(|&c| {
-                let sums = self.b.ins().load(I64, mem(), self.states, (c * 8) as i32);
+                let sums = self.state_pointer(c);
                 counted_loop(self.b, 0, n, 1, |b, k| {
                     let zero = splat(b, 0.0);
                     let offset = b.ins().ishl_imm_u(k, 4);
@@ -267,9 +274,9 @@ impl KernelBuilder<'_, '_> {
             })
             .collect();
         let RegionInputs {
-            outside: _,
-            tables,
-            state_tables,
+            buffers: buffer_steps,
+            stateful,
+            ..
         } = self.region_inputs(region);
         // In a stack slot, loaded where used (see the lane constants below).
         let period = {
@@ -295,7 +302,7 @@ impl KernelBuilder<'_, '_> {
             let mut constants: HashMap<usize, StackSlot> = HashMap::new();
             // One-lane inputs computed inline are read from their splatted copies.
             let mut copies: HashMap<usize, Value> = HashMap::new();
-            for &s in tables.keys() {
+            for &s in &buffer_steps {
                 if splatted_inputs[s] {
                     let entry = (steps.len() + s) * 8;
                     let table = b.ins().load(I64, mem(), state_table, entry as i32);
@@ -329,16 +336,13 @@ impl KernelBuilder<'_, '_> {
             }
             let mut states: HashMap<usize, LaneState> = HashMap::new();
             let mut noise_rows: HashMap<usize, NoiseRows> = HashMap::new();
-            for &(s, _) in &state_tables {
+            for &s in &stateful {
                 // A phasor's phase, a noise's cell: one vector variable. A noise's
                 // coefficients stay in its state table, loaded where they are used.
                 let state = LaneState::load(b, state_table, s, [first, second], 1);
                 if matches!(steps[s].op, Op::Noise { .. }) {
-                    let table = b.ins().load(I64, mem(), state_table, (s * 8) as i32);
-                    let lanes = [first, second].map(|lane| {
-                        let offset = b.ins().ishl_imm_u(lane, 3);
-                        b.ins().iadd(table, offset)
-                    });
+                    // Slot 0 of each lane; the coefficients are rows further on.
+                    let lanes = state.addresses(b, 1);
                     let row = (steps[s].width * 8) as i32;
                     let scale = scaled.get(&s).map(|&(_, k)| constants[&k]);
                     noise_rows.insert(
@@ -535,8 +539,8 @@ impl KernelBuilder<'_, '_> {
         }
     }
 
-    /// What a region's body reads from outside it (sorted), the buffer table entries of
-    /// those and of what it writes, and the state tables of its inline stateful nodes.
+    /// What a region's body reads from outside it (sorted), the steps whose buffers it
+    /// reads or writes, and its inline stateful nodes.
     fn region_inputs(&mut self, region: &Region) -> RegionInputs {
         let mut in_region = vec![false; self.steps.len()];
         for &node in &region.nodes {
@@ -550,27 +554,22 @@ impl KernelBuilder<'_, '_> {
             .collect();
         outside.sort_unstable();
         outside.dedup();
-        let tables = outside
+        let buffers = outside
             .iter()
             .chain(&region.stored)
             .chain(&region.combines)
-            .map(|&s| (s, self.buffer(s)))
+            .copied()
             .collect();
-        let state_tables = region
+        let stateful = region
             .nodes
             .iter()
-            .filter(|s| matches!(self.steps[**s].op, Op::Phasor | Op::Noise { .. }))
-            .map(|&s| {
-                (
-                    s,
-                    self.b.ins().load(I64, mem(), self.states, (s * 8) as i32),
-                )
-            })
+            .copied()
+            .filter(|&s| matches!(self.steps[s].op, Op::Phasor | Op::Noise { .. }))
             .collect();
         RegionInputs {
             outside,
-            tables,
-            state_tables,
+            buffers,
+            stateful,
         }
     }
 }

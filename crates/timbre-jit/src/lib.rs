@@ -154,6 +154,7 @@ impl Jit {
         }
         let start = Instant::now();
         let plan = plan::plan(steps);
+        let splatted = splatted_steps(&plan, steps.len());
         let call_conv = self.module.target_config().default_call_conv;
         self.context.func.signature = kernel_signature(call_conv);
         {
@@ -189,7 +190,7 @@ impl Jit {
                 states: params[5],
                 sample_rate,
                 sample_period,
-                splatted: splatted_steps(&plan, steps.len()),
+                splatted: splatted.clone(),
             };
             kb.emit(&plan);
             b.ins().return_(&[]);
@@ -213,7 +214,7 @@ impl Jit {
             PlanStep::Region(r) => (i + r.nodes.len() + r.combines.len(), c),
             PlanStep::Callback(_) => (i, c + 1),
         });
-        let splatted = splatted_steps(&plan, steps.len())
+        let splatted = splatted
             .iter()
             .enumerate()
             .filter_map(|(s, &yes)| yes.then_some(s))
