@@ -101,7 +101,6 @@ fn describe(op: &Op) -> (String, &'static str) {
             )
         }
         Op::Variable(_) => ("variable".into(), KEYFRAME),
-        Op::Delay { max_seconds } => (format!("delay\\nmax {max_seconds} s"), ""),
         _ => (op.name(), ""),
     }
 }

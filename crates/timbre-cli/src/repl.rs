@@ -20,7 +20,6 @@ use rustyline::{Context, Editor, Helper};
 use timbre_ir::dsp::analysis;
 use timbre_ir::{
     compile, CompileOptions, FsLoader, Loader, Program, Registry, RenderConfig, SourceFile,
-    BUILTIN_NAMES,
 };
 
 use crate::wav_out::{write_wav_atomically, SampleFormat, WavJob};
@@ -180,9 +179,10 @@ impl Completer for ReplHelper {
         let mut candidates: Vec<&str> = if word.starts_with(':') && start == 0 {
             COMMANDS.iter().map(|(c, _)| *c).collect()
         } else {
-            BUILTIN_NAMES
-                .iter()
-                .copied()
+            let builtins = timbre_ir::catalogue::names()
+                .chain(timbre_ir::catalogue::FORMS.iter().copied())
+                .map(|n| -> &str { n });
+            builtins
                 .chain(self.names.iter().map(String::as_str))
                 .collect()
         };

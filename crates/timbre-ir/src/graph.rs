@@ -182,14 +182,14 @@ impl Graph {
         let widths = args.iter().map(|a| self.width(*a));
         match op {
             Op::Const(values) => values.len(),
-            Op::Time | Op::White { .. } | Op::Pink { .. } | Op::Variable(_) => 1,
+            Op::Time | Op::White { .. } | Op::Variable(_) => 1,
             Op::Combine | Op::Index => 1,
             Op::Concat => widths.sum(),
-            Op::Delay { .. } | Op::Conv(_) => self
-                .width(args[0])
-                .max(args.get(1).map_or(1, |a| self.width(*a))),
-            Op::Sample(_) => 1,
-            Op::Timer { .. } => self.width(args[0]),
+            Op::Conv(_) | Op::Timer { .. } => self.width(args[0]),
+            Op::Stateful(kernel) => {
+                let widths: Vec<usize> = widths.collect();
+                kernel.width(&widths)
+            }
             Op::Custom(node) => {
                 let widths: Vec<usize> = widths.collect();
                 node.output_width(&widths).unwrap_or(1)

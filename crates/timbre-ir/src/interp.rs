@@ -7,16 +7,13 @@
 //! rendered so far, never on the block size or on how a render is split into calls.
 
 use std::any::Any;
-use std::sync::Arc;
 
 use crate::custom::{BlockContext, Lanes};
 use crate::dsp::conv::Convolver;
-use crate::dsp::delay::DelayLine;
-use crate::dsp::envelope::Adsr;
-use crate::dsp::filter::{BiquadCoeffs, BiquadState, OnePole, ResonatorCoeffs, ResonatorState};
-use crate::dsp::noise::{hash2, white, Markov, Pink};
-use crate::dsp::wav::{read_cubic, resample};
+use crate::dsp::noise::white;
+use crate::dsp::wav::resample;
 use crate::graph::{index_lane, Graph, NodeId};
+use crate::kernel::{Inputs, Outputs, StateContext};
 use crate::op::{env, frac, noise, timer_gain, ImpulseResponse, Op};
 
 /// Partition size of the FFT convolution (independent of the block size, so output
@@ -53,6 +50,8 @@ pub struct Step {
 /// An instance of a tree being rendered: its buffers, states and position.
 pub struct Interpreter {
     steps: Vec<Step>,
+    /// Lanes of each step (for kernels' arguments).
+    widths: Vec<usize>,
     buffers: Vec<Vec<f64>>,
     states: Vec<State>,
     config: RenderConfig,
@@ -60,26 +59,15 @@ pub struct Interpreter {
     position: u64,
 }
 
-/// Per-node state of stateful nodes, one entry per lane where lanes are independent.
+/// Per-node state of stateful nodes (and a combine's scratch), made by [`new_state`].
 enum State {
     None,
     Phase(Vec<f64>),
-    Pink(Pink),
-    Markov(Vec<Markov>),
-    Biquad(Vec<(BiquadState, BiquadCoeffs, [f64; 2])>),
-    OnePole(Vec<(OnePole, f64, f64)>),
-    Resonator(Vec<(ResonatorState, ResonatorCoeffs, [f64; 2])>),
-    Delay(Vec<DelayLine>),
     Conv(Vec<Convolver>),
-    Sample {
-        frames: Arc<Vec<f64>>,
-        positions: Vec<f64>,
-    },
-    Adsr(Vec<Adsr>),
-    DampedSine(RotatorBank),
     /// A combine's sum of its odd lanes, beside the even ones in its output.
     OddSum(Vec<f64>),
-    Custom(Box<dyn Any + Send>),
+    /// A stateful kernel's own state, or a host node's.
+    Kernel(Box<dyn Any + Send>),
 }
 
 impl Interpreter {
@@ -118,8 +106,10 @@ impl Interpreter {
             .iter()
             .map(|step| new_state(graph, step, config))
             .collect();
+        let widths = steps.iter().map(|s| s.width).collect();
         Interpreter {
             steps,
+            widths,
             buffers,
             states,
             config,
@@ -308,18 +298,6 @@ impl Interpreter {
                         *y = white(*seed, n0 + k as u64);
                     }
                 }
-                (Op::Pink { seed }, State::Pink(pink)) => {
-                    for (k, y) in o.iter_mut().enumerate() {
-                        *y = pink.next(white(*seed, n0 + k as u64));
-                    }
-                }
-                (Op::Markov { seed }, State::Markov(lanes)) => {
-                    let lane_seed = hash2(*seed, lane as u64);
-                    let rate = self.arg(i, 0, lane, n);
-                    for k in 0..n {
-                        o[k] = lanes[lane].next(white(lane_seed, n0 + k as u64), rate[k], sr);
-                    }
-                }
                 (Op::Phasor, State::Phase(phases)) => {
                     let freq = self.arg(i, 0, lane, n);
                     let phase = &mut phases[lane];
@@ -340,96 +318,30 @@ impl Interpreter {
                         }
                     }
                 }
-                (Op::Biquad(kind), State::Biquad(lanes)) => {
-                    let (x, f, q) = (
-                        self.arg(i, 0, lane, n),
-                        self.arg(i, 1, lane, n),
-                        self.arg(i, 2, lane, n),
-                    );
-                    let (filter, coeffs, last) = &mut lanes[lane];
-                    for k in 0..n {
-                        if [f[k], q[k]] != *last {
-                            *last = [f[k], q[k]];
-                            *coeffs = BiquadCoeffs::new(*kind, f[k], q[k], sr);
-                        }
-                        o[k] = filter.process(coeffs, x[k]);
-                    }
-                }
-                (Op::OnePole, State::OnePole(lanes)) => {
-                    let (x, f) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
-                    let (filter, a, last) = &mut lanes[lane];
-                    for k in 0..n {
-                        if f[k] != *last {
-                            *last = f[k];
-                            *a = OnePole::coefficient(f[k], sr);
-                        }
-                        o[k] = filter.process(*a, x[k]);
-                    }
-                }
-                (Op::Resonator, State::Resonator(lanes)) => {
-                    let (x, f, bw) = (
-                        self.arg(i, 0, lane, n),
-                        self.arg(i, 1, lane, n),
-                        self.arg(i, 2, lane, n),
-                    );
-                    let (filter, coeffs, last) = &mut lanes[lane];
-                    for k in 0..n {
-                        if [f[k], bw[k]] != *last {
-                            *last = [f[k], bw[k]];
-                            *coeffs = ResonatorCoeffs::new(f[k], bw[k], sr);
-                        }
-                        o[k] = filter.process(coeffs, x[k]);
-                    }
-                }
-                (Op::Delay { max_seconds }, State::Delay(lines)) => {
-                    let (x, time) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
-                    let line = &mut lines[lane];
-                    // Never longer than the stated maximum.
-                    let max = max_seconds * sr;
-                    for k in 0..n {
-                        line.push(x[k]);
-                        o[k] = line.read((time[k] * sr).min(max));
-                    }
-                }
                 (Op::Conv(_), State::Conv(convolvers)) => {
                     convolvers[lane].process(self.arg(i, 0, lane, n), o);
                 }
-                (Op::Sample(playback), State::Sample { frames, positions }) => {
-                    let rate = self.arg(i, 0, lane, n);
-                    let pos = &mut positions[lane];
-                    let len = frames.len() as f64;
-                    for k in 0..n {
-                        o[k] = read_cubic(frames, *pos);
-                        *pos += rate[k];
-                        if playback.looping && len > 0.0 && !(0.0..len).contains(pos) {
-                            *pos = pos.rem_euclid(len);
-                        }
-                    }
-                }
-                (Op::DampedSine, State::DampedSine(bank)) => {
-                    // All lanes at once. F and D are constants, so the first sample
-                    // of each lane is its value.
-                    let time = self.arg(i, 0, 0, n);
-                    let freq = |l: usize| self.arg(i, 1, l, 1)[0];
-                    let damping = |l: usize| self.arg(i, 2, l, 1)[0];
-                    let block = BlockOut {
+                (Op::Stateful(kernel), State::Kernel(kernel_state)) => {
+                    // Kernels fill all lanes at once.
+                    let inputs = Inputs {
+                        buffers: &self.buffers,
+                        widths: &self.widths,
+                        args: &step.args,
+                        stride: bs,
+                        n,
+                        sample_rate: sr,
+                        first_sample: n0,
+                    };
+                    let mut outputs = Outputs {
                         samples: out,
                         stride: bs,
                         n,
+                        width,
                     };
-                    bank.render(time, &freq, &damping, n0, sr, block);
+                    kernel.process(kernel_state.as_mut(), &inputs, &mut outputs);
                     return;
                 }
-                (Op::Adsr, State::Adsr(lanes)) => {
-                    let args: [&[f64]; 5] = std::array::from_fn(|a| self.arg(i, a, lane, n));
-                    let adsr = &mut lanes[lane];
-                    for k in 0..n {
-                        o[k] = adsr.next(
-                            args[0][k], args[1][k], args[2][k], args[3][k], args[4][k], sr,
-                        );
-                    }
-                }
-                (Op::Custom(node), State::Custom(custom_state)) => {
+                (Op::Custom(node), State::Kernel(custom_state)) => {
                     // Custom nodes fill all lanes at once.
                     if lane == 0 {
                         let args: Vec<Lanes<'_>> = step
@@ -447,6 +359,8 @@ impl Interpreter {
                     }
                     return;
                 }
+                // `new_state` makes the state of every op above, so a node
+                // added later cannot reach this: it is a kernel or a host node.
                 (op, _) => unreachable!("state of `{op}` was not prepared"),
             }
         }
@@ -490,35 +404,13 @@ fn eval_custom(
     }
 }
 
+/// The state of a step: every op is listed, so a new op must say what it needs.
 fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
     let w = step.width;
     let sr = config.sample_rate;
     match &step.op {
         Op::Phasor => State::Phase(vec![0.0; w]),
         Op::Combine => State::OddSum(vec![0.0; config.block_size]),
-        Op::Pink { .. } => State::Pink(Pink::new()),
-        Op::Markov { .. } => State::Markov((0..w).map(|_| Markov::new()).collect()),
-        Op::Biquad(_) => State::Biquad(vec![
-            (
-                BiquadState::default(),
-                BiquadCoeffs::default(),
-                [f64::NAN; 2]
-            );
-            w
-        ]),
-        Op::OnePole => State::OnePole(vec![(OnePole::default(), 0.0, f64::NAN); w]),
-        Op::Resonator => State::Resonator(vec![
-            (
-                ResonatorState::default(),
-                ResonatorCoeffs::new(1.0, 1.0, sr),
-                [f64::NAN; 2]
-            );
-            w
-        ]),
-        Op::Delay { max_seconds } => {
-            let max = (max_seconds * sr).ceil() as usize;
-            State::Delay((0..w).map(|_| DelayLine::new(max)).collect())
-        }
         Op::Conv(response) => {
             let ir = match response {
                 ImpulseResponse::Wav { data, .. } => resample(data, sr),
@@ -532,17 +424,25 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
                     .collect(),
             )
         }
-        Op::Sample(playback) => State::Sample {
-            frames: Arc::new(resample(&playback.data, sr)),
-            positions: vec![playback.start_seconds * sr; w],
-        },
-        Op::Adsr => State::Adsr((0..w).map(|_| Adsr::new()).collect()),
-        Op::DampedSine => State::DampedSine(RotatorBank {
-            lanes: vec![Rotator::default(); w],
-            last_time: None,
-        }),
-        Op::Custom(node) => State::Custom(node.new_state(w, sr)),
-        _ => State::None,
+        Op::Stateful(kernel) => State::Kernel(kernel.new_state(&StateContext {
+            graph,
+            width: w,
+            config,
+        })),
+        Op::Custom(node) => State::Kernel(node.new_state(w, sr)),
+        Op::Const(_)
+        | Op::Time
+        | Op::Unary(_)
+        | Op::Binary(_)
+        | Op::Ternary(_)
+        | Op::Noise { .. }
+        | Op::Env
+        | Op::Index
+        | Op::Concat
+        | Op::White { .. }
+        | Op::Variable(_)
+        | Op::Keyframe(_)
+        | Op::Timer { .. } => State::None,
     }
 }
 
@@ -552,145 +452,4 @@ fn render_impulse(graph: &Graph, root: NodeId, seconds: f64, config: RenderConfi
     let mut ir = vec![0.0; len];
     Interpreter::new(graph, root, config).render(&mut ir);
     ir
-}
-
-/// Samples between exact re-anchorings of a rotator. Anchors sit at fixed sample
-/// positions, so output does not depend on how a render is split into blocks.
-const ANCHOR_INTERVAL: u64 = 512;
-
-/// One lane of a damped sine, sin(2π·F·τ)·e^(−D·τ), as a complex number z rotated by
-/// r = e^((−D + 2πiF)/sr) each sample.
-#[derive(Clone, Copy, Debug, Default)]
-struct Rotator {
-    z: (f64, f64),
-    step: (f64, f64),
-    /// The (freq, damping, rate) `step` was computed for; None before the first block.
-    key: Option<(f64, f64, f64)>,
-}
-
-impl Rotator {
-    /// Prepares for these parameters; true if z must be anchored now.
-    fn prepare(&mut self, freq: f64, damping: f64, sr: f64) -> bool {
-        if self.key == Some((freq, damping, sr)) {
-            return false;
-        }
-        let decay = (-damping / sr).exp();
-        let angle = std::f64::consts::TAU * frac(freq / sr);
-        self.step = (decay * angle.cos(), decay * angle.sin());
-        self.key = Some((freq, damping, sr));
-        true
-    }
-
-    /// Sets z exactly as the plain tree computes it at time τ.
-    fn anchor(&mut self, freq: f64, damping: f64, time: f64) {
-        let amplitude = (-(time * damping)).exp();
-        let angle = std::f64::consts::TAU * frac(time * freq);
-        self.z = (amplitude * angle.cos(), amplitude * angle.sin());
-    }
-}
-
-/// The rotators of one damped-sine node, and the last time they were rendered at.
-/// z is recomputed exactly from τ wherever τ does not advance by one sample period
-/// (a re-strike, a jump), and every [`ANCHOR_INTERVAL`] samples, so rounding never
-/// accumulates beyond that.
-#[derive(Clone, Debug)]
-struct RotatorBank {
-    lanes: Vec<Rotator>,
-    last_time: Option<f64>,
-}
-
-/// Where a block of a node goes: `n` samples per lane, lane `l` at `l·stride`.
-struct BlockOut<'a> {
-    samples: &'a mut [f64],
-    stride: usize,
-    n: usize,
-}
-
-/// Whether time moved from `previous` to `next` by one sample period.
-fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
-    previous.is_some_and(|p| ((next - p) * sr - 1.0).abs() <= 1e-6)
-}
-
-impl RotatorBank {
-    /// Renders a block of every lane. Lanes are advanced four at a time so that their
-    /// multiplications overlap.
-    fn render(
-        &mut self,
-        time: &[f64],
-        freq: &dyn Fn(usize) -> f64,
-        damping: &dyn Fn(usize) -> f64,
-        first_sample: u64,
-        sr: f64,
-        block: BlockOut<'_>,
-    ) {
-        let BlockOut {
-            samples: out,
-            stride,
-            n,
-        } = block;
-        let mut fresh = false;
-        for (lane, r) in self.lanes.iter_mut().enumerate() {
-            fresh |= r.prepare(freq(lane), damping(lane), sr);
-        }
-        let at_anchor = |k: usize| (first_sample + k as u64).is_multiple_of(ANCHOR_INTERVAL);
-        let mut k = 0;
-        while k < n {
-            if fresh || at_anchor(k) || !advances(self.last_time, time[k], sr) {
-                for (lane, r) in self.lanes.iter_mut().enumerate() {
-                    r.anchor(freq(lane), damping(lane), time[k]);
-                }
-                fresh = false;
-            }
-            // The segment runs until the next anchor or jump.
-            let mut end = k + 1;
-            while end < n && !at_anchor(end) && advances(Some(time[end - 1]), time[end], sr) {
-                end += 1;
-            }
-            self.rotate(k..end, out, stride);
-            self.last_time = Some(time[end - 1]);
-            k = end;
-        }
-    }
-
-    /// Writes samples `range` of every lane and advances the rotators past them.
-    fn rotate(&mut self, range: std::ops::Range<usize>, out: &mut [f64], stride: usize) {
-        let mut groups = self.lanes.chunks_exact_mut(4);
-        let mut lane = 0;
-        for group in &mut groups {
-            let mut re = [group[0].z.0, group[1].z.0, group[2].z.0, group[3].z.0];
-            let mut im = [group[0].z.1, group[1].z.1, group[2].z.1, group[3].z.1];
-            let cr = [
-                group[0].step.0,
-                group[1].step.0,
-                group[2].step.0,
-                group[3].step.0,
-            ];
-            let ci = [
-                group[0].step.1,
-                group[1].step.1,
-                group[2].step.1,
-                group[3].step.1,
-            ];
-            for j in range.clone() {
-                for q in 0..4 {
-                    out[(lane + q) * stride + j] = im[q];
-                    (re[q], im[q]) = (re[q] * cr[q] - im[q] * ci[q], re[q] * ci[q] + im[q] * cr[q]);
-                }
-            }
-            for q in 0..4 {
-                group[q].z = (re[q], im[q]);
-            }
-            lane += 4;
-        }
-        for r in groups.into_remainder() {
-            let (mut re, mut im) = r.z;
-            let (cr, ci) = r.step;
-            for j in range.clone() {
-                out[lane * stride + j] = im;
-                (re, im) = (re * cr - im * ci, re * ci + im * cr);
-            }
-            r.z = (re, im);
-            lane += 1;
-        }
-    }
 }

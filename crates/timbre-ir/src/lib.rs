@@ -17,6 +17,7 @@
 //! assert!((out[12] - (std::f64::consts::TAU * 440.0 * 12.0 / 48000.0).sin()).abs() < 1e-12);
 //! ```
 
+pub mod catalogue;
 pub mod custom;
 pub mod dsp;
 mod error;
@@ -24,6 +25,7 @@ mod error;
 pub mod generate;
 mod graph;
 mod interp;
+pub mod kernel;
 pub mod keyframes;
 mod loader;
 mod lower;
@@ -37,7 +39,7 @@ pub use interp::{Interpreter, RenderConfig, Step};
 pub use loader::{FsLoader, Loader, NoFiles};
 pub use lower::{
     compile, did_you_mean, CompileOptions, Instance, Instantiated, Library, ParamValue, Program,
-    Registry, Settings, Variable, BUILTIN_NAMES, DECLICK_IN, DECLICK_OUT, MAX_LANES,
+    Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
 };
 
 impl<'a> CompileOptions<'a> {

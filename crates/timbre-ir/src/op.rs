@@ -1,4 +1,5 @@
-//! The node catalogue: what each kind of timbre-tree node computes.
+//! What each kind of timbre-tree node computes (the names that call them are in
+//! [`crate::catalogue`]).
 //!
 //! Pure element-wise operations are evaluated by [`UnaryOp::apply`],
 //! [`BinaryOp::apply`] and [`TernaryOp::apply`]; constant folding and the interpreter
@@ -11,12 +12,17 @@ use std::sync::Arc;
 
 use crate::custom::CustomNode;
 use crate::dsp::envelope;
-use crate::dsp::filter::BiquadKind;
 use crate::dsp::noise::gradient_noise;
 use crate::dsp::wav::SampleData;
+use crate::kernel::DynKernel;
 use crate::keyframes::KeyframeTrack;
 
 /// One node's operation. Arguments are the node's children, in order.
+///
+/// The callable nodes are listed once, in [`crate::catalogue`]; this enum is what
+/// they lower to. Pure element-wise functions are [`UnaryOp`], [`BinaryOp`] and
+/// [`TernaryOp`]; stateful nodes are [`Op::Stateful`] kernels, each in its own file
+/// under `dsp/`. The other variants are the nodes engines treat specially.
 #[derive(Clone, Debug)]
 pub enum Op {
     /// A constant vector; its length is the node's width.
@@ -42,37 +48,12 @@ pub enum Op {
     White {
         seed: u64,
     },
-    /// 1/f noise.
-    Pink {
-        seed: u64,
-    },
-    /// Second-order Markov low-frequency noise; argument: rate in Hz.
-    Markov {
-        seed: u64,
-    },
     /// Integrated frequency in cycles, wrapped to [0, 1); arguments: frequency, start phase.
     Phasor,
-    /// RBJ biquad; arguments: input, frequency, q.
-    Biquad(BiquadKind),
-    /// One-pole low-pass; arguments: input, cutoff.
-    OnePole,
-    /// Two-pole resonator with unit peak gain; arguments: input, frequency, bandwidth.
-    Resonator,
-    /// Variable fractional delay; arguments: input, delay time in seconds.
-    Delay {
-        max_seconds: f64,
-    },
     /// FFT convolution of the argument with an impulse response.
     Conv(ImpulseResponse),
-    /// A sampled sound; argument: playback rate (1 = original pitch).
-    Sample(SamplePlayback),
-    /// Gate-driven ADSR; arguments: gate, attack, decay, sustain, release.
-    Adsr,
-    /// sin(2π·F·τ)·e^(−D·τ); arguments τ (a time, one lane), constant F and D. A
-    /// complex rotator, re-anchored exactly wherever τ jumps and every 512 samples.
-    /// Made by [`crate::optimise`], never by lowering: it is a faster form of
-    /// `(* (sine (* τ F)) (damp (* τ D)))`.
-    DampedSine,
+    /// A stateful node: its kernel, and the configuration it was made with.
+    Stateful(Arc<dyn DynKernel>),
     /// A value the host sets while rendering, read at the start of each block.
     Variable(crate::lower::Variable),
     /// A keyframed variable: the track's value at the argument (scene time).
@@ -98,33 +79,71 @@ pub enum ImpulseResponse {
     Tree { root: crate::NodeId, seconds: f64 },
 }
 
-#[derive(Clone, Debug)]
-pub struct SamplePlayback {
-    pub path: String,
-    pub data: Arc<SampleData>,
-    /// Where playback starts, in seconds of the file.
-    pub start_seconds: f64,
-    pub looping: bool,
+/// The canonical description of an op: a sequence of words that two ops share
+/// exactly when they are the same node (given the same children). Node identity
+/// (hash-consing) and the structural hash random seeds come from are both made of
+/// it, so it never holds an address or anything else that changes between runs.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Description(Vec<u64>);
+
+impl Description {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn u64(&mut self, x: u64) -> &mut Self {
+        self.0.push(x);
+        self
+    }
+
+    /// A number, with -0.0 and every NaN made one value each.
+    pub fn f64(&mut self, x: f64) -> &mut Self {
+        self.u64(canonical_bits(x))
+    }
+
+    pub fn f64s(&mut self, xs: &[f64]) -> &mut Self {
+        self.u64(xs.len() as u64);
+        for x in xs {
+            self.f64(*x);
+        }
+        self
+    }
+
+    pub fn str(&mut self, s: &str) -> &mut Self {
+        self.u64(s.len() as u64);
+        for chunk in s.as_bytes().chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.u64(u64::from_le_bytes(word));
+        }
+        self
+    }
+
+    pub fn words(&self) -> &[u64] {
+        &self.0
+    }
 }
 
 impl Op {
     /// Whether the node keeps state from block to block (and so is never folded).
     pub fn is_stateful(&self) -> bool {
-        matches!(
-            self,
-            Op::Pink { .. }
-                | Op::Markov { .. }
-                | Op::Phasor
-                | Op::Biquad(_)
-                | Op::OnePole
-                | Op::Resonator
-                | Op::Delay { .. }
-                | Op::Conv(_)
-                | Op::Sample(_)
-                | Op::Adsr
-                | Op::DampedSine
-                | Op::Custom(_)
-        )
+        match self {
+            Op::Phasor | Op::Conv(_) | Op::Stateful(_) | Op::Custom(_) => true,
+            Op::Const(_)
+            | Op::Time
+            | Op::Unary(_)
+            | Op::Binary(_)
+            | Op::Ternary(_)
+            | Op::Noise { .. }
+            | Op::Env
+            | Op::Combine
+            | Op::Index
+            | Op::Concat
+            | Op::White { .. }
+            | Op::Variable(_)
+            | Op::Keyframe(_)
+            | Op::Timer { .. } => false,
+        }
     }
 
     /// A short name for pictures and debugging.
@@ -132,205 +151,107 @@ impl Op {
         match self {
             Op::Const(values) if values.len() == 1 => format!("{}", values[0]),
             Op::Const(values) => format!("[{} lanes]", values.len()),
-            Op::Time => "t".into(),
-            Op::Unary(op) => op.name().into(),
-            Op::Binary(op) => op.name().into(),
-            Op::Ternary(op) => op.name().into(),
-            Op::Noise { .. } => "noise".into(),
-            Op::Env => "env".into(),
-            Op::Combine => "combine".into(),
-            Op::Index => "index".into(),
-            Op::Concat => "vector".into(),
-            Op::White { .. } => "white".into(),
-            Op::Pink { .. } => "pink".into(),
-            Op::Markov { .. } => "markov".into(),
-            Op::Phasor => "phasor".into(),
-            Op::Biquad(BiquadKind::Lowpass) => "lowpass".into(),
-            Op::Biquad(BiquadKind::Highpass) => "highpass".into(),
-            Op::Biquad(BiquadKind::Bandpass) => "bandpass".into(),
-            Op::OnePole => "onepole".into(),
-            Op::Resonator => "resonator".into(),
-            Op::Delay { .. } => "delay".into(),
-            Op::Conv(_) => "conv".into(),
-            Op::Sample(s) => format!("sample {:?}", s.path),
-            Op::Adsr => "adsr".into(),
-            Op::DampedSine => "damped-sine".into(),
-            Op::Keyframe(_) => "keyframe".into(),
-            Op::Variable(_) => "variable".into(),
-            Op::Timer { .. } => "timer".into(),
             Op::Custom(node) => node.name().into(),
+            _ => self.kind().into(),
         }
     }
 
-    /// Feeds everything that distinguishes this op from another into `h`: two nodes
-    /// with equal fingerprints and equal children are the same node.
-    pub(crate) fn fingerprint(&self, h: &mut crate::graph::StableHasher) {
-        let tag = |h: &mut crate::graph::StableHasher, t: u64| h.write_u64(t);
+    /// The op's kind: its catalogue name where it has one.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Op::Const(_) => "const",
+            Op::Time => "t",
+            Op::Unary(op) => op.name(),
+            Op::Binary(op) => op.name(),
+            Op::Ternary(op) => op.name(),
+            Op::Noise { .. } => "noise",
+            Op::Env => "env",
+            Op::Combine => "combine",
+            Op::Index => "index",
+            Op::Concat => "vector",
+            Op::White { .. } => "white",
+            Op::Phasor => "phasor",
+            Op::Conv(_) => "conv",
+            Op::Stateful(kernel) => kernel.name(),
+            Op::Variable(_) => "variable",
+            Op::Keyframe(_) => "keyframe",
+            Op::Timer { .. } => "timer",
+            Op::Custom(_) => "custom",
+        }
+    }
+
+    /// Writes the op's canonical description (see [`Description`]).
+    pub fn describe(&self, d: &mut Description) {
+        d.str(self.kind());
         match self {
             Op::Const(values) => {
-                tag(h, 1);
-                h.write_u64(values.len() as u64);
-                for v in values.iter() {
-                    h.write_u64(canonical_bits(*v));
-                }
+                d.f64s(values);
             }
-            Op::Time => tag(h, 2),
-            Op::Unary(op) => {
-                tag(h, 3);
-                h.write_u64(*op as u64);
+            Op::Noise { seed } | Op::White { seed } => {
+                d.u64(*seed);
             }
-            Op::Binary(op) => {
-                tag(h, 4);
-                h.write_u64(*op as u64);
-            }
-            Op::Ternary(op) => {
-                tag(h, 5);
-                h.write_u64(*op as u64);
-            }
-            Op::Noise { seed } => {
-                tag(h, 6);
-                h.write_u64(*seed);
-            }
-            Op::Env => tag(h, 7),
-            Op::Combine => tag(h, 8),
-            Op::Index => tag(h, 9),
-            Op::Concat => tag(h, 10),
-            Op::White { seed } => {
-                tag(h, 11);
-                h.write_u64(*seed);
-            }
-            Op::Pink { seed } => {
-                tag(h, 12);
-                h.write_u64(*seed);
-            }
-            Op::Markov { seed } => {
-                tag(h, 13);
-                h.write_u64(*seed);
-            }
-            Op::Phasor => tag(h, 14),
-            Op::Biquad(kind) => {
-                tag(h, 15);
-                h.write_u64(*kind as u64);
-            }
-            Op::OnePole => tag(h, 16),
-            Op::Resonator => tag(h, 17),
-            Op::Delay { max_seconds } => {
-                tag(h, 18);
-                h.write_u64(canonical_bits(*max_seconds));
-            }
-            Op::Conv(ImpulseResponse::Wav { path, .. }) => {
-                tag(h, 19);
-                h.write_str(path);
+            Op::Conv(ImpulseResponse::Wav { data, .. }) => {
+                d.str("wav").u64(data.content_hash);
             }
             Op::Conv(ImpulseResponse::Tree { root, seconds }) => {
-                tag(h, 20);
-                h.write_u64(root.0 as u64);
-                h.write_u64(canonical_bits(*seconds));
+                d.str("tree").u64(root.0 as u64).f64(*seconds);
             }
-            Op::Sample(s) => {
-                tag(h, 21);
-                h.write_str(&s.path);
-                h.write_u64(canonical_bits(s.start_seconds));
-                h.write_u64(s.looping as u64);
+            Op::Stateful(kernel) => kernel.describe(d),
+            // A variable by the name of what it is bound to, never by its address.
+            Op::Variable(variable) => {
+                d.str(variable.name());
             }
-            Op::Adsr => tag(h, 22),
-            Op::DampedSine => tag(h, 24),
-            Op::Variable(v) => {
-                tag(h, 27);
-                h.write_u64(v.address());
-            }
+            // A track by its content.
             Op::Keyframe(track) => {
-                tag(h, 25);
-                h.write_u64(Arc::as_ptr(track) as usize as u64);
+                d.str(track.interpolation().name())
+                    .f64s(track.times())
+                    .f64s(track.values());
             }
             Op::Timer {
                 length,
                 fade_in,
                 fade_out,
             } => {
-                tag(h, 26);
-                h.write_u64(length.map_or(u64::MAX, canonical_bits));
-                h.write_u64(canonical_bits(*fade_in));
-                h.write_u64(canonical_bits(*fade_out));
+                d.u64(length.is_some() as u64)
+                    .f64(length.unwrap_or(0.0))
+                    .f64(*fade_in)
+                    .f64(*fade_out);
             }
+            // A host node by its registered name.
             Op::Custom(node) => {
-                tag(h, 23);
-                h.write_str(node.name());
-                h.write_u64(Arc::as_ptr(node) as *const () as usize as u64);
+                d.str(node.name());
             }
+            // The kind (an element-wise op by its name) says it all.
+            Op::Time
+            | Op::Unary(_)
+            | Op::Binary(_)
+            | Op::Ternary(_)
+            | Op::Env
+            | Op::Combine
+            | Op::Index
+            | Op::Concat
+            | Op::Phasor => {}
+        }
+    }
+
+    /// The op's canonical description.
+    pub fn description(&self) -> Description {
+        let mut d = Description::new();
+        self.describe(&mut d);
+        d
+    }
+
+    /// Feeds everything that distinguishes this op from another into `h`: two nodes
+    /// with equal fingerprints and equal children are the same node.
+    pub(crate) fn fingerprint(&self, h: &mut crate::graph::StableHasher) {
+        for word in self.description().words() {
+            h.write_u64(*word);
         }
     }
 
     /// Structural equality of the op itself (children are compared separately).
     pub(crate) fn same_as(&self, other: &Op) -> bool {
-        match (self, other) {
-            (Op::Const(a), Op::Const(b)) => {
-                a.len() == b.len()
-                    && a.iter()
-                        .zip(b.iter())
-                        .all(|(x, y)| canonical_bits(*x) == canonical_bits(*y))
-            }
-            (Op::Time, Op::Time)
-            | (Op::Env, Op::Env)
-            | (Op::Combine, Op::Combine)
-            | (Op::Index, Op::Index)
-            | (Op::Concat, Op::Concat)
-            | (Op::Phasor, Op::Phasor)
-            | (Op::OnePole, Op::OnePole)
-            | (Op::Resonator, Op::Resonator)
-            | (Op::Adsr, Op::Adsr)
-            | (Op::DampedSine, Op::DampedSine) => true,
-            (Op::Unary(a), Op::Unary(b)) => a == b,
-            (Op::Binary(a), Op::Binary(b)) => a == b,
-            (Op::Ternary(a), Op::Ternary(b)) => a == b,
-            (Op::Noise { seed: a }, Op::Noise { seed: b })
-            | (Op::White { seed: a }, Op::White { seed: b })
-            | (Op::Pink { seed: a }, Op::Pink { seed: b })
-            | (Op::Markov { seed: a }, Op::Markov { seed: b }) => a == b,
-            (Op::Biquad(a), Op::Biquad(b)) => a == b,
-            (Op::Delay { max_seconds: a }, Op::Delay { max_seconds: b }) => {
-                canonical_bits(*a) == canonical_bits(*b)
-            }
-            (
-                Op::Conv(ImpulseResponse::Wav { data: a, .. }),
-                Op::Conv(ImpulseResponse::Wav { data: b, .. }),
-            ) => Arc::ptr_eq(a, b),
-            (
-                Op::Conv(ImpulseResponse::Tree {
-                    root: a,
-                    seconds: sa,
-                }),
-                Op::Conv(ImpulseResponse::Tree {
-                    root: b,
-                    seconds: sb,
-                }),
-            ) => a == b && canonical_bits(*sa) == canonical_bits(*sb),
-            (Op::Sample(a), Op::Sample(b)) => {
-                Arc::ptr_eq(&a.data, &b.data)
-                    && canonical_bits(a.start_seconds) == canonical_bits(b.start_seconds)
-                    && a.looping == b.looping
-            }
-            (Op::Custom(a), Op::Custom(b)) => Arc::ptr_eq(a, b),
-            (Op::Keyframe(a), Op::Keyframe(b)) => Arc::ptr_eq(a, b),
-            (Op::Variable(a), Op::Variable(b)) => a.same(b),
-            (
-                Op::Timer {
-                    length: a,
-                    fade_in: ai,
-                    fade_out: ao,
-                },
-                Op::Timer {
-                    length: b,
-                    fade_in: bi,
-                    fade_out: bo,
-                },
-            ) => {
-                a.map(canonical_bits) == b.map(canonical_bits)
-                    && canonical_bits(*ai) == canonical_bits(*bi)
-                    && canonical_bits(*ao) == canonical_bits(*bo)
-            }
-            _ => false,
-        }
+        self.description() == other.description()
     }
 }
 
@@ -346,191 +267,108 @@ fn canonical_bits(x: f64) -> u64 {
     }
 }
 
-/// Element-wise functions of one argument.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum UnaryOp {
-    Neg,
-    Exp,
-    Log,
-    Sqrt,
-    Abs,
-    Sin,
-    Cos,
-    Tan,
-    Tanh,
-    Floor,
-    Frac,
-    Not,
-    /// sin(2πx): phase in cycles.
-    Sine,
-    Sawtooth,
-    Square,
-    Triangle,
-    /// e^(-x).
-    Damp,
-}
-
-impl UnaryOp {
-    pub fn name(self) -> &'static str {
-        match self {
-            UnaryOp::Neg => "-",
-            UnaryOp::Exp => "exp",
-            UnaryOp::Log => "log",
-            UnaryOp::Sqrt => "sqrt",
-            UnaryOp::Abs => "abs",
-            UnaryOp::Sin => "sin",
-            UnaryOp::Cos => "cos",
-            UnaryOp::Tan => "tan",
-            UnaryOp::Tanh => "tanh",
-            UnaryOp::Floor => "floor",
-            UnaryOp::Frac => "frac",
-            UnaryOp::Not => "not",
-            UnaryOp::Sine => "sine",
-            UnaryOp::Sawtooth => "sawtooth",
-            UnaryOp::Square => "square",
-            UnaryOp::Triangle => "triangle",
-            UnaryOp::Damp => "damp",
+/// Declares an enum of element-wise functions: for each, its variant, its name in
+/// the language and its formula, in one line. `ALL` lists the variants in order, so
+/// `ALL[op as usize] == op`.
+macro_rules! elementwise {
+    (
+        $(#[$meta:meta])*
+        $enum:ident ($($x:ident),+) {
+            $($(#[$doc:meta])* $variant:ident $name:literal => $formula:expr;)*
         }
-    }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum $enum {
+            $($(#[$doc])* $variant,)*
+        }
 
-    #[inline]
-    pub fn apply(self, x: f64) -> f64 {
-        match self {
-            UnaryOp::Neg => -x,
-            UnaryOp::Exp => x.exp(),
-            UnaryOp::Log => x.ln(),
-            UnaryOp::Sqrt => x.sqrt(),
-            UnaryOp::Abs => x.abs(),
-            UnaryOp::Sin => x.sin(),
-            UnaryOp::Cos => x.cos(),
-            UnaryOp::Tan => x.tan(),
-            UnaryOp::Tanh => x.tanh(),
-            UnaryOp::Floor => x.floor(),
-            UnaryOp::Frac => frac(x),
-            UnaryOp::Not => truth(x == 0.0),
-            // The fractional part is taken before scaling by 2π, so a phase of millions
-            // of cycles keeps its full precision.
-            UnaryOp::Sine => (TAU * frac(x)).sin(),
-            UnaryOp::Sawtooth => 2.0 * frac(x) - 1.0,
-            UnaryOp::Square => {
-                if frac(x) < 0.5 {
-                    1.0
-                } else {
-                    -1.0
+        impl $enum {
+            /// Every variant, in declaration order.
+            pub const ALL: &'static [$enum] = &[$($enum::$variant),*];
+
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($enum::$variant => $name,)*
                 }
             }
-            UnaryOp::Triangle => 4.0 * (frac(x + 0.75) - 0.5).abs() - 1.0,
-            UnaryOp::Damp => (-x).exp(),
-        }
-    }
-}
 
-/// Element-wise functions of two arguments.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum BinaryOp {
-    Add,
-    Sub,
-    Mul,
-    Div,
-    Pow,
-    Min,
-    Max,
-    /// Floored modulo: the result has the sign of the divisor.
-    Mod,
-    Lt,
-    Gt,
-    Le,
-    Ge,
-    Eq,
-    Ne,
-    And,
-    Or,
-    /// `(pulse x width)`: 1 while frac(x) < width, else -1.
-    Pulse,
-}
-
-impl BinaryOp {
-    pub fn name(self) -> &'static str {
-        match self {
-            BinaryOp::Add => "+",
-            BinaryOp::Sub => "-",
-            BinaryOp::Mul => "*",
-            BinaryOp::Div => "/",
-            BinaryOp::Pow => "pow",
-            BinaryOp::Min => "min",
-            BinaryOp::Max => "max",
-            BinaryOp::Mod => "mod",
-            BinaryOp::Lt => "<",
-            BinaryOp::Gt => ">",
-            BinaryOp::Le => "<=",
-            BinaryOp::Ge => ">=",
-            BinaryOp::Eq => "=",
-            BinaryOp::Ne => "!=",
-            BinaryOp::And => "and",
-            BinaryOp::Or => "or",
-            BinaryOp::Pulse => "pulse",
-        }
-    }
-
-    #[inline]
-    pub fn apply(self, a: f64, b: f64) -> f64 {
-        match self {
-            BinaryOp::Add => a + b,
-            BinaryOp::Sub => a - b,
-            BinaryOp::Mul => a * b,
-            BinaryOp::Div => a / b,
-            BinaryOp::Pow => a.powf(b),
-            BinaryOp::Min => a.min(b),
-            BinaryOp::Max => a.max(b),
-            BinaryOp::Mod => a - b * (a / b).floor(),
-            BinaryOp::Lt => truth(a < b),
-            BinaryOp::Gt => truth(a > b),
-            BinaryOp::Le => truth(a <= b),
-            BinaryOp::Ge => truth(a >= b),
-            BinaryOp::Eq => truth(a == b),
-            BinaryOp::Ne => truth(a != b),
-            BinaryOp::And => truth(a != 0.0 && b != 0.0),
-            BinaryOp::Or => truth(a != 0.0 || b != 0.0),
-            BinaryOp::Pulse => {
-                if frac(a) < b {
-                    1.0
-                } else {
-                    -1.0
+            #[inline]
+            pub fn apply(self, $($x: f64),+) -> f64 {
+                match self {
+                    $($enum::$variant => $formula,)*
                 }
             }
         }
+    };
+}
+
+elementwise! {
+    /// Element-wise functions of one argument.
+    UnaryOp(x) {
+        Neg "-" => -x;
+        Exp "exp" => x.exp();
+        Log "log" => x.ln();
+        Sqrt "sqrt" => x.sqrt();
+        Abs "abs" => x.abs();
+        Sin "sin" => x.sin();
+        Cos "cos" => x.cos();
+        Tan "tan" => x.tan();
+        Tanh "tanh" => x.tanh();
+        Floor "floor" => x.floor();
+        Frac "frac" => frac(x);
+        Not "not" => truth(x == 0.0);
+        /// sin(2πx): phase in cycles. The fractional part is taken before scaling
+        /// by 2π, so a phase of millions of cycles keeps its full precision.
+        Sine "sine" => (TAU * frac(x)).sin();
+        Sawtooth "sawtooth" => 2.0 * frac(x) - 1.0;
+        Square "square" => if frac(x) < 0.5 { 1.0 } else { -1.0 };
+        Triangle "triangle" => 4.0 * (frac(x + 0.75) - 0.5).abs() - 1.0;
+        /// e^(-x).
+        Damp "damp" => (-x).exp();
+        /// Decibels to amplitude: 10^(x/20).
+        DbAmp "dbamp" => (x * (std::f64::consts::LN_10 / 20.0)).exp();
+        /// Amplitude to decibels: 20·log10|x| (−∞ for 0).
+        AmpDb "ampdb" => 20.0 * x.abs().log10();
+        /// MIDI note number to Hz: 440·2^((x − 69)/12).
+        MidiHz "midihz" => 440.0 * ((x - 69.0) / 12.0).exp2();
+        /// Hz to MIDI note number: 69 + 12·log2(x/440).
+        HzMidi "hzmidi" => 69.0 + 12.0 * (x / 440.0).log2();
     }
 }
 
-/// Element-wise functions of three arguments.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TernaryOp {
-    /// `(clamp x lo hi)`.
-    Clamp,
-    /// `(if c a b)`: a where c ≠ 0, else b. Both branches are evaluated.
-    If,
+elementwise! {
+    /// Element-wise functions of two arguments.
+    BinaryOp(a, b) {
+        Add "+" => a + b;
+        Sub "-" => a - b;
+        Mul "*" => a * b;
+        Div "/" => a / b;
+        Pow "pow" => a.powf(b);
+        Min "min" => a.min(b);
+        Max "max" => a.max(b);
+        /// Floored modulo: the result has the sign of the divisor.
+        Mod "mod" => a - b * (a / b).floor();
+        Lt "<" => truth(a < b);
+        Gt ">" => truth(a > b);
+        Le "<=" => truth(a <= b);
+        Ge ">=" => truth(a >= b);
+        Eq "=" => truth(a == b);
+        Ne "!=" => truth(a != b);
+        And "and" => truth(a != 0.0 && b != 0.0);
+        Or "or" => truth(a != 0.0 || b != 0.0);
+        /// `(pulse x width)`: 1 while frac(x) < width, else -1.
+        Pulse "pulse" => if frac(a) < b { 1.0 } else { -1.0 };
+    }
 }
 
-impl TernaryOp {
-    pub fn name(self) -> &'static str {
-        match self {
-            TernaryOp::Clamp => "clamp",
-            TernaryOp::If => "if",
-        }
-    }
-
-    #[inline]
-    pub fn apply(self, a: f64, b: f64, c: f64) -> f64 {
-        match self {
-            TernaryOp::Clamp => a.max(b).min(c),
-            TernaryOp::If => {
-                if a != 0.0 {
-                    b
-                } else {
-                    c
-                }
-            }
-        }
+elementwise! {
+    /// Element-wise functions of three arguments.
+    TernaryOp(a, b, c) {
+        /// `(clamp x lo hi)`.
+        Clamp "clamp" => a.max(b).min(c);
+        /// `(if c a b)`: a where c ≠ 0, else b. Both branches are evaluated.
+        If "if" => if a != 0.0 { b } else { c };
     }
 }
 

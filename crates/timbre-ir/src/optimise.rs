@@ -14,6 +14,7 @@
 
 use std::sync::Arc;
 
+use crate::dsp::rotator::DampedSine;
 use crate::graph::{Graph, NodeId};
 use crate::op::{BinaryOp, ImpulseResponse, Op, UnaryOp};
 
@@ -145,7 +146,8 @@ fn damped_sine(graph: &Graph, out: &mut Graph, map: &[NodeId], id: NodeId) -> Op
     };
     let freq = out.add(Op::Const(Arc::from(freq)), vec![]);
     let damping = out.add(Op::Const(Arc::from(damping)), vec![]);
-    let mut product = out.add(Op::DampedSine, vec![map[time.index()], freq, damping]);
+    let damped_sine = Op::Stateful(Arc::new(DampedSine));
+    let mut product = out.add(damped_sine, vec![map[time.index()], freq, damping]);
     for factor in parts {
         product = out.add(
             Op::Binary(BinaryOp::Mul),

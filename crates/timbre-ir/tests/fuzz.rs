@@ -5,14 +5,14 @@ mod common;
 
 use proptest::prelude::*;
 use timbre_ir::{
-    compile_str, CompileOptions, Interpreter, NoFiles, Registry, RenderConfig, BUILTIN_NAMES,
+    catalogue, compile_str, CompileOptions, Interpreter, NoFiles, Registry, RenderConfig,
 };
 
 fn token() -> impl Strategy<Value = String> {
     prop_oneof![
         4 => Just("(".to_string()),
         4 => Just(")".to_string()),
-        4 => proptest::sample::select(BUILTIN_NAMES).prop_map(str::to_string),
+        4 => proptest::sample::select(catalogue::names().collect::<Vec<_>>()).prop_map(str::to_string),
         2 => proptest::sample::select(&["t", "pi", "x", "let", "define", "include", "scene", "f"][..]).prop_map(str::to_string),
         2 => proptest::sample::select(&[":seed", ":q", ":length", ":hold", ":rate", ":loop", ":duration"][..]).prop_map(str::to_string),
         3 => proptest::sample::select(&["0", "1", "-1", "0.5", "3", "440", "1e9", "-1e-9", "2.5", "100000"][..]).prop_map(str::to_string),
@@ -20,64 +20,23 @@ fn token() -> impl Strategy<Value = String> {
     ]
 }
 
-/// Nodes with the number of sound arguments they take (conv and sample are covered
-/// by the token soup and the node tests).
-const ARITIES: &[(&str, usize)] = &[
-    ("+", 2),
-    ("-", 1),
-    ("-", 2),
-    ("*", 3),
-    ("/", 2),
-    ("pow", 2),
-    ("exp", 1),
-    ("log", 1),
-    ("sqrt", 1),
-    ("abs", 1),
-    ("min", 2),
-    ("max", 2),
-    ("clamp", 3),
-    ("sin", 1),
-    ("cos", 1),
-    ("tan", 1),
-    ("tanh", 1),
-    ("floor", 1),
-    ("frac", 1),
-    ("mod", 2),
-    ("<", 2),
-    (">", 2),
-    ("<=", 2),
-    (">=", 2),
-    ("=", 2),
-    ("!=", 2),
-    ("and", 2),
-    ("or", 2),
-    ("not", 1),
-    ("if", 3),
-    ("sine", 1),
-    ("sawtooth", 1),
-    ("square", 1),
-    ("triangle", 1),
-    ("pulse", 2),
-    ("damp", 1),
-    ("noise", 1),
-    ("white", 0),
-    ("pink", 0),
-    ("markov", 1),
-    ("vector", 2),
-    ("vector", 3),
-    ("combine", 1),
-    ("lanes", 1),
-    ("index", 2),
-    ("phasor", 1),
-    ("lowpass", 2),
-    ("highpass", 3),
-    ("bandpass", 3),
-    ("onepole", 2),
-    ("resonator", 3),
-    ("delay", 3),
-    ("env", 3),
-    ("adsr", 5),
-];
+/// Every node of the catalogue with the fewest and the most arguments it takes
+/// (variadic ones with up to three; `conv` and `sample`, whose first arguments are
+/// files, are covered by the token soup and the node tests).
+fn arities() -> &'static [(&'static str, usize)] {
+    static ARITIES: std::sync::OnceLock<Vec<(&'static str, usize)>> = std::sync::OnceLock::new();
+    ARITIES.get_or_init(|| {
+        catalogue::NODES
+            .iter()
+            .filter(|n| !["conv", "sample"].contains(&n.name))
+            .flat_map(|n| {
+                let (min, max) = n.arity();
+                let max = max.unwrap_or(min + 2);
+                [(n.name, min), (n.name, max)]
+            })
+            .collect()
+    })
+}
 
 /// Well-formed calls with random nodes and arguments: gets past the parser and arity
 /// checks so that lowering, folding, width checks and the interpreter are exercised.
@@ -88,8 +47,8 @@ fn call() -> impl Strategy<Value = String> {
     ];
     leaf.prop_recursive(5, 60, 5, |inner| {
         (
-            proptest::sample::select(ARITIES),
-            proptest::collection::vec(inner, 5),
+            proptest::sample::select(arities()),
+            proptest::collection::vec(inner, 6),
         )
             .prop_map(|((head, arity), args)| format!("({head} {})", args[..arity].join(" ")))
     })

@@ -9,8 +9,7 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use timbre_ir::generate::{random_tree, tree_strategy, GenConfig};
 use timbre_ir::{
-    compile_str, CompileOptions, Interpreter, NoFiles, Program, Registry, RenderConfig,
-    BUILTIN_NAMES,
+    catalogue, compile_str, CompileOptions, Interpreter, NoFiles, Program, Registry, RenderConfig,
 };
 
 const TREES: u64 = 2000;
@@ -285,11 +284,7 @@ fn generated_trees_compile_render_and_cover_the_nodes() {
         max_calls = max_calls.max(n);
         max_nesting = max_nesting.max(sx.nesting());
     }
-    let wanted: Vec<&str> = BUILTIN_NAMES
-        .iter()
-        .copied()
-        .filter(|n| *n != "sample")
-        .collect();
+    let wanted: Vec<&str> = catalogue::names().filter(|n| *n != "sample").collect();
     let reached: Vec<&str> = wanted
         .iter()
         .copied()

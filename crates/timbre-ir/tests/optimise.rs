@@ -4,7 +4,6 @@
 mod common;
 
 use common::*;
-use timbre_ir::op::Op;
 use timbre_ir::optimise::optimise;
 use timbre_ir::{Interpreter, RenderConfig};
 
@@ -25,7 +24,7 @@ fn compare(text: &str, seconds: f64) -> (f64, usize) {
     let rotators = graph
         .schedule(new_root)
         .iter()
-        .filter(|n| matches!(graph.node(**n).op, Op::DampedSine))
+        .filter(|n| graph.node(**n).op.kind() == "damped-sine")
         .count();
     let diff = plain
         .iter()

@@ -761,9 +761,10 @@ fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value, unit
             let mask = b.ins().fcmp(FloatCC::Equal, x, zero);
             mask_to_truth(b, mask)
         }
-        // Rare transcendental functions: the interpreter's own, per sample.
-        UnaryOp::Log | UnaryOp::Sin | UnaryOp::Cos | UnaryOp::Tan | UnaryOp::Tanh => {
-            let code = b.ins().iconst(I64, unary_code(op) as i64);
+        // Everything else (rare transcendental functions, and element-wise nodes
+        // with no inline code yet): the interpreter's own, per sample.
+        _ => {
+            let code = b.ins().iconst(I64, op as i64);
             per_lane(b, x, |b, v| {
                 let call = b.ins().call(helpers.unary, &[code, v]);
                 b.inst_results(call)[0]
@@ -824,7 +825,7 @@ fn binary(
             select(b, high, one, minus)
         }
         BinaryOp::Pow => {
-            let code = b.ins().iconst(I64, binary_code(op) as i64);
+            let code = b.ins().iconst(I64, op as i64);
             per_lane2(b, x, y, |b, u, v| {
                 let call = b.ins().call(helpers.binary, &[code, u, v]);
                 b.inst_results(call)[0]
@@ -847,36 +848,18 @@ fn ternary(b: &mut FunctionBuilder, op: TernaryOp, x: Value, y: Value, z: Value)
     }
 }
 
-/// The unary operations called back by number (see `unary_from_code`).
-const UNARY_CALLBACKS: [UnaryOp; 5] = [
-    UnaryOp::Log,
-    UnaryOp::Sin,
-    UnaryOp::Cos,
-    UnaryOp::Tan,
-    UnaryOp::Tanh,
-];
-const BINARY_CALLBACKS: [BinaryOp; 1] = [BinaryOp::Pow];
-
-fn unary_code(op: UnaryOp) -> usize {
-    UNARY_CALLBACKS
-        .iter()
-        .position(|o| *o == op)
-        .expect("a called-back unary op")
-}
-
-fn binary_code(op: BinaryOp) -> usize {
-    BINARY_CALLBACKS
-        .iter()
-        .position(|o| *o == op)
-        .expect("a called-back binary op")
-}
-
+/// A unary operation called back by number: its index in `UnaryOp::ALL`.
 pub(crate) extern "C" fn call_unary(code: u64, x: f64) -> f64 {
-    UNARY_CALLBACKS[code as usize].apply(x)
+    UnaryOp::ALL
+        .get(code as usize)
+        .map_or(f64::NAN, |op| op.apply(x))
 }
 
+/// A binary operation called back by number: its index in `BinaryOp::ALL`.
 pub(crate) extern "C" fn call_binary(code: u64, x: f64, y: f64) -> f64 {
-    BINARY_CALLBACKS[code as usize].apply(x, y)
+    BinaryOp::ALL
+        .get(code as usize)
+        .map_or(f64::NAN, |op| op.apply(x, y))
 }
 
 /// splitmix64's finaliser on a scalar i64, as `timbre_ir::dsp::noise::mix64`.

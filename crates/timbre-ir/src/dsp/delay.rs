@@ -1,6 +1,8 @@
 //! A variable, fractional delay line.
 
-use super::clamp_or;
+use super::{clamp_or, flush};
+use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::op::Description;
 
 /// Largest supported maximum delay, in samples (2²⁸ ≈ 93 minutes at 48 kHz,
 /// a 2 GiB buffer). Larger requests are clamped to this.
@@ -92,6 +94,145 @@ impl DelayLine {
             * t
             * (p2 - p0
                 + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + t * (3.0 * (p1 - p2) + p3 - p0)))
+    }
+}
+
+/// Delay lines, one per lane, long enough for `max_seconds` at the render's rate.
+fn lines(max_seconds: f64, ctx: &StateContext<'_>) -> Vec<DelayLine> {
+    let max = (max_seconds * ctx.config.sample_rate).ceil() as usize;
+    (0..ctx.width).map(|_| DelayLine::new(max)).collect()
+}
+
+/// The `delay` node: `x(t − time)`; arguments: input, delay time in seconds.
+#[derive(Debug)]
+pub struct Delay {
+    pub max_seconds: f64,
+}
+
+impl StatefulKernel for Delay {
+    type State = Vec<DelayLine>;
+
+    fn name(&self) -> &'static str {
+        "delay"
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.f64(self.max_seconds);
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<DelayLine> {
+        lines(self.max_seconds, ctx)
+    }
+
+    fn process(&self, lines: &mut Vec<DelayLine>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        // Never longer than the stated maximum.
+        let max = self.max_seconds * sr;
+        for (lane, line) in lines.iter_mut().enumerate() {
+            let (x, time) = (inputs.lane(0, lane), inputs.lane(1, lane));
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                line.push(x[k]);
+                *y = line.read((time[k] * sr).min(max));
+            }
+        }
+    }
+}
+
+/// The delay of a feedback loop in samples, read from a line whose newest sample
+/// is one sample old: `d − 1`, kept within what a loop can read (one sample at
+/// least, the line's maximum at most).
+#[inline]
+fn loop_read(line: &DelayLine, delay_samples: f64) -> f64 {
+    line.read(clamp_or(delay_samples, 1.0, line.max_delay(), 1.0) - 1.0)
+}
+
+/// The `comb` node: a feedback comb filter, `y[n] = x[n] + g·lp(y)[n − D]`, with
+/// D = delay · rate samples (fractional, cubic), g the feedback and lp an optional
+/// one-pole low-pass in the loop (`damp` in [0, 1): 0 is none). The loop delay is
+/// shortened by the low-pass's delay at low frequencies, d/(1 − d) samples, so the
+/// pitch stays 1/delay. Arguments: input, delay, feedback, damp.
+#[derive(Debug)]
+pub struct Comb {
+    pub max_seconds: f64,
+}
+
+impl StatefulKernel for Comb {
+    /// Per lane: the line of past outputs and the low-pass's last output.
+    type State = Vec<(DelayLine, f64)>;
+
+    fn name(&self) -> &'static str {
+        "comb"
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.f64(self.max_seconds);
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+        // One sample more: the loop reads a line whose newest sample is one old.
+        let seconds = self.max_seconds + 1.0 / ctx.config.sample_rate;
+        lines(seconds, ctx).into_iter().map(|l| (l, 0.0)).collect()
+    }
+
+    fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, (line, lowpassed)) in lanes.iter_mut().enumerate() {
+            let (x, time, feedback, damp) = (
+                inputs.lane(0, lane),
+                inputs.lane(1, lane),
+                inputs.lane(2, lane),
+                inputs.lane(3, lane),
+            );
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                let d = clamp_or(damp[k], 0.0, 0.999, 0.0);
+                let delayed = loop_read(line, time[k] * sr - d / (1.0 - d));
+                *lowpassed = flush((1.0 - d) * delayed + d * *lowpassed);
+                let out = x[k] + feedback[k] * *lowpassed;
+                line.push(if out.is_finite() { out } else { 0.0 });
+                *y = out;
+            }
+        }
+    }
+}
+
+/// The `allpass` node: a Schroeder all-pass, `v[n] = x[n] + g·v[n − D]`,
+/// `y[n] = −g·v[n] + v[n − D]`, with D = delay · rate samples (fractional, cubic).
+/// Arguments: input, delay, gain.
+#[derive(Debug)]
+pub struct Allpass {
+    pub max_seconds: f64,
+}
+
+impl StatefulKernel for Allpass {
+    type State = Vec<DelayLine>;
+
+    fn name(&self) -> &'static str {
+        "allpass"
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.f64(self.max_seconds);
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<DelayLine> {
+        lines(self.max_seconds + 1.0 / ctx.config.sample_rate, ctx)
+    }
+
+    fn process(&self, lines: &mut Vec<DelayLine>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, line) in lines.iter_mut().enumerate() {
+            let (x, time, gain) = (
+                inputs.lane(0, lane),
+                inputs.lane(1, lane),
+                inputs.lane(2, lane),
+            );
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                let delayed = loop_read(line, time[k] * sr);
+                let v = x[k] + gain[k] * delayed;
+                line.push(if v.is_finite() { v } else { 0.0 });
+                *y = delayed - gain[k] * v;
+            }
+        }
     }
 }
 

@@ -2,6 +2,7 @@
 //! time, and a gate-driven linear ADSR.
 
 use super::{clamp_or, sane_rate};
+use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
 
 /// Curvature magnitudes below this are treated as linear.
 const LINEAR_EPS: f64 = 1e-6;
@@ -377,6 +378,34 @@ mod tests {
                         assert!((0.0..=1.0).contains(&v), "{v}");
                     }
                 }
+            }
+        }
+    }
+}
+
+/// The `adsr` node; arguments: gate, attack, decay, sustain, release.
+#[derive(Debug)]
+pub struct AdsrEnvelope;
+
+impl StatefulKernel for AdsrEnvelope {
+    type State = Vec<Adsr>;
+
+    fn name(&self) -> &'static str {
+        "adsr"
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<Adsr> {
+        vec![Adsr::new(); ctx.width]
+    }
+
+    fn process(&self, lanes: &mut Vec<Adsr>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, adsr) in lanes.iter_mut().enumerate() {
+            let args: [&[f64]; 5] = std::array::from_fn(|a| inputs.lane(a, lane));
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                *y = adsr.next(
+                    args[0][k], args[1][k], args[2][k], args[3][k], args[4][k], sr,
+                );
             }
         }
     }

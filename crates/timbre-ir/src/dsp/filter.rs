@@ -9,6 +9,7 @@
 //! filter for good.
 
 use super::{clamp_or, flush, sane_rate};
+use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
 use std::f64::consts::PI;
 
 /// The response type of a [`BiquadCoeffs`].
@@ -388,5 +389,120 @@ mod tests {
         let rc = ResonatorCoeffs::new(1000.0, 100.0, SR);
         r.process(&rc, f64::NAN);
         assert!(r.process(&rc, 1.0).is_finite());
+    }
+}
+
+/// The `lowpass`, `highpass` and `bandpass` nodes; arguments: input, frequency, q.
+/// Coefficients are recomputed only when frequency or q change.
+#[derive(Debug)]
+pub struct Biquad {
+    pub kind: BiquadKind,
+}
+
+impl StatefulKernel for Biquad {
+    type State = Vec<(BiquadState, BiquadCoeffs, [f64; 2])>;
+
+    fn name(&self) -> &'static str {
+        match self.kind {
+            BiquadKind::Lowpass => "lowpass",
+            BiquadKind::Highpass => "highpass",
+            BiquadKind::Bandpass => "bandpass",
+        }
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+        let fresh = (
+            BiquadState::default(),
+            BiquadCoeffs::default(),
+            [f64::NAN; 2],
+        );
+        vec![fresh; ctx.width]
+    }
+
+    fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, (filter, coeffs, last)) in lanes.iter_mut().enumerate() {
+            let (x, f, q) = (
+                inputs.lane(0, lane),
+                inputs.lane(1, lane),
+                inputs.lane(2, lane),
+            );
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                if [f[k], q[k]] != *last {
+                    *last = [f[k], q[k]];
+                    *coeffs = BiquadCoeffs::new(self.kind, f[k], q[k], sr);
+                }
+                *y = filter.process(coeffs, x[k]);
+            }
+        }
+    }
+}
+
+/// The `onepole` node; arguments: input, cutoff.
+#[derive(Debug)]
+pub struct OnePoleLowpass;
+
+impl StatefulKernel for OnePoleLowpass {
+    type State = Vec<(OnePole, f64, f64)>;
+
+    fn name(&self) -> &'static str {
+        "onepole"
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+        vec![(OnePole::default(), 0.0, f64::NAN); ctx.width]
+    }
+
+    fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, (filter, a, last)) in lanes.iter_mut().enumerate() {
+            let (x, f) = (inputs.lane(0, lane), inputs.lane(1, lane));
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                if f[k] != *last {
+                    *last = f[k];
+                    *a = OnePole::coefficient(f[k], sr);
+                }
+                *y = filter.process(*a, x[k]);
+            }
+        }
+    }
+}
+
+/// The `resonator` node; arguments: input, frequency, bandwidth.
+#[derive(Debug)]
+pub struct Resonator;
+
+impl StatefulKernel for Resonator {
+    type State = Vec<(ResonatorState, ResonatorCoeffs, [f64; 2])>;
+
+    fn name(&self) -> &'static str {
+        "resonator"
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+        let fresh = (
+            ResonatorState::default(),
+            ResonatorCoeffs::new(1.0, 1.0, ctx.config.sample_rate),
+            [f64::NAN; 2],
+        );
+        vec![fresh; ctx.width]
+    }
+
+    fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, (filter, coeffs, last)) in lanes.iter_mut().enumerate() {
+            let (x, f, bw) = (
+                inputs.lane(0, lane),
+                inputs.lane(1, lane),
+                inputs.lane(2, lane),
+            );
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                if [f[k], bw[k]] != *last {
+                    *last = [f[k], bw[k]];
+                    *coeffs = ResonatorCoeffs::new(f[k], bw[k], sr);
+                }
+                *y = filter.process(coeffs, x[k]);
+            }
+        }
     }
 }

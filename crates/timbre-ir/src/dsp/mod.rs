@@ -15,14 +15,25 @@
 //! - [`conv`]: zero-latency uniformly partitioned FFT convolution.
 //! - [`envelope`]: curved segment shapes, a pure attack–hold–decay envelope of
 //!   time and a gate-driven ADSR.
-//! - [`wav`]: WAV decoding to mono `f64`, cubic interpolation and resampling.
+//! - [`wav`]: WAV decoding to mono `f64`, cubic interpolation and resampling;
+//!   [`sample`]: the sample player.
+//! - [`control`]: sample and hold (`latch`) and smoothing (`lag`).
+//! - [`blep`]: band-limited sawtooth, square and triangle (PolyBLEP / PolyBLAMP).
+//! - [`rotator`]: damped sines as complex rotators (made by `optimise`).
+//!
+//! The stateful nodes' kernels ([`crate::kernel::StatefulKernel`]) live beside
+//! the building blocks they use.
 
 pub mod analysis;
+pub mod blep;
+pub mod control;
 pub mod conv;
 pub mod delay;
 pub mod envelope;
 pub mod filter;
 pub mod noise;
+pub mod rotator;
+pub mod sample;
 pub mod wav;
 
 /// Default sample rate substituted for a non-finite sample rate.

@@ -7,6 +7,8 @@
 //! themselves deterministic.
 
 use super::{clamp_or, flush, sane_rate};
+use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::op::Description;
 
 /// The splitmix64 output function applied to `x` (i.e. splitmix64's `next()`
 /// for state `x`):
@@ -490,5 +492,71 @@ mod tests {
         let mut p = Pink::new();
         let _ = p.next(f64::NAN);
         assert!(p.next(0.5).is_finite());
+    }
+}
+
+/// The `pink` node: 1/f noise from white noise of the sample index.
+#[derive(Debug)]
+pub struct PinkNoise {
+    pub seed: u64,
+}
+
+impl StatefulKernel for PinkNoise {
+    type State = Pink;
+
+    fn name(&self) -> &'static str {
+        "pink"
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.u64(self.seed);
+    }
+
+    fn width(&self, _args: &[usize]) -> usize {
+        1
+    }
+
+    fn new_state(&self, _ctx: &StateContext<'_>) -> Pink {
+        Pink::new()
+    }
+
+    fn process(&self, pink: &mut Pink, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let n0 = inputs.first_sample;
+        for (k, y) in out.lane(0).iter_mut().enumerate() {
+            *y = pink.next(white(self.seed, n0 + k as u64));
+        }
+    }
+}
+
+/// The `markov` node: per-lane AR(2) noise; argument: rate in Hz.
+#[derive(Debug)]
+pub struct MarkovNoise {
+    pub seed: u64,
+}
+
+impl StatefulKernel for MarkovNoise {
+    type State = Vec<Markov>;
+
+    fn name(&self) -> &'static str {
+        "markov"
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.u64(self.seed);
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<Markov> {
+        vec![Markov::new(); ctx.width]
+    }
+
+    fn process(&self, lanes: &mut Vec<Markov>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let (n0, sr) = (inputs.first_sample, inputs.sample_rate);
+        for (lane, markov) in lanes.iter_mut().enumerate() {
+            let lane_seed = hash2(self.seed, lane as u64);
+            let rate = inputs.lane(0, lane);
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                *y = markov.next(white(lane_seed, n0 + k as u64), rate[k], sr);
+            }
+        }
     }
 }

@@ -15,6 +15,25 @@ pub struct SampleData {
     pub sample_rate: f64,
     /// Mono frames (the average of all channels), nominally in `[-1, 1]`.
     pub frames: Vec<f64>,
+    /// A hash of the rate and frames: the sound's identity in a tree, the same on
+    /// every run (see [`SampleData::new`]).
+    pub content_hash: u64,
+}
+
+impl SampleData {
+    pub fn new(sample_rate: f64, frames: Vec<f64>) -> Self {
+        let mut h = crate::graph::StableHasher::new();
+        h.write_u64(sample_rate.to_bits());
+        h.write_u64(frames.len() as u64);
+        for x in &frames {
+            h.write_u64(x.to_bits());
+        }
+        SampleData {
+            sample_rate,
+            frames,
+            content_hash: h.finish(),
+        }
+    }
 }
 
 /// Why a WAV file could not be decoded.
@@ -128,10 +147,7 @@ pub fn decode_wav(bytes: &[u8]) -> Result<SampleData, WavError> {
             )?;
         }
     }
-    Ok(SampleData {
-        sample_rate: f64::from(spec.sample_rate),
-        frames,
-    })
+    Ok(SampleData::new(f64::from(spec.sample_rate), frames))
 }
 
 /// Averages interleaved samples into mono frames.
@@ -346,12 +362,12 @@ mod tests {
 
     #[test]
     fn resample_keeps_frequency_and_amplitude() {
-        let d = SampleData {
-            sample_rate: 44_100.0,
-            frames: (0..44_100)
+        let d = SampleData::new(
+            44_100.0,
+            (0..44_100)
                 .map(|n| (2.0 * PI * 1000.0 * n as f64 / 44_100.0).sin())
                 .collect(),
-        };
+        );
         let out = resample(&d, 48_000.0);
         assert_eq!(out.len(), 48_000);
         let up = out.windows(2).filter(|w| w[0] < 0.0 && w[1] >= 0.0).count();

@@ -18,28 +18,42 @@ use crate::op::Op;
 
 /// A value the host sets while a sound plays, read by its voice at the start of each
 /// block (so it changes on block boundaries). Setting it takes no lock.
+///
+/// In a tree, a variable is known by the name of the parameter it is bound to, never
+/// by its address, so random nodes that read it are seeded the same on every run.
 #[derive(Clone, Debug)]
-pub struct Variable(Arc<AtomicU64>);
+pub struct Variable {
+    cell: Arc<AtomicU64>,
+    name: Arc<str>,
+}
 
 impl Variable {
     pub fn new(value: f64) -> Self {
-        Variable(Arc::new(AtomicU64::new(value.to_bits())))
+        Variable {
+            cell: Arc::new(AtomicU64::new(value.to_bits())),
+            name: Arc::from(""),
+        }
     }
 
     pub fn set(&self, value: f64) {
-        self.0.store(value.to_bits(), Ordering::Relaxed);
+        self.cell.store(value.to_bits(), Ordering::Relaxed);
     }
 
     pub fn get(&self) -> f64 {
-        f64::from_bits(self.0.load(Ordering::Relaxed))
+        f64::from_bits(self.cell.load(Ordering::Relaxed))
     }
 
-    pub(crate) fn same(&self, other: &Variable) -> bool {
-        Arc::ptr_eq(&self.0, &other.0)
+    /// The name it is known by in a tree (the parameter it is bound to).
+    pub fn name(&self) -> &str {
+        &self.name
     }
 
-    pub(crate) fn address(&self) -> u64 {
-        Arc::as_ptr(&self.0) as usize as u64
+    /// The same variable, known by `name`.
+    pub(crate) fn named(&self, name: &str) -> Variable {
+        Variable {
+            cell: self.cell.clone(),
+            name: Arc::from(name),
+        }
     }
 }
 
@@ -212,7 +226,7 @@ impl Library {
             let node = match value {
                 ParamValue::Constant(x) => lowerer.graph.constant(*x),
                 ParamValue::Keyframes(track) => lowerer.keyframe_node(track.clone()),
-                ParamValue::Variable(v) => lowerer.graph.add(Op::Variable(v.clone()), vec![]),
+                ParamValue::Variable(v) => lowerer.graph.add(Op::Variable(v.named(name)), vec![]),
             };
             scope.push((name.to_string(), node));
         }

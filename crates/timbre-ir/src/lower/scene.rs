@@ -44,7 +44,7 @@ struct Options<'e> {
 }
 
 impl<'e> Options<'e> {
-    fn get(&self, key: &str) -> Option<&'e Expr> {
+    pub(crate) fn get(&self, key: &str) -> Option<&'e Expr> {
         self.pairs
             .iter()
             .find(|(k, _, _)| *k == key)
@@ -129,7 +129,7 @@ impl Lowerer<'_> {
         }
     }
 
-    pub(super) fn read_keyframes(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+    pub(crate) fn read_keyframes(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
         let items = form.as_list().unwrap_or_default();
         let usage = "(keyframes name :interp linear (0 0.2) (1 0.9)) or (keyframes name :csv \"motion.csv\" :column \"force\" :frame-rate 24)";
         let Some((name, name_span)) = items
@@ -331,7 +331,7 @@ impl Lowerer<'_> {
 
     /// A keyframed variable read on the scene's timeline: in an instance, scene time
     /// is its local t plus its start.
-    pub(super) fn keyframe_node(&mut self, track: Arc<KeyframeTrack>) -> NodeId {
+    pub(crate) fn keyframe_node(&mut self, track: Arc<KeyframeTrack>) -> NodeId {
         let t = self.graph.add(Op::Time, vec![]);
         let offset = self.graph.constant(self.time_offset);
         let scene_time = self.graph.add(Op::Binary(BinaryOp::Add), vec![t, offset]);
@@ -339,7 +339,7 @@ impl Lowerer<'_> {
     }
 
     /// Lowers one `(instance name (class …) :start s :stop s :gain g)`.
-    pub(super) fn lower_instance(
+    pub(crate) fn lower_instance(
         &mut self,
         form: &Expr,
         origin: &Origin,
@@ -566,13 +566,13 @@ impl Lowerer<'_> {
     }
 
     /// A new global name must not clash with built-ins, trees or keyframes.
-    pub(super) fn check_new_name(
+    pub(crate) fn check_new_name(
         &self,
         name: &str,
         span: Span,
         origin: &Origin,
     ) -> Result<(), Diag> {
-        if super::is_builtin(name)
+        if crate::catalogue::lookup(name).is_some()
             || super::is_reserved(name)
             || self.options.registry.get(name).is_some()
         {
@@ -594,6 +594,120 @@ impl Lowerer<'_> {
                 )
                 .label(span, "defined again here")
                 .help("rename one of them"));
+        }
+        Ok(())
+    }
+
+    /// `(scene :sample-rate … :duration … :seed … :channels …)`: render settings.
+    pub(crate) fn read_scene(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+        if let Some((first, source)) = &self.scene_span {
+            let mut diag = Diag::new("timbre::duplicate-scene", "the file has two `scene` forms")
+                .label(form.span, "second `scene`");
+            if Arc::ptr_eq(source, &origin.source) {
+                diag = diag.label(*first, "first `scene`");
+            }
+            return Err(diag
+                .help("merge the settings into one `scene` form")
+                .in_source(&origin.source));
+        }
+        self.scene_span = Some((form.span, origin.source.clone()));
+        let items = form.as_list().unwrap_or_default();
+        let args = &items[1..];
+        let err = |span: Span, msg: String, label: &str, help: &str| {
+            Diag::new("timbre::bad-scene", msg)
+                .label(span, label)
+                .help(help)
+                .in_source(&origin.source)
+        };
+        let known = ":sample-rate, :duration, :seed, :channels";
+        let mut i = 0;
+        while i < args.len() {
+            let ExprKind::Keyword(key) = &args[i].kind else {
+                return Err(err(
+                    args[i].span,
+                    format!("expected a setting keyword, found {}", args[i].describe()),
+                    "expected a keyword",
+                    &format!("settings are {known}"),
+                ));
+            };
+            let Some(value_expr) = args.get(i + 1) else {
+                return Err(err(
+                    args[i].span,
+                    format!("setting `:{key}` has no value"),
+                    "needs a value",
+                    "write e.g. `:duration 4.0`",
+                ));
+            };
+            let ExprKind::Number(value) = value_expr.kind else {
+                return Err(err(
+                    value_expr.span,
+                    format!(
+                        "setting `:{key}` must be a number, not {}",
+                        value_expr.describe()
+                    ),
+                    "expected a number",
+                    "write e.g. `:duration 4.0`",
+                ));
+            };
+            match key.as_str() {
+                "sample-rate"
+                    if (1000.0..=1_536_000.0).contains(&value) && value.fract() == 0.0 =>
+                {
+                    self.settings.sample_rate = Some(value)
+                }
+                "sample-rate" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!(
+                            "sample rate {value} is not a whole number of Hz from 1000 to 1536000"
+                        ),
+                        "not a usable sample rate",
+                        "use a rate between 1000 and 1536000 Hz, e.g. 48000",
+                    ))
+                }
+                "duration" if value > 0.0 && value.is_finite() => {
+                    self.settings.duration = Some(value)
+                }
+                "duration" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("duration {value} is not positive"),
+                        "expected seconds > 0",
+                        "write e.g. `:duration 4.0`",
+                    ))
+                }
+                "seed" if value >= 0.0 && value.fract() == 0.0 && value < 2f64.powi(53) => {
+                    self.settings.seed = value as u64
+                }
+                "channels" if (1.0..=64.0).contains(&value) && value.fract() == 0.0 => {
+                    self.settings.channels = Some(value as usize)
+                }
+                "channels" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("{value} is not a number of channels"),
+                        "expected 1 to 64",
+                        "write e.g. `:channels 2`",
+                    ))
+                }
+                "seed" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("seed {value} is not a whole number"),
+                        "expected a whole number ≥ 0",
+                        "write e.g. `:seed 7`",
+                    ))
+                }
+                _ => {
+                    return Err(err(
+                        args[i].span,
+                        format!("unknown scene setting `:{key}`"),
+                        "not a setting",
+                        &format!("settings are {known}"),
+                    ));
+                }
+            }
+            i += 2;
         }
         Ok(())
     }

@@ -1,0 +1,185 @@
+//! The damped-sine node made by [`crate::optimise`]: sin(2π·F·τ)·e^(−D·τ) as a
+//! complex rotator per lane, re-anchored exactly wherever τ jumps and every
+//! [`ANCHOR_INTERVAL`] samples. It is never written by a user: it is the faster form
+//! of `(* (sine (* τ F)) (damp (* τ D)))` that compiled engines render.
+
+use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::op::frac;
+
+/// The `damped-sine` node; arguments τ (a time, one lane), constant F and D.
+#[derive(Debug)]
+pub struct DampedSine;
+
+impl StatefulKernel for DampedSine {
+    type State = RotatorBank;
+
+    fn name(&self) -> &'static str {
+        "damped-sine"
+    }
+
+    fn new_state(&self, ctx: &StateContext<'_>) -> RotatorBank {
+        RotatorBank {
+            lanes: vec![Rotator::default(); ctx.width],
+            last_time: None,
+        }
+    }
+
+    fn process(&self, bank: &mut RotatorBank, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        // F and D are constants, so the first sample of each lane is its value.
+        let time = inputs.lane(0, 0);
+        let freq = |l: usize| inputs.lane(1, l)[0];
+        let damping = |l: usize| inputs.lane(2, l)[0];
+        let n = out.n;
+        let (samples, stride) = out.strided();
+        let block = BlockOut { samples, stride, n };
+        bank.render(
+            time,
+            &freq,
+            &damping,
+            inputs.first_sample,
+            inputs.sample_rate,
+            block,
+        );
+    }
+}
+
+/// Samples between exact re-anchorings of a rotator. Anchors sit at fixed sample
+/// positions, so output does not depend on how a render is split into blocks.
+const ANCHOR_INTERVAL: u64 = 512;
+
+/// One lane of a damped sine, sin(2π·F·τ)·e^(−D·τ), as a complex number z rotated by
+/// r = e^((−D + 2πiF)/sr) each sample.
+#[derive(Clone, Copy, Debug, Default)]
+struct Rotator {
+    z: (f64, f64),
+    step: (f64, f64),
+    /// The (freq, damping, rate) `step` was computed for; None before the first block.
+    key: Option<(f64, f64, f64)>,
+}
+
+impl Rotator {
+    /// Prepares for these parameters; true if z must be anchored now.
+    fn prepare(&mut self, freq: f64, damping: f64, sr: f64) -> bool {
+        if self.key == Some((freq, damping, sr)) {
+            return false;
+        }
+        let decay = (-damping / sr).exp();
+        let angle = std::f64::consts::TAU * frac(freq / sr);
+        self.step = (decay * angle.cos(), decay * angle.sin());
+        self.key = Some((freq, damping, sr));
+        true
+    }
+
+    /// Sets z exactly as the plain tree computes it at time τ.
+    fn anchor(&mut self, freq: f64, damping: f64, time: f64) {
+        let amplitude = (-(time * damping)).exp();
+        let angle = std::f64::consts::TAU * frac(time * freq);
+        self.z = (amplitude * angle.cos(), amplitude * angle.sin());
+    }
+}
+
+/// The rotators of one damped-sine node, and the last time they were rendered at.
+/// z is recomputed exactly from τ wherever τ does not advance by one sample period
+/// (a re-strike, a jump), and every [`ANCHOR_INTERVAL`] samples, so rounding never
+/// accumulates beyond that.
+#[derive(Clone, Debug)]
+pub struct RotatorBank {
+    lanes: Vec<Rotator>,
+    last_time: Option<f64>,
+}
+
+/// Where a block of a node goes: `n` samples per lane, lane `l` at `l·stride`.
+struct BlockOut<'a> {
+    samples: &'a mut [f64],
+    stride: usize,
+    n: usize,
+}
+
+/// Whether time moved from `previous` to `next` by one sample period.
+fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
+    previous.is_some_and(|p| ((next - p) * sr - 1.0).abs() <= 1e-6)
+}
+
+impl RotatorBank {
+    /// Renders a block of every lane. Lanes are advanced four at a time so that their
+    /// multiplications overlap.
+    fn render(
+        &mut self,
+        time: &[f64],
+        freq: &dyn Fn(usize) -> f64,
+        damping: &dyn Fn(usize) -> f64,
+        first_sample: u64,
+        sr: f64,
+        block: BlockOut<'_>,
+    ) {
+        let BlockOut {
+            samples: out,
+            stride,
+            n,
+        } = block;
+        let mut fresh = false;
+        for (lane, r) in self.lanes.iter_mut().enumerate() {
+            fresh |= r.prepare(freq(lane), damping(lane), sr);
+        }
+        let at_anchor = |k: usize| (first_sample + k as u64).is_multiple_of(ANCHOR_INTERVAL);
+        let mut k = 0;
+        while k < n {
+            if fresh || at_anchor(k) || !advances(self.last_time, time[k], sr) {
+                for (lane, r) in self.lanes.iter_mut().enumerate() {
+                    r.anchor(freq(lane), damping(lane), time[k]);
+                }
+                fresh = false;
+            }
+            // The segment runs until the next anchor or jump.
+            let mut end = k + 1;
+            while end < n && !at_anchor(end) && advances(Some(time[end - 1]), time[end], sr) {
+                end += 1;
+            }
+            self.rotate(k..end, out, stride);
+            self.last_time = Some(time[end - 1]);
+            k = end;
+        }
+    }
+
+    /// Writes samples `range` of every lane and advances the rotators past them.
+    fn rotate(&mut self, range: std::ops::Range<usize>, out: &mut [f64], stride: usize) {
+        let mut groups = self.lanes.chunks_exact_mut(4);
+        let mut lane = 0;
+        for group in &mut groups {
+            let mut re = [group[0].z.0, group[1].z.0, group[2].z.0, group[3].z.0];
+            let mut im = [group[0].z.1, group[1].z.1, group[2].z.1, group[3].z.1];
+            let cr = [
+                group[0].step.0,
+                group[1].step.0,
+                group[2].step.0,
+                group[3].step.0,
+            ];
+            let ci = [
+                group[0].step.1,
+                group[1].step.1,
+                group[2].step.1,
+                group[3].step.1,
+            ];
+            for j in range.clone() {
+                for q in 0..4 {
+                    out[(lane + q) * stride + j] = im[q];
+                    (re[q], im[q]) = (re[q] * cr[q] - im[q] * ci[q], re[q] * ci[q] + im[q] * cr[q]);
+                }
+            }
+            for q in 0..4 {
+                group[q].z = (re[q], im[q]);
+            }
+            lane += 4;
+        }
+        for r in groups.into_remainder() {
+            let (mut re, mut im) = r.z;
+            let (cr, ci) = r.step;
+            for j in range.clone() {
+                out[lane * stride + j] = im;
+                (re, im) = (re * cr - im * ci, re * ci + im * cr);
+            }
+            r.z = (re, im);
+            lane += 1;
+        }
+    }
+}

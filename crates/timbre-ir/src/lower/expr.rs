@@ -1,0 +1,428 @@
+//! Expression lowering: numbers, names, `let`, calls of built-in nodes (through
+//! the catalogue), of named trees (expanded, memoised) and of host nodes.
+
+use std::sync::Arc;
+
+use timbre_syntax::{Expr, ExprKind, Span};
+
+use super::{
+    plural, Arg, Bound, Call, Definition, Lowerer, Origin, Scope, MAX_LANES, MAX_LOWER_DEPTH,
+};
+use crate::catalogue::{self, Build, NodeSpec, Param, Width};
+use crate::custom::CustomNode;
+use crate::error::Diag;
+use crate::graph::NodeId;
+use crate::op::{BinaryOp, Op};
+
+impl Lowerer<'_> {
+    // ---------------------------------------------------------------- expressions
+
+    pub(crate) fn lower(
+        &mut self,
+        expr: &Expr,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        self.depth += 1;
+        let result = if self.depth > MAX_LOWER_DEPTH {
+            Err(self
+                .diag("timbre::too-deep", "expression nests too deeply", origin)
+                .label(expr.span, "nested too deeply")
+                .help(format!(
+                    "trees may nest at most {MAX_LOWER_DEPTH} levels, counting named trees"
+                )))
+        } else {
+            self.lower_inner(expr, origin, scope)
+        };
+        self.depth -= 1;
+        result
+    }
+
+    pub(crate) fn lower_inner(
+        &mut self,
+        expr: &Expr,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        match &expr.kind {
+            ExprKind::Number(x) => Ok(self.graph.constant(*x)),
+            ExprKind::Symbol(name) => self.lower_symbol(name, expr.span, origin, scope),
+            ExprKind::Str(_) => Err(self
+                .diag(
+                    "timbre::unexpected-string",
+                    "a string is not a sound",
+                    origin,
+                )
+                .label(expr.span, "unexpected string")
+                .help("strings name files, as in (sample \"hit.wav\") or (conv x \"room.wav\")")),
+            ExprKind::Keyword(k) => Err(self
+                .diag(
+                    "timbre::unexpected-keyword",
+                    format!("keyword `:{k}` outside a call"),
+                    origin,
+                )
+                .label(expr.span, "unexpected keyword")
+                .help("keywords name arguments inside a call, as in (white :seed 2)")),
+            ExprKind::List(items) => self.lower_call(expr, items, origin, scope),
+        }
+    }
+
+    pub(crate) fn lower_symbol(
+        &mut self,
+        name: &str,
+        span: Span,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        if let Some((_, node)) = scope.iter().rev().find(|(n, _)| n == name) {
+            return Ok(*node);
+        }
+        match name {
+            "t" => return Ok(self.graph.add(Op::Time, vec![])),
+            "pi" => return Ok(self.graph.constant(std::f64::consts::PI)),
+            _ => {}
+        }
+        if let Some(value) = self.options.bindings.get(name) {
+            self.used_bindings.insert(name.to_owned());
+            return Ok(self.graph.constant(*value));
+        }
+        if let Some(track) = self.keyframes.get(name) {
+            let track = track.clone();
+            return Ok(self.keyframe_node(track));
+        }
+        if let Some(def) = self.definitions.get(name) {
+            if def.params.is_empty() {
+                let def = def.clone();
+                return self.expand(name, &def, &[], span, origin, scope);
+            }
+            let n = def.params.len();
+            return Err(self
+                .diag(
+                    "timbre::tree-as-value",
+                    format!(
+                        "`{name}` is a tree of {n} parameter{} and must be called",
+                        plural(n)
+                    ),
+                    origin,
+                )
+                .label(span, "used without arguments")
+                .help(format!(
+                    "call it: ({name} {})",
+                    def.params
+                        .iter()
+                        .map(|(p, _)| p.as_str())
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                )));
+        }
+        if catalogue::lookup(name).is_some() || self.options.registry.get(name).is_some() {
+            return Err(self
+                .diag(
+                    "timbre::node-as-value",
+                    format!("`{name}` is a node and must be called"),
+                    origin,
+                )
+                .label(span, "used without parentheses")
+                .help(format!("call it: ({name} …)")));
+        }
+        let mut candidates: Vec<&str> = scope.iter().map(|(n, _)| n.as_str()).collect();
+        candidates.extend(self.definitions.keys().map(String::as_str));
+        candidates.extend(self.options.bindings.keys().map(String::as_str));
+        candidates.extend(["t", "pi"]);
+        let help = match super::did_you_mean(name, candidates) {
+            Some(close) => format!("did you mean `{close}`? Otherwise give `{name}` a value: `--set {name}=VALUE` on the command line, or (define {name} VALUE)"),
+            None => format!("give it a value: `--set {name}=VALUE` on the command line, or (define {name} VALUE)"),
+        };
+        Err(self
+            .diag(
+                "timbre::unbound-parameter",
+                format!("unbound parameter `{name}`"),
+                origin,
+            )
+            .label(span, "no value for this parameter")
+            .help(help))
+    }
+
+    pub(crate) fn lower_call(
+        &mut self,
+        expr: &Expr,
+        items: &[Expr],
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        let Some(head) = items.first() else {
+            return Err(self
+                .diag("timbre::empty-call", "empty list", origin)
+                .label(expr.span, "nothing to call")
+                .help("a call names a node first, as in (sine (* t 440))"));
+        };
+        let Some(name) = head.as_symbol() else {
+            return Err(self
+                .diag(
+                    "timbre::not-callable",
+                    format!("expected a node name, found {}", head.describe()),
+                    origin,
+                )
+                .label(head.span, "not a node name")
+                .help("a call names a node first, as in (sine (* t 440))"));
+        };
+        let call = Call {
+            name,
+            span: expr.span,
+            args: &items[1..],
+        };
+        match name {
+            "let" => return self.lower_let(&call, origin, scope),
+            _ if super::FORMS.contains(&name) => {
+                return Err(self
+                    .diag(
+                        "timbre::misplaced-form",
+                        format!("`{name}` is only allowed at the top level"),
+                        origin,
+                    )
+                    .label(head.span, "inside an expression")
+                    .help(format!(
+                        "move the `{name}` form out to the top level of the file"
+                    )))
+            }
+            _ => {}
+        }
+        if let Some(def) = self.definitions.get(name) {
+            let def = def.clone();
+            return self.expand(name, &def, call.args, expr.span, origin, scope);
+        }
+        if let Some(spec) = catalogue::lookup(name) {
+            return self.lower_builtin(&call, spec, origin, scope);
+        }
+        if let Some(node) = self.options.registry.get(name).cloned() {
+            return self.lower_custom(&call, node, origin, scope);
+        }
+        let mut candidates: Vec<&str> = catalogue::names().collect();
+        candidates.extend(self.definitions.keys().map(String::as_str));
+        candidates.extend(self.options.registry.names());
+        candidates.extend(super::FORMS);
+        let help = match super::did_you_mean(name, candidates) {
+            Some(close) => format!("did you mean `{close}`?"),
+            None => "see lang-spec/nodes.md for the nodes there are, or define it with (define …)"
+                .into(),
+        };
+        Err(self
+            .diag(
+                "timbre::unknown-function",
+                format!("unknown function `{name}`"),
+                origin,
+            )
+            .label(head.span, "not a node or a defined tree")
+            .help(help))
+    }
+
+    pub(crate) fn lower_let(
+        &mut self,
+        call: &Call<'_>,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        let shape = "write (let ((name value) …) body)";
+        let [bindings, body] = call.args else {
+            return Err(self
+                .diag(
+                    "timbre::bad-let",
+                    "`let` takes a list of bindings and one body",
+                    origin,
+                )
+                .label(call.span, "malformed `let`")
+                .help(shape));
+        };
+        let Some(bindings) = bindings.as_list() else {
+            return Err(self
+                .diag(
+                    "timbre::bad-let",
+                    format!("`let` bindings must be a list, not {}", bindings.describe()),
+                    origin,
+                )
+                .label(bindings.span, "expected ((name value) …)")
+                .help(shape));
+        };
+        let mark = scope.len();
+        for binding in bindings {
+            let (name, value) = match binding.as_list() {
+                Some([name, value]) if name.as_symbol().is_some() => (name, value),
+                _ => {
+                    scope.truncate(mark);
+                    return Err(self
+                        .diag("timbre::bad-let", "a binding must be (name value)", origin)
+                        .label(binding.span, "malformed binding")
+                        .help(shape));
+                }
+            };
+            let bound_name = name.as_symbol().unwrap_or_default();
+            if super::is_reserved(bound_name) {
+                scope.truncate(mark);
+                return Err(self
+                    .diag(
+                        "timbre::reserved-name",
+                        format!("`{bound_name}` is reserved and cannot be bound by `let`"),
+                        origin,
+                    )
+                    .label(name.span, "reserved name")
+                    .help("choose another name"));
+            }
+            let node = match self.lower(value, origin, scope) {
+                Ok(node) => node,
+                Err(e) => {
+                    scope.truncate(mark);
+                    return Err(e);
+                }
+            };
+            // Each binding sees the ones before it.
+            scope.push((name.as_symbol().unwrap_or_default().to_owned(), node));
+        }
+        let result = self.lower(body, origin, scope);
+        scope.truncate(mark);
+        result
+    }
+
+    /// Expands a named tree at a call site: its body, with parameters bound to the
+    /// call's arguments, in a scope of its own.
+    pub(crate) fn expand(
+        &mut self,
+        name: &str,
+        def: &Definition,
+        args: &[Expr],
+        span: Span,
+        origin: &Origin,
+        caller_scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        if self.expanding.iter().any(|n| n == name) {
+            return Err(self
+                .diag(
+                    "timbre::recursive-define",
+                    format!("`{name}` uses itself"),
+                    origin,
+                )
+                .label(span, "recursive use")
+                .help("timbre trees are finite: a named tree cannot contain itself"));
+        }
+        let params: Vec<Param> = def
+            .params
+            .iter()
+            .map(|(p, _)| Param {
+                name: p,
+                default: None,
+            })
+            .collect();
+        let call = Call { name, span, args };
+        let bound = self.bind_args(&call, &params, false, false, origin, caller_scope)?;
+        let arg_nodes: Vec<NodeId> = bound.args.iter().flatten().map(|a| a.node).collect();
+        // The body depends only on the arguments (and, through keyframes, on the
+        // instance's start): the same call again is the same node.
+        let key = (name.to_owned(), arg_nodes, self.time_offset.to_bits());
+        if let Some(node) = self.expansions.get(&key) {
+            return Ok(*node);
+        }
+        let mut scope: Scope = def
+            .params
+            .iter()
+            .map(|(p, _)| p.clone())
+            .zip(key.1.iter().copied())
+            .collect();
+        let def_origin = Origin {
+            source: def.source.clone(),
+            dir: def.dir.clone(),
+        };
+        self.expanding.push(name.to_owned());
+        let result = self.lower(&def.body, &def_origin, &mut scope);
+        self.expanding.pop();
+        if let Ok(node) = result {
+            self.expansions.insert(key, node);
+        }
+        result
+    }
+
+    pub(crate) fn lower_custom(
+        &mut self,
+        call: &Call<'_>,
+        node: Arc<dyn CustomNode>,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        let arity = node.arity();
+        if !arity.contains(&call.args.len()) {
+            return Err(self.arity_error(call, *arity.start(), Some(*arity.end()), origin));
+        }
+        let mut args = vec![];
+        for arg in call.args {
+            args.push(self.lower(arg, origin, scope)?);
+        }
+        let widths: Vec<usize> = args.iter().map(|a| self.graph.width(*a)).collect();
+        if let Err(message) = node.output_width(&widths) {
+            return Err(self
+                .diag(
+                    "timbre::width-mismatch",
+                    format!("`{}` cannot take {message}", call.name),
+                    origin,
+                )
+                .label(call.span, format!("argument widths {widths:?}"))
+                .help("make the arguments' lane counts fit what the node accepts"));
+        }
+        Ok(self.graph.add(Op::Custom(node), args))
+    }
+
+    // ------------------------------------------------------------------- builtins
+
+    /// A call of a built-in node: its arguments bound to the catalogue entry's
+    /// parameters, checked, and built.
+    pub(crate) fn lower_builtin(
+        &mut self,
+        call: &Call<'_>,
+        spec: &NodeSpec,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        let build = match spec.build {
+            Build::Form(form) => return form(self, call, origin, scope),
+            build => build,
+        };
+        let bound = self.bind_args(call, spec.params, spec.variadic, spec.random, origin, scope)?;
+        let seed = match &bound.keyword_seed {
+            Some(arg) => Some(self.const_integer(arg, "seed", origin)?),
+            None => None,
+        };
+        let args: Vec<Arg> = bound.args.into_iter().flatten().collect();
+        if spec.width == Width::Broadcast {
+            self.check_widths(call, &args, origin)?;
+        }
+        let nodes: Vec<NodeId> = args.iter().map(|a| a.node).collect();
+        let result = match build {
+            Build::Unary(op) => self.graph.add(Op::Unary(op), nodes),
+            Build::Binary(op) => self.graph.add(Op::Binary(op), nodes),
+            Build::Ternary(op) => self.graph.add(Op::Ternary(op), nodes),
+            // One argument: its truth value, (and x x).
+            Build::Fold(op @ (BinaryOp::And | BinaryOp::Or)) if nodes.len() == 1 => {
+                self.graph.add(Op::Binary(op), vec![nodes[0], nodes[0]])
+            }
+            Build::Fold(op) => {
+                let mut acc = nodes[0];
+                for next in &nodes[1..] {
+                    acc = self.graph.add(Op::Binary(op), vec![acc, *next]);
+                }
+                acc
+            }
+            Build::Args(build) => {
+                let bound = Bound {
+                    call,
+                    args,
+                    seed,
+                    origin,
+                };
+                build(self, &bound)?
+            }
+            Build::Form(form) => form(self, call, origin, scope)?,
+        };
+        if self.graph.width(result) > MAX_LANES {
+            let w = self.graph.width(result);
+            return Err(self.too_wide(call.span, w, origin));
+        }
+        Ok(result)
+    }
+}
