@@ -97,6 +97,9 @@ pub struct NodeSpec {
     pub width: Width,
     /// The heading of the `lang-spec/nodes.md` section that defines it.
     pub section: &'static str,
+    /// A one-lane tree that exercises the node (rendered under both engines by the
+    /// differential tests); empty where that needs a file (`sample`).
+    pub example: &'static str,
     pub(crate) build: Build,
 }
 
@@ -106,6 +109,7 @@ impl NodeSpec {
         params: &'static [Param<'static>],
         section: &'static str,
         build: Build,
+        example: &'static str,
     ) -> Self {
         NodeSpec {
             name,
@@ -115,6 +119,7 @@ impl NodeSpec {
             kind: Kind::Pure,
             width: Width::Broadcast,
             section,
+            example,
             build,
         }
     }
@@ -179,129 +184,419 @@ const AB: &[Param<'static>] = &[p("a"), p("b")];
 const BIQUAD: &[Param<'static>] = &[p("x"), p("freq"), opt("q", std::f64::consts::FRAC_1_SQRT_2)];
 
 /// Every built-in node. (`let` and the top-level forms are not nodes: see
-/// `lower::forms`.)
+/// `lower::forms`.) The last argument of each entry is an example: a one-lane
+/// tree that exercises the node, which the differential tests render under both
+/// engines.
 pub static NODES: &[NodeSpec] = &[
     // Arithmetic and maths.
-    NodeSpec::new("+", X, MATHS, Build::Fold(BinaryOp::Add)).variadic(),
-    NodeSpec::new("*", X, MATHS, Build::Fold(BinaryOp::Mul)).variadic(),
-    NodeSpec::new("-", X, MATHS, Build::Args(minus)).variadic(),
-    NodeSpec::new("/", X, MATHS, Build::Args(divide)).variadic(),
-    NodeSpec::new("min", X, MATHS, Build::Fold(BinaryOp::Min)).variadic(),
-    NodeSpec::new("max", X, MATHS, Build::Fold(BinaryOp::Max)).variadic(),
+    NodeSpec::new(
+        "+",
+        X,
+        MATHS,
+        Build::Fold(BinaryOp::Add),
+        "(+ (sine (* t 440)) 0.25 (* 0.1 t))",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "*",
+        X,
+        MATHS,
+        Build::Fold(BinaryOp::Mul),
+        "(* (sine (* t 440)) (sine (* t 3)) 0.5)",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "-",
+        X,
+        MATHS,
+        Build::Args(minus),
+        "(- (- (sine (* t 440))) (* 0.1 t) 0.25)",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "/",
+        X,
+        MATHS,
+        Build::Args(divide),
+        "(/ (sine (* t 440)) (+ 2 t) (/ (+ 3 (sine t))))",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "min",
+        X,
+        MATHS,
+        Build::Fold(BinaryOp::Min),
+        "(min (sine (* t 440)) (sine (* t 330)) 0.5)",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "max",
+        X,
+        MATHS,
+        Build::Fold(BinaryOp::Max),
+        "(max (sine (* t 440)) (sine (* t 330)) -0.5)",
+    )
+    .variadic(),
     NodeSpec::new(
         "pow",
         &[p("base"), p("exponent")],
         MATHS,
         Build::Binary(BinaryOp::Pow),
+        "(pow (+ 1.5 (sine (* t 440))) (+ 1 t))",
     ),
     NodeSpec::new(
         "mod",
         &[p("x"), p("divisor")],
         MATHS,
         Build::Binary(BinaryOp::Mod),
+        "(mod (* t 440) (+ 1 (* 0.5 (sine t))))",
     ),
-    NodeSpec::new("exp", X, MATHS, Build::Unary(UnaryOp::Exp)),
-    NodeSpec::new("log", X, MATHS, Build::Unary(UnaryOp::Log)),
-    NodeSpec::new("sqrt", X, MATHS, Build::Unary(UnaryOp::Sqrt)),
-    NodeSpec::new("abs", X, MATHS, Build::Unary(UnaryOp::Abs)),
-    NodeSpec::new("sin", X, MATHS, Build::Unary(UnaryOp::Sin)),
-    NodeSpec::new("cos", X, MATHS, Build::Unary(UnaryOp::Cos)),
-    NodeSpec::new("tan", X, MATHS, Build::Unary(UnaryOp::Tan)),
-    NodeSpec::new("tanh", X, MATHS, Build::Unary(UnaryOp::Tanh)),
-    NodeSpec::new("floor", X, MATHS, Build::Unary(UnaryOp::Floor)),
-    NodeSpec::new("frac", X, MATHS, Build::Unary(UnaryOp::Frac)),
+    NodeSpec::new(
+        "exp",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Exp),
+        "(exp (sine (* t 440)))",
+    ),
+    NodeSpec::new(
+        "log",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Log),
+        "(log (+ 1.5 (sine (* t 440))))",
+    ),
+    NodeSpec::new(
+        "sqrt",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Sqrt),
+        "(sqrt (+ 1 (sine (* t 440))))",
+    ),
+    NodeSpec::new(
+        "abs",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Abs),
+        "(abs (sine (* t 440.7)))",
+    ),
+    NodeSpec::new(
+        "sin",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Sin),
+        "(sin (* t 2765))",
+    ),
+    NodeSpec::new(
+        "cos",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Cos),
+        "(cos (* t 2765))",
+    ),
+    NodeSpec::new(
+        "tan",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Tan),
+        "(* 0.1 (tan (* t 7)))",
+    ),
+    NodeSpec::new(
+        "tanh",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Tanh),
+        "(tanh (* 4 (sine (* t 440))))",
+    ),
+    NodeSpec::new(
+        "floor",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Floor),
+        "(* 0.1 (floor (* 4 (sine (* t 440.7)))))",
+    ),
+    NodeSpec::new(
+        "frac",
+        X,
+        MATHS,
+        Build::Unary(UnaryOp::Frac),
+        "(frac (* t 440))",
+    ),
     NodeSpec::new(
         "clamp",
         &[p("x"), p("lo"), p("hi")],
         MATHS,
         Build::Ternary(TernaryOp::Clamp),
+        "(clamp (* 2 (sine (* t 440))) -0.5 (sine t))",
     ),
     // Comparisons and logic.
-    NodeSpec::new("<", AB, LOGIC, Build::Binary(BinaryOp::Lt)),
-    NodeSpec::new(">", AB, LOGIC, Build::Binary(BinaryOp::Gt)),
-    NodeSpec::new("<=", AB, LOGIC, Build::Binary(BinaryOp::Le)),
-    NodeSpec::new(">=", AB, LOGIC, Build::Binary(BinaryOp::Ge)),
-    NodeSpec::new("=", AB, LOGIC, Build::Binary(BinaryOp::Eq)),
-    NodeSpec::new("!=", AB, LOGIC, Build::Binary(BinaryOp::Ne)),
-    NodeSpec::new("and", X, LOGIC, Build::Fold(BinaryOp::And)).variadic(),
-    NodeSpec::new("or", X, LOGIC, Build::Fold(BinaryOp::Or)).variadic(),
-    NodeSpec::new("not", X, LOGIC, Build::Unary(UnaryOp::Not)),
+    NodeSpec::new(
+        "<",
+        AB,
+        LOGIC,
+        Build::Binary(BinaryOp::Lt),
+        "(< (sine (* t 440.7)) (sine (* t 3)))",
+    ),
+    NodeSpec::new(
+        ">",
+        AB,
+        LOGIC,
+        Build::Binary(BinaryOp::Gt),
+        "(> (sine (* t 440.7)) (sine (* t 3)))",
+    ),
+    NodeSpec::new(
+        "<=",
+        AB,
+        LOGIC,
+        Build::Binary(BinaryOp::Le),
+        "(<= (sine (* t 440.7)) 0)",
+    ),
+    NodeSpec::new(
+        ">=",
+        AB,
+        LOGIC,
+        Build::Binary(BinaryOp::Ge),
+        "(>= (sine (* t 440.7)) 0)",
+    ),
+    NodeSpec::new(
+        "=",
+        AB,
+        LOGIC,
+        Build::Binary(BinaryOp::Eq),
+        "(= (floor (* t 10)) 3)",
+    ),
+    NodeSpec::new(
+        "!=",
+        AB,
+        LOGIC,
+        Build::Binary(BinaryOp::Ne),
+        "(!= (floor (* t 10)) 3)",
+    ),
+    NodeSpec::new(
+        "and",
+        X,
+        LOGIC,
+        Build::Fold(BinaryOp::And),
+        "(and (> (sine (* t 440.7)) 0) (> (sine (* t 3)) 0))",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "or",
+        X,
+        LOGIC,
+        Build::Fold(BinaryOp::Or),
+        "(or (> (sine (* t 440.7)) 0.5) (> (sine (* t 3)) 0.5))",
+    )
+    .variadic(),
+    NodeSpec::new(
+        "not",
+        X,
+        LOGIC,
+        Build::Unary(UnaryOp::Not),
+        "(not (> (sine (* t 440.7)) 0))",
+    ),
     NodeSpec::new(
         "if",
         &[p("condition"), p("then"), p("else")],
         LOGIC,
         Build::Ternary(TernaryOp::If),
+        "(if (< (frac t) 0.5) (sine (* t 440.7)) (sine (* t 660)))",
     ),
     // Waveforms.
-    NodeSpec::new("sine", X, WAVES, Build::Unary(UnaryOp::Sine)),
-    NodeSpec::new("sawtooth", X, WAVES, Build::Unary(UnaryOp::Sawtooth)),
-    NodeSpec::new("square", X, WAVES, Build::Unary(UnaryOp::Square)),
-    NodeSpec::new("triangle", X, WAVES, Build::Unary(UnaryOp::Triangle)),
+    NodeSpec::new(
+        "sine",
+        X,
+        WAVES,
+        Build::Unary(UnaryOp::Sine),
+        "(sine (* t 440))",
+    ),
+    NodeSpec::new(
+        "sawtooth",
+        X,
+        WAVES,
+        Build::Unary(UnaryOp::Sawtooth),
+        "(sawtooth (* t 440))",
+    ),
+    NodeSpec::new(
+        "square",
+        X,
+        WAVES,
+        Build::Unary(UnaryOp::Square),
+        "(square (* t 440))",
+    ),
+    NodeSpec::new(
+        "triangle",
+        X,
+        WAVES,
+        Build::Unary(UnaryOp::Triangle),
+        "(triangle (* t 440))",
+    ),
     NodeSpec::new(
         "pulse",
         &[p("x"), opt("width", 0.5)],
         WAVES,
         Build::Binary(BinaryOp::Pulse),
+        "(pulse (* t 440) (+ 0.5 (* 0.4 (sine t))))",
     ),
-    NodeSpec::new("damp", X, "`damp`", Build::Unary(UnaryOp::Damp)),
-    NodeSpec::new("saw-bl", X, BAND_LIMITED, Build::Args(saw_bl)).stateful(),
-    NodeSpec::new("square-bl", X, BAND_LIMITED, Build::Args(square_bl)).stateful(),
-    NodeSpec::new("triangle-bl", X, BAND_LIMITED, Build::Args(triangle_bl)).stateful(),
+    NodeSpec::new(
+        "damp",
+        X,
+        "`damp`",
+        Build::Unary(UnaryOp::Damp),
+        "(* (damp (* 3 t)) (sine (* t 440)))",
+    ),
+    NodeSpec::new(
+        "saw-bl",
+        X,
+        BAND_LIMITED,
+        Build::Args(saw_bl),
+        "(saw-bl (phasor (+ 440 (* 200 (sine (* t 5))))))",
+    )
+    .stateful(),
+    NodeSpec::new(
+        "square-bl",
+        X,
+        BAND_LIMITED,
+        Build::Args(square_bl),
+        "(square-bl (* t 1234.5))",
+    )
+    .stateful(),
+    NodeSpec::new(
+        "triangle-bl",
+        X,
+        BAND_LIMITED,
+        Build::Args(triangle_bl),
+        "(triangle-bl (* t 3456.7))",
+    )
+    .stateful(),
     // Levels and pitches.
-    NodeSpec::new("dbamp", &[p("db")], LEVELS, Build::Unary(UnaryOp::DbAmp)),
-    NodeSpec::new("ampdb", &[p("amp")], LEVELS, Build::Unary(UnaryOp::AmpDb)),
+    NodeSpec::new(
+        "dbamp",
+        &[p("db")],
+        LEVELS,
+        Build::Unary(UnaryOp::DbAmp),
+        "(* (dbamp (* -20 t)) (sine (* t 440)))",
+    ),
+    NodeSpec::new(
+        "ampdb",
+        &[p("amp")],
+        LEVELS,
+        Build::Unary(UnaryOp::AmpDb),
+        "(* 0.01 (ampdb (+ 1.5 (sine (* t 440)))))",
+    ),
     NodeSpec::new(
         "midihz",
         &[p("note")],
         LEVELS,
         Build::Unary(UnaryOp::MidiHz),
+        "(sine (phasor (midihz (+ 60 (* 12 (sine t))))))",
     ),
-    NodeSpec::new("hzmidi", &[p("hz")], LEVELS, Build::Unary(UnaryOp::HzMidi)),
+    NodeSpec::new(
+        "hzmidi",
+        &[p("hz")],
+        LEVELS,
+        Build::Unary(UnaryOp::HzMidi),
+        "(* 0.01 (hzmidi (+ 440 (* 200 (sine (* t 440))))))",
+    ),
     // Noises.
-    NodeSpec::new("noise", X, NOISES, Build::Args(noise)).random(),
-    NodeSpec::new("white", &[], NOISES, Build::Args(white)).random(),
-    NodeSpec::new("pink", &[], NOISES, Build::Args(pink))
+    NodeSpec::new("noise", X, NOISES, Build::Args(noise), "(noise (* t 440))").random(),
+    NodeSpec::new("white", &[], NOISES, Build::Args(white), "(white :seed 3)").random(),
+    NodeSpec::new("pink", &[], NOISES, Build::Args(pink), "(pink)")
         .random()
         .stateful(),
-    NodeSpec::new("markov", &[p("rate")], NOISES, Build::Args(markov))
-        .random()
-        .stateful(),
+    NodeSpec::new(
+        "markov",
+        &[p("rate")],
+        NOISES,
+        Build::Args(markov),
+        "(markov (+ 50 (* 40 (sine t))))",
+    )
+    .random()
+    .stateful(),
     // Vector nodes.
     NodeSpec::new(
         "rvector",
         &[p("n"), p("lo"), p("hi")],
         VECTORS,
         Build::Args(rvector),
+        "(* 0.1 (combine (sine (* t (rvector 8 200 2000)))))",
     )
     .random()
     .own_width(),
-    NodeSpec::new("iota", &[p("n")], VECTORS, Build::Args(iota))
-        .constant()
-        .own_width(),
-    NodeSpec::new("vector", X, VECTORS, Build::Args(vector))
-        .variadic()
-        .own_width(),
-    NodeSpec::new("combine", X, VECTORS, Build::Args(combine)).own_width(),
-    NodeSpec::new("lanes", X, VECTORS, Build::Args(lanes))
-        .constant()
-        .own_width(),
-    NodeSpec::new("index", &[p("x"), p("i")], VECTORS, Build::Args(index)).own_width(),
+    NodeSpec::new(
+        "iota",
+        &[p("n")],
+        VECTORS,
+        Build::Args(iota),
+        "(* 0.2 (combine (sine (* t 110 (+ 1 (iota 4))))))",
+    )
+    .constant()
+    .own_width(),
+    NodeSpec::new(
+        "vector",
+        X,
+        VECTORS,
+        Build::Args(vector),
+        "(* 0.3 (combine (sine (* t (vector 440 (+ 550 t) 660)))))",
+    )
+    .variadic()
+    .own_width(),
+    NodeSpec::new(
+        "combine",
+        X,
+        VECTORS,
+        Build::Args(combine),
+        "(* 0.1 (combine (sine (* t (rvector 5 100 900)))))",
+    )
+    .own_width(),
+    NodeSpec::new(
+        "lanes",
+        X,
+        VECTORS,
+        Build::Args(lanes),
+        "(sine (* t 100 (lanes (rvector 5 0 1))))",
+    )
+    .constant()
+    .own_width(),
+    NodeSpec::new(
+        "index",
+        &[p("x"), p("i")],
+        VECTORS,
+        Build::Args(index),
+        "(index (sine (* t (vector 440 550 660))) (* 3 (frac t)))",
+    )
+    .own_width(),
     // Phase.
     NodeSpec::new(
         "phasor",
         &[p("freq"), opt("phase", 0.0)],
         "`phasor`",
         Build::Args(phasor),
+        "(sine (phasor (+ 440 (* 100 (sine (* t 3)))) 0.25))",
     )
     .stateful(),
     // Filters.
-    NodeSpec::new("lowpass", BIQUAD, FILTERS, Build::Args(lowpass)).stateful(),
-    NodeSpec::new("highpass", BIQUAD, FILTERS, Build::Args(highpass)).stateful(),
+    NodeSpec::new(
+        "lowpass",
+        BIQUAD,
+        FILTERS,
+        Build::Args(lowpass),
+        "(lowpass (white) (+ 1000 (* 500 (sine t))))",
+    )
+    .stateful(),
+    NodeSpec::new(
+        "highpass",
+        BIQUAD,
+        FILTERS,
+        Build::Args(highpass),
+        "(highpass (white) 2000 2)",
+    )
+    .stateful(),
     NodeSpec::new(
         "bandpass",
         &[p("x"), p("freq"), opt("q", 1.0)],
         FILTERS,
         Build::Args(bandpass),
+        "(bandpass (white) 1000 :q 10)",
     )
     .stateful(),
     NodeSpec::new(
@@ -309,6 +604,7 @@ pub static NODES: &[NodeSpec] = &[
         &[p("x"), p("freq")],
         FILTERS,
         Build::Args(onepole),
+        "(onepole (white) 500)",
     )
     .stateful(),
     NodeSpec::new(
@@ -316,6 +612,7 @@ pub static NODES: &[NodeSpec] = &[
         &[p("x"), p("freq"), p("bandwidth")],
         FILTERS,
         Build::Args(resonator),
+        "(resonator (white) 880 20)",
     )
     .stateful(),
     // Delays.
@@ -324,6 +621,7 @@ pub static NODES: &[NodeSpec] = &[
         &[p("x"), p("time"), opt("max", 0.0)],
         DELAYS,
         Build::Args(delay),
+        "(delay (sine (* t 440)) (+ 0.01 (* 0.005 (sine t))) 0.02)",
     )
     .stateful(),
     NodeSpec::new(
@@ -337,6 +635,7 @@ pub static NODES: &[NodeSpec] = &[
         ],
         DELAYS,
         Build::Args(comb),
+        "(comb (* (white) (< t 0.005)) (/ 1 220) 0.99 :damp 0.3)",
     )
     .stateful(),
     NodeSpec::new(
@@ -344,6 +643,7 @@ pub static NODES: &[NodeSpec] = &[
         &[p("x"), p("delay"), p("gain"), opt("max", 0.0)],
         DELAYS,
         Build::Args(allpass),
+        "(allpass (white) (+ 0.005 (* 0.002 (sine t))) 0.6 :max 0.01)",
     )
     .stateful(),
     // Convolution and sampled sound (their first or second argument is a file).
@@ -352,6 +652,7 @@ pub static NODES: &[NodeSpec] = &[
         &[p("input"), p("response"), opt("length", 1.0)],
         "`conv`",
         Build::Form(|l, call, origin, scope| l.lower_conv(call, origin, scope)),
+        "(conv (* (white) (< t 0.01)) (* (damp (* 30 t)) (sine (* t 700))) :length 0.2)",
     )
     .stateful()
     .own_width(),
@@ -365,6 +666,7 @@ pub static NODES: &[NodeSpec] = &[
         ],
         "`sample`",
         Build::Form(|l, call, origin, scope| l.lower_sample(call, origin, scope)),
+        "",
     )
     .stateful()
     .own_width(),
@@ -374,9 +676,17 @@ pub static NODES: &[NodeSpec] = &[
         &[p("x"), p("trigger")],
         CONTROL,
         Build::Args(latch),
+        "(sine (* t 100 (+ 2 (latch (white) (square (* t 8))))))",
     )
     .stateful(),
-    NodeSpec::new("lag", &[p("x"), p("seconds")], CONTROL, Build::Args(lag)).stateful(),
+    NodeSpec::new(
+        "lag",
+        &[p("x"), p("seconds")],
+        CONTROL,
+        Build::Args(lag),
+        "(sine (phasor (* 100 (+ 2 (lag (floor (* t 8)) 0.02)))))",
+    )
+    .stateful(),
     // Envelopes.
     NodeSpec::new(
         "env",
@@ -390,6 +700,7 @@ pub static NODES: &[NodeSpec] = &[
         ],
         ENVELOPES,
         Build::Args(env),
+        "(* (env t 0.01 0.5 :hold 0.1 :decay-curve -4) (sine (* t 440)))",
     ),
     NodeSpec::new(
         "adsr",
@@ -402,6 +713,7 @@ pub static NODES: &[NodeSpec] = &[
         ],
         ENVELOPES,
         Build::Args(adsr),
+        "(* (adsr (< (frac (* 2 t)) 0.3) 0.01 0.1 0.5 0.2) (sine (* t 440)))",
     )
     .stateful(),
 ];

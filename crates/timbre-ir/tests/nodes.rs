@@ -594,3 +594,205 @@ fn a_node_written_in_rust_is_callable_by_name() {
     let err = timbre_ir::compile_str("(acumulate 1)", &options).unwrap_err();
     assert_eq!(err.0[0].help.as_deref(), Some("did you mean `accumulate`?"));
 }
+
+// ----------------------------------------------------- levels, pitches, control
+
+#[test]
+fn levels_and_pitches_convert_both_ways() {
+    let cases: &[(&str, f64)] = &[
+        ("(dbamp 0)", 1.0),
+        ("(dbamp -20)", 0.1),
+        ("(dbamp 6)", 10f64.powf(0.3)),
+        ("(ampdb 0.01)", -40.0),
+        ("(ampdb -0.1)", -20.0),
+        ("(midihz 69)", 440.0),
+        ("(midihz 81)", 880.0),
+        ("(midihz 60)", 261.625_565_300_598_6),
+        ("(hzmidi 220)", 57.0),
+        ("(hzmidi (midihz 61.5))", 61.5),
+        ("(ampdb (dbamp -37))", -37.0),
+    ];
+    for (text, expected) in cases {
+        let got = c(text);
+        assert!(
+            approx(got, *expected, 1e-9),
+            "{text} = {got}, expected {expected}"
+        );
+    }
+    assert_eq!(c("(ampdb 0)"), f64::NEG_INFINITY);
+}
+
+#[test]
+fn latch_holds_between_rising_triggers() {
+    // A ramp sampled on each rising edge of a 10 Hz square.
+    let y = render("(latch t (square (* t 10)))", &[], 0.35);
+    // The first edge is at sample 0 (the square starts high).
+    assert_eq!(y[0], 0.0);
+    for (k, v) in y.iter().enumerate() {
+        let held = (k / 4800) as f64 * 0.1;
+        assert!(approx(*v, held, 1e-12), "sample {k}: {v}, expected {held}");
+    }
+    // A trigger that never rises holds 0.
+    let y = render("(latch (+ 1 t) -1)", &[], 0.01);
+    assert!(y.iter().all(|v| *v == 0.0));
+}
+
+#[test]
+fn lag_reaches_63_percent_after_one_time_constant() {
+    let tau = 0.02;
+    let step = 4800; // 0.1 s
+    let y = render("(lag (>= t 0.1) 0.02)", &[], 0.3);
+    assert_eq!(y[step - 1], 0.0, "at rest before the step");
+    let after_tau = y[step - 1 + (tau * SR) as usize];
+    assert!(
+        approx(after_tau, 1.0 - (-1.0f64).exp(), 1e-4),
+        "after one time constant: {after_tau}"
+    );
+    // A constant input passes unchanged from the first sample.
+    let y = render("(lag 0.5 0.1)", &[], 0.01);
+    assert!(y.iter().all(|v| *v == 0.5));
+}
+
+// ----------------------------------------------------------------- feedback delays
+
+/// The frequency of the strongest spectral peak between `lo` and `hi`, refined by
+/// parabolic interpolation.
+fn strongest_peak(x: &[f64], lo: f64, hi: f64) -> f64 {
+    let mag = spectrum(x);
+    let bin_hz = SR / x.len() as f64;
+    let i = ((lo / bin_hz) as usize..(hi / bin_hz) as usize)
+        .max_by(|a, b| mag[*a].total_cmp(&mag[*b]))
+        .expect("a band");
+    let (a, b, c) = (mag[i - 1].ln(), mag[i].ln(), mag[i + 1].ln());
+    (i as f64 + 0.5 * (a - c) / (a - 2.0 * b + c)) * bin_hz
+}
+
+/// Frequencies of the spectral peaks of `x` that stand out from a smoothed floor.
+fn comb_peaks(x: &[f64], below_hz: f64) -> Vec<f64> {
+    let mag = spectrum(x);
+    let bin_hz = SR / x.len() as f64;
+    let top = (below_hz / bin_hz) as usize;
+    let mut peaks = vec![];
+    let half = (40.0 / bin_hz) as usize;
+    for i in half + 1..top {
+        let window = &mag[i - half..=i + half];
+        let local_max = window.iter().fold(0.0f64, |m, v| m.max(*v));
+        let mean = window.iter().sum::<f64>() / window.len() as f64;
+        if mag[i] == local_max && mag[i] > 4.0 * mean {
+            let (a, b, c) = (mag[i - 1].ln(), mag[i].ln(), mag[i + 1].ln());
+            peaks.push((i as f64 + 0.5 * (a - c) / (a - 2.0 * b + c)) * bin_hz);
+        }
+    }
+    peaks
+}
+
+#[test]
+fn comb_tuned_to_220_hz_peaks_at_its_multiples() {
+    // The impulse response: its spectrum is the comb's response itself.
+    let y = render("(comb (< t (/ 1 48000)) (/ 1 220) 0.9)", &[], 2.0);
+    let peaks = comb_peaks(&y, 2300.0);
+    assert!(peaks.len() >= 10, "peaks {peaks:?}");
+    for (k, f) in peaks.iter().enumerate() {
+        let expected = 220.0 * (k + 1) as f64;
+        assert!(
+            (f / expected - 1.0).abs() < 0.005,
+            "peak {k}: {f} Hz, expected {expected}"
+        );
+    }
+}
+
+#[test]
+fn karplus_strong_is_a_one_liner_in_tune() {
+    // A burst of noise into a damped comb: a plucked string at 220 Hz.
+    let y = render(
+        "(comb (* (white) (< t 0.005)) (/ 1 220) 0.995 :damp 0.3)",
+        &[],
+        1.0,
+    );
+    let f = strongest_peak(&y, 150.0, 300.0);
+    assert!((f / 220.0 - 1.0).abs() < 0.005, "pitch {f} Hz");
+    // It rings and decays.
+    assert!(rms(&y[4800..9600]) > 3.0 * rms(&y[38400..43200]));
+}
+
+#[test]
+fn allpass_passes_all_frequencies_at_unit_gain() {
+    let input = render("(white)", &[], 4.0);
+    let output = render("(allpass (white) 0.0071 0.6)", &[], 4.0);
+    let (a, b) = (spectrum(&input), spectrum(&output));
+    let bin_hz = SR / input.len() as f64;
+    // Power in octave bands is the same within 0.5 dB.
+    let mut lo = 100.0;
+    while lo < 12_000.0 {
+        let band = |m: &[f64]| {
+            m[(lo / bin_hz) as usize..(2.0 * lo / bin_hz) as usize]
+                .iter()
+                .map(|v| v * v)
+                .sum::<f64>()
+        };
+        let db = 10.0 * (band(&b) / band(&a)).log10();
+        assert!(db.abs() < 0.5, "band from {lo} Hz: {db} dB");
+        lo *= 2.0;
+    }
+    // And it is not a plain copy: the impulse response has echoes.
+    let impulse = render("(allpass (< t (/ 1 48000)) 0.001 0.6)", &[], 0.01);
+    assert!(approx(impulse[0], -0.6, 1e-12), "{}", impulse[0]);
+    assert!(approx(impulse[48], 1.0 - 0.36, 1e-12), "{}", impulse[48]);
+}
+
+#[test]
+fn a_varying_feedback_delay_needs_a_maximum() {
+    let err = compile_with("(comb (white) (* 0.01 (+ 1 (sine t))) 0.5)", &[], 0)
+        .expect_err("a varying delay without :max");
+    assert_eq!(err.iter().next().unwrap().code, "timbre::delay-needs-max");
+    assert!(compile_with(
+        "(comb (white) (* 0.01 (+ 1 (sine t))) 0.5 :max 0.02)",
+        &[],
+        0
+    )
+    .is_ok());
+}
+
+// ----------------------------------------------------------------- band-limited
+
+/// The power that lies below the fundamental `f0` (from 20 Hz to f0 − 200 Hz),
+/// relative to the fundamental's, in dB: a periodic wave has no partials there, so
+/// it is all folded (aliased) partials.
+fn folded_below_fundamental_db(x: &[f64], f0: f64) -> f64 {
+    let mag = spectrum(x);
+    let bin_hz = SR / x.len() as f64;
+    let power = |lo: f64, hi: f64| {
+        mag[(lo / bin_hz) as usize..(hi / bin_hz) as usize]
+            .iter()
+            .map(|m| m * m)
+            .sum::<f64>()
+    };
+    10.0 * (power(20.0, f0 - 200.0) / power(f0 - 50.0, f0 + 50.0)).log10()
+}
+
+#[test]
+fn band_limited_waves_do_not_fold_where_naive_ones_do() {
+    for (bl, naive) in [
+        ("saw-bl", "sawtooth"),
+        ("square-bl", "square"),
+        ("triangle-bl", "triangle"),
+    ] {
+        let f0 = 5000.0;
+        let clean = render(&format!("({bl} (* t {f0}))"), &[], 1.0);
+        let folded = render(&format!("({naive} (* t {f0}))"), &[], 1.0);
+        let (clean_db, folded_db) = (
+            folded_below_fundamental_db(&clean, f0),
+            folded_below_fundamental_db(&folded, f0),
+        );
+        println!("{bl}: folded {clean_db:.1} dB; {naive}: {folded_db:.1} dB");
+        if naive != "triangle" {
+            assert!(folded_db > -30.0, "{naive} folds at {folded_db} dB");
+        }
+        assert!(clean_db < -60.0, "{bl} folds at {clean_db} dB");
+        assert!(clean_db < folded_db - 10.0);
+        // Same fundamental and level as the naive wave.
+        let (a, b) = (spectrum(&clean), spectrum(&folded));
+        let bin = (f0 * clean.len() as f64 / SR) as usize;
+        assert!((a[bin] / b[bin] - 1.0).abs() < 0.05, "{bl} fundamental");
+    }
+}

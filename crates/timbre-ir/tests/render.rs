@@ -194,3 +194,31 @@ fn the_bee_buzzes_near_its_nominal_frequency() {
     let f = best as f64 * bin;
     assert!((f - 220.0).abs() < 20.0, "fundamental at {f}");
 }
+
+/// Forty named trees, each calling the one before twice: 2⁴⁰ expansions written
+/// out, forty with expansions memoised on their arguments.
+fn doubling_definitions(levels: usize) -> String {
+    let mut text = String::from("(define d0 (x) (sine x))\n");
+    for k in 1..=levels {
+        text += &format!(
+            "(define d{k} (x) (* 0.5 (+ (d{j} x) (d{j} x))))\n",
+            j = k - 1
+        );
+    }
+    text + &format!("(d{levels} (* t 440))\n")
+}
+
+#[test]
+fn expansions_are_memoised_on_their_arguments() {
+    let start = std::time::Instant::now();
+    let program = compile_with(&doubling_definitions(40), &[], 0).expect("compiles");
+    let elapsed = start.elapsed();
+    // t, 440, their product, the sine, 0.5, and per level one sum and one product.
+    assert!(program.graph.len() < 100, "{} nodes", program.graph.len());
+    // Without memoising this would not finish; with it, it is instant. (The bound
+    // is loose: it guards against a regression, not a benchmark.)
+    assert!(elapsed.as_secs_f64() < 5.0, "{elapsed:?}");
+    let y = render_program(&program, 0.01, 256);
+    let expected = render("(sine (* t 440))", &[], 0.01);
+    assert_eq!(y, expected);
+}

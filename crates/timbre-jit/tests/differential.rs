@@ -73,6 +73,24 @@ fn compare_root(
 }
 
 #[test]
+fn every_catalogue_example_renders_the_same_under_both_engines() {
+    let mut jit = Jit::new().unwrap();
+    for node in timbre_ir::catalogue::NODES {
+        if node.example.is_empty() {
+            continue; // a named exemption (see tests/catalogue.rs in timbre-ir)
+        }
+        let program = compile_text(node.example);
+        let (diff, at) = compare(&mut jit, &program, 24_000);
+        assert!(
+            diff <= TOLERANCE,
+            "`{}`: {} differs by {diff} at sample {at}",
+            node.name,
+            node.example
+        );
+    }
+}
+
+#[test]
 fn every_example_renders_the_same_under_both_engines() {
     let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     let mut jit = Jit::new().unwrap();
