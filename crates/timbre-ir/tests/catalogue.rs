@@ -142,3 +142,46 @@ fn every_nodes_md_index_entry_is_a_node() {
         );
     }
 }
+
+/// Every `"timbre::…"` code literal in the workspace's sources.
+fn diagnostic_codes(dir: &Path, into: &mut BTreeSet<String>) {
+    for entry in std::fs::read_dir(dir).unwrap().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            diagnostic_codes(&path, into);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            let text = std::fs::read_to_string(&path).unwrap();
+            for piece in text.split("\"timbre::").skip(1) {
+                let code: String = piece
+                    .chars()
+                    .take_while(|c| c.is_ascii_lowercase() || *c == '-' || *c == ':')
+                    .collect();
+                if piece[code.len()..].starts_with('"') {
+                    into.insert(format!("timbre::{code}"));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn every_diagnostic_code_is_in_grammar_md() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let grammar = std::fs::read_to_string(root.join("lang-spec/grammar.md")).unwrap();
+    let mut codes = BTreeSet::new();
+    for krate in std::fs::read_dir(root.join("crates")).unwrap().flatten() {
+        let src = krate.path().join("src");
+        if src.is_dir() {
+            diagnostic_codes(&src, &mut codes);
+        }
+    }
+    assert!(codes.len() > 50, "found only {codes:?}");
+    let missing: Vec<&String> = codes
+        .iter()
+        .filter(|c| !grammar.contains(&format!("`{c}`")))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "not in lang-spec/grammar.md: {missing:?}"
+    );
+}

@@ -110,20 +110,26 @@ impl Engine {
         self.load(SourceFile::new("<library>", source), None)
     }
 
-    /// Reads a library from a file (needs [`Engine::with_file_access`]).
+    /// Reads a library from a file, through the engine's loader (so it needs
+    /// [`Engine::with_file_access`], or a loader of the host's own).
     pub fn load_library_file(&self, path: &Path) -> Result<SoundLibrary, Diagnostics> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
+        let unreadable = |why: String| {
             Diagnostics::one(
                 timbre_ir::Diag::new(
                     "timbre::library-unreadable",
-                    format!("cannot read `{}`: {e}", path.display()),
+                    format!("cannot read `{}`: {why}", path.display()),
                 )
-                .help("check the path"),
+                .help("check the path, and that the engine allows file access"),
             )
-        })?;
+        };
+        let (resolved, bytes) = self
+            .loader
+            .load(&path.to_string_lossy(), None)
+            .map_err(|e| unreadable(e.to_string()))?;
+        let text = String::from_utf8(bytes).map_err(|_| unreadable("not UTF-8 text".into()))?;
         self.load(
-            SourceFile::new(path.display().to_string(), text),
-            path.parent(),
+            SourceFile::new(resolved.display().to_string(), text),
+            resolved.parent(),
         )
     }
 

@@ -268,3 +268,24 @@ fn script_errors_are_diagnostics() {
         "a library only defines"
     );
 }
+
+#[test]
+fn a_library_file_is_read_only_through_the_engines_loader() {
+    let dir = std::env::temp_dir().join(format!("timbre-api-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("lib.tt");
+    std::fs::write(&path, "(define-sound beep (f) (sine (* t f)))").unwrap();
+    let Err(refused) = Engine::new(48_000.0).load_library_file(&path) else {
+        panic!("read without file access");
+    };
+    assert_eq!(
+        refused.iter().next().unwrap().code,
+        "timbre::library-unreadable"
+    );
+    let library = Engine::new(48_000.0)
+        .with_file_access()
+        .load_library_file(&path)
+        .expect("read with file access");
+    assert!(library.classes().iter().any(|(name, _)| name == "beep"));
+    std::fs::remove_dir_all(&dir).ok();
+}
