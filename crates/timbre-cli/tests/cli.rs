@@ -905,6 +905,55 @@ fn check_reports_ok_without_writing_anything() {
 }
 
 #[test]
+fn check_ir_prints_the_graph_of_the_sound() {
+    let sound = run(["check", "--ir", "--expr", "(* 0.5 (sine (* t 440)))"]);
+    sound.assert_success();
+    expect_test::expect![[r#"
+        %0 = const 0.5 [1 lane]
+        %1 = t [1 lane]
+        %2 = const 440.0 [1 lane]
+        %3 = * %1 %2 [1 lane]
+        %4 = sine %3 [1 lane]
+        %5 = * %0 %4 [1 lane] ; root
+    "#]]
+    .assert_eq(&sound.stdout);
+
+    // A scene: every instance is a root, under its timer; keyframes read scene time.
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("scene.tt");
+    std::fs::write(
+        &script,
+        "(define-sound tone (f) (sine (* t f)))
+         (keyframes pitch :interp linear (0 200) (1 400) (2 300))
+         (instance a (tone :f pitch) :start 0.5 :stop 1)
+         (instance b (tone :f 440) :start 1)",
+    )
+    .unwrap();
+    let scene = run(["check".as_ref(), "--ir".as_ref(), script.as_os_str()]);
+    scene.assert_success();
+    expect_test::expect![[r#"
+        %0 = const 0.5 [1 lane]
+        %2 = t [1 lane]
+        %3 = + %2 %0 [1 lane]
+        %4 = keyframe(3 keys, linear) %3 [1 lane]
+        %5 = * %2 %4 [1 lane]
+        %6 = sine %5 [1 lane]
+        %7 = timer(length=0.5 s, fade-in=0.001 s, fade-out=0.005 s) %6 %2 [1 lane] ; root
+        %8 = const 440.0 [1 lane]
+        %9 = * %2 %8 [1 lane]
+        %10 = sine %9 [1 lane]
+        %11 = timer(length=none, fade-in=0.001 s, fade-out=0.005 s) %10 %2 [1 lane] ; root
+    "#]]
+    .assert_eq(&scene.stdout);
+
+    // An error is reported as by `check`, with nothing on stdout.
+    let error = run(["check", "--ir", "--expr", "(sine t 1)"]);
+    error.assert_code(1);
+    error.assert_stderr_has("timbre::arity");
+    assert!(error.stdout.is_empty(), "{}", error.stdout);
+}
+
+#[test]
 fn a_file_of_definitions_only_checks_but_does_not_render() {
     let dir = tempfile::tempdir().unwrap();
     let script = dir.path().join("lib.tt");

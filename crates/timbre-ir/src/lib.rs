@@ -19,6 +19,7 @@
 
 pub mod custom;
 pub mod dsp;
+mod dump;
 mod error;
 #[cfg(feature = "generate")]
 pub mod generate;
@@ -31,6 +32,7 @@ pub mod op;
 pub mod optimise;
 
 pub use custom::{BlockContext, CustomNode, Lanes};
+pub use dump::dump;
 pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, StableHasher};
 pub use interp::{Interpreter, RenderConfig, Step};
