@@ -53,10 +53,14 @@ enum Command {
     Render(RenderArgs),
     /// Parse and check a file (or one expression) without rendering it.
     ///
-    /// Example:
+    /// With --ir, print the graph its sounds are rendered from instead: one line per
+    /// node, `%ID = OP ARGS… [WIDTH]`, arguments before their users.
+    ///
+    /// Examples:
     ///   timbre check examples/bell.tt
+    ///   timbre check --ir --expr '(sine (* t 440))'
     #[command(verbatim_doc_comment)]
-    Check(SourceArgs),
+    Check(CheckArgs),
     /// Draw the timbre trees of a file as a schematic (Graphviz DOT, or SVG/PNG with `dot`).
     ///
     /// Shared subtrees are drawn once; keyframe, timer and instance nodes stand out.
@@ -115,6 +119,17 @@ struct SourceArgs {
     /// Seed of all random nodes (overrides the file's `(scene :seed …)`).
     #[arg(long)]
     seed: Option<u64>,
+}
+
+#[derive(Args, Debug)]
+struct CheckArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+
+    /// Print the graph reachable from the sounds (the file's sound, or each instance),
+    /// one node per line, instead of the summary.
+    #[arg(long)]
+    ir: bool,
 }
 
 #[derive(Args, Debug)]
@@ -310,8 +325,13 @@ fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
     graph::write(&text, &args.output).map_err(Failure::Message)
 }
 
-fn check(args: SourceArgs) -> Result<(), Failure> {
-    let program = compile_source(&args)?;
+fn check(args: CheckArgs) -> Result<(), Failure> {
+    let program = compile_source(&args.source)?;
+    if args.ir {
+        let roots: Vec<_> = program.sound_roots().collect();
+        print!("{}", timbre_ir::dump(&program.graph, &roots));
+        return Ok(());
+    }
     let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let what = match program.root {
         Some(root) => format!(

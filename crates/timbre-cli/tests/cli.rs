@@ -7,6 +7,10 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use common::*;
+use timbre_testkit::{
+    assert_close, energy, peak, read_wav, rms, spectral_peaks, strongest_peak_in, write_wav_f32,
+    zero_crossing_frequency,
+};
 
 /// The two expressions DESIGN.md says must run verbatim (Takala et al. 1993).
 const MODAL: &str = "(combine (* (sine (* t (rvector n_f base_f max_f)))
@@ -314,15 +318,11 @@ fn formats_have_the_right_header_and_matching_content() {
         assert_eq!(wav.spec.bits_per_sample, bits, "{format}");
         assert_eq!(wav.spec.sample_rate, 48_000);
         assert_eq!(wav.samples.len(), f32_wav.samples.len());
-        let worst = wav
-            .samples
-            .iter()
-            .zip(&f32_wav.samples)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        assert!(
-            worst <= 1.0 / full,
-            "{format} differs from f32 by {worst} (> 1 LSB)"
+        assert_close(
+            &wav.samples,
+            &f32_wav.samples,
+            1.0 / full,
+            &format!("{format} vs f32 (1 LSB)"),
         );
         // Really quantised at that depth: every sample is a whole number of LSBs and
         // the full range is used (0.9 of full scale is reached).
@@ -336,13 +336,12 @@ fn formats_have_the_right_header_and_matching_content() {
     }
     // s16 is coarser than s24: the error budget really is the format's.
     let s24 = render_wav(s(&[&base[..], &["--format", "s24"]].concat()));
-    let err24 = s24
-        .samples
-        .iter()
-        .zip(&f32_wav.samples)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    assert!(err24 < 0.5 / 32_767.0 / 10.0, "s24 error {err24}");
+    assert_close(
+        &s24.samples,
+        &f32_wav.samples,
+        0.5 / 32_767.0 / 10.0,
+        "s24 vs f32 (a tenth of half an s16 LSB)",
+    );
 }
 
 #[test]
@@ -416,13 +415,7 @@ fn samples_are_read_relative_to_the_script() {
     std::fs::write(&script, "(sample \"hit.wav\")\n").unwrap();
     let wav = render_wav([script.as_os_str(), "--duration".as_ref(), "0.1".as_ref()]);
     assert_eq!(wav.samples.len(), n);
-    let worst = wav
-        .samples
-        .iter()
-        .zip(&signal)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    assert!(worst < 1e-6, "sample playback differs by {worst}");
+    assert_close(&wav.samples, &signal, 1e-6, "sample playback vs the file");
 }
 
 #[test]
@@ -909,6 +902,55 @@ fn check_reports_ok_without_writing_anything() {
     run.assert_code(1);
     run.assert_stderr_has("unbound parameter `HF-noise`");
     assert!(run.stdout.is_empty(), "{}", run.stdout);
+}
+
+#[test]
+fn check_ir_prints_the_graph_of_the_sound() {
+    let sound = run(["check", "--ir", "--expr", "(* 0.5 (sine (* t 440)))"]);
+    sound.assert_success();
+    expect_test::expect![[r#"
+        %0 = const 0.5 [1 lane]
+        %1 = t [1 lane]
+        %2 = const 440.0 [1 lane]
+        %3 = * %1 %2 [1 lane]
+        %4 = sine %3 [1 lane]
+        %5 = * %0 %4 [1 lane] ; root
+    "#]]
+    .assert_eq(&sound.stdout);
+
+    // A scene: every instance is a root, under its timer; keyframes read scene time.
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("scene.tt");
+    std::fs::write(
+        &script,
+        "(define-sound tone (f) (sine (* t f)))
+         (keyframes pitch :interp linear (0 200) (1 400) (2 300))
+         (instance a (tone :f pitch) :start 0.5 :stop 1)
+         (instance b (tone :f 440) :start 1)",
+    )
+    .unwrap();
+    let scene = run(["check".as_ref(), "--ir".as_ref(), script.as_os_str()]);
+    scene.assert_success();
+    expect_test::expect![[r#"
+        %0 = const 0.5 [1 lane]
+        %2 = t [1 lane]
+        %3 = + %2 %0 [1 lane]
+        %4 = keyframe(3 keys, linear) %3 [1 lane]
+        %5 = * %2 %4 [1 lane]
+        %6 = sine %5 [1 lane]
+        %7 = timer(length=0.5 s, fade-in=0.001 s, fade-out=0.005 s) %6 %2 [1 lane] ; root
+        %8 = const 440.0 [1 lane]
+        %9 = * %2 %8 [1 lane]
+        %10 = sine %9 [1 lane]
+        %11 = timer(length=none, fade-in=0.001 s, fade-out=0.005 s) %10 %2 [1 lane] ; root
+    "#]]
+    .assert_eq(&scene.stdout);
+
+    // An error is reported as by `check`, with nothing on stdout.
+    let error = run(["check", "--ir", "--expr", "(sine t 1)"]);
+    error.assert_code(1);
+    error.assert_stderr_has("timbre::arity");
+    assert!(error.stdout.is_empty(), "{}", error.stdout);
 }
 
 #[test]

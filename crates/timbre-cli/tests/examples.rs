@@ -4,6 +4,10 @@
 mod common;
 
 use common::*;
+use timbre_testkit::{
+    band_power, energy, energy_time, peak, rms, spectral_centroid, spectral_peaks, spectrum,
+    strongest_peak_in, Wav,
+};
 
 /// Renders `examples/NAME.tt` at its own length and checks what every example must
 /// satisfy: exit 0, a mono 48 kHz float WAV of `(scene :duration …)` seconds, within

@@ -9,6 +9,7 @@ use std::f64::consts::TAU;
 use std::path::Path;
 
 use common::*;
+use timbre_testkit::{read_wav, write_wav_f32};
 
 /// A decoded PNG: 8-bit RGB pixels and its tEXt chunks.
 struct Picture {

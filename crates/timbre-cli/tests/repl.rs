@@ -1,11 +1,9 @@
 //! The REPL driven in a real pseudo-terminal, as a person would use it.
 
-mod common;
-
 use std::process::Command;
 
-use common::*;
 use rexpect::session::spawn_command;
+use timbre_testkit::{read_wav, strongest_peak_in};
 
 #[test]
 fn a_session_in_a_pseudo_terminal() {

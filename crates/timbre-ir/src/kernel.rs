@@ -87,6 +87,12 @@ pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
     /// configuration: a seed, a filter kind, a maximum delay …), for node identity.
     fn describe(&self, _d: &mut Description) {}
 
+    /// Its configuration for people (`timbre check --ir`, pictures), e.g.
+    /// `max=0.5 s`; empty if the name says it all.
+    fn detail(&self) -> String {
+        String::new()
+    }
+
     /// Output lanes for these argument widths (already checked to broadcast).
     fn width(&self, args: &[usize]) -> usize {
         args.iter().copied().max().unwrap_or(1)
@@ -102,6 +108,7 @@ pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
 pub trait DynKernel: fmt::Debug + Send + Sync + 'static {
     fn name(&self) -> &'static str;
     fn describe(&self, d: &mut Description);
+    fn detail(&self) -> String;
     fn width(&self, args: &[usize]) -> usize;
     fn new_state(&self, ctx: &StateContext<'_>) -> Box<dyn Any + Send>;
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>);
@@ -114,6 +121,10 @@ impl<K: StatefulKernel> DynKernel for K {
 
     fn describe(&self, d: &mut Description) {
         StatefulKernel::describe(self, d)
+    }
+
+    fn detail(&self) -> String {
+        StatefulKernel::detail(self)
     }
 
     fn width(&self, args: &[usize]) -> usize {

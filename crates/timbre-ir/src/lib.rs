@@ -20,6 +20,7 @@
 pub mod catalogue;
 pub mod custom;
 pub mod dsp;
+mod dump;
 mod error;
 #[cfg(feature = "generate")]
 pub mod generate;
@@ -33,6 +34,7 @@ pub mod op;
 pub mod optimise;
 
 pub use custom::{BlockContext, CustomNode, Lanes};
+pub use dump::dump;
 pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, StableHasher};
 pub use interp::{Interpreter, RenderConfig, Step};

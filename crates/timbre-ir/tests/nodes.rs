@@ -11,6 +11,9 @@ use timbre_ir::{
     compile, BlockContext, CompileOptions, CustomNode, FsLoader, Lanes, NoFiles, Registry,
     SourceFile,
 };
+use timbre_testkit::{
+    assert_close, band_power, peak, rms, spectrum, write_wav_f32, zero_crossing_frequency,
+};
 
 fn c(text: &str) -> f64 {
     constant(text, &[], 0)
@@ -159,20 +162,14 @@ fn white_noise_is_uniform_and_seeded() {
     assert_ne!(a, b);
 }
 
-/// Power in the octave band [lo, 2·lo).
-fn band_power(mag: &[f64], bin_hz: f64, lo: f64) -> f64 {
-    let (a, b) = ((lo / bin_hz) as usize, (2.0 * lo / bin_hz) as usize);
-    mag[a..b].iter().map(|m| m * m).sum()
-}
-
 #[test]
 fn pink_noise_falls_3_db_per_octave() {
     let x = render("(pink)", &[], 8.0);
     let mag = spectrum(&x);
     let bin = SR / x.len() as f64;
     // Band power of 1/f noise is equal per octave; white would gain 3 dB per octave.
-    let low = band_power(&mag, bin, 100.0);
-    let high = band_power(&mag, bin, 6400.0);
+    let low = band_power(&mag, bin, 100.0, 200.0);
+    let high = band_power(&mag, bin, 6400.0, 12_800.0);
     let db = 10.0 * (high / low).log10();
     assert!(db.abs() < 1.5, "6 octaves apart: {db} dB");
     assert!(approx(rms(&x), 0.2, 0.02), "rms {}", rms(&x));
@@ -251,7 +248,7 @@ fn vector_nodes() {
 #[test]
 fn phasor_integrates_frequency() {
     let x = render("(sine (phasor 440))", &[], 4.0);
-    assert!(approx(zero_crossing_frequency(&x), 440.0, 0.01));
+    assert!(approx(zero_crossing_frequency(&x, SR), 440.0, 0.01));
     let x = render("(phasor 480 0.5)", &[], 0.01);
     assert_eq!(x[0], 0.5);
     assert!(approx(x[50], 0.0, 1e-9) || approx(x[50], 1.0, 1e-9));
@@ -261,7 +258,7 @@ fn phasor_integrates_frequency() {
     assert!(approx(ups, 400.0, 1.0), "{ups} cycles");
     // Local frequency at the end of the ramp.
     let tail = &x[x.len() - 4800..];
-    assert!(approx(zero_crossing_frequency(tail), 580.0, 3.0));
+    assert!(approx(zero_crossing_frequency(tail, SR), 580.0, 3.0));
 }
 
 // --------------------------------------------------------------------- filters
@@ -324,7 +321,7 @@ fn delay_shifts_by_whole_and_fractional_samples() {
         &[],
         4.0,
     );
-    let f = zero_crossing_frequency(&x[4800..]);
+    let f = zero_crossing_frequency(&x[4800..], SR);
     assert!(approx(f, 999.0, 0.05), "{f}");
 }
 
@@ -338,20 +335,6 @@ fn temp_dir() -> PathBuf {
     let dir = std::env::temp_dir().join(format!("timbre-ir-test-{}-{n}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-fn write_wav(path: &std::path::Path, rate: u32, samples: &[f64]) {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec).unwrap();
-    for s in samples {
-        w.write_sample(*s as f32).unwrap();
-    }
-    w.finalize().unwrap();
 }
 
 fn render_file(text: &str, dir: &std::path::Path, seconds: f64) -> Vec<f64> {
@@ -379,16 +362,11 @@ fn conv_with_a_tree_and_with_a_wav_file() {
     let ir: Vec<f64> = (0..300)
         .map(|k| (-(k as f64) / 40.0).exp() * if k % 2 == 0 { 1.0 } else { -0.5 })
         .collect();
-    write_wav(&dir.join("ir.wav"), 48_000, &ir);
+    write_wav_f32(&dir.join("ir.wav"), 48_000, &ir);
     let wet = render_file("(conv (white) \"ir.wav\")", &dir, 0.1);
     let ir32: Vec<f64> = ir.iter().map(|v| *v as f32 as f64).collect();
     let direct = timbre_ir::dsp::conv::convolve_direct(&render("(white)", &[], 0.1), &ir32);
-    let worst = wet
-        .iter()
-        .zip(&direct)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    assert!(worst < 1e-9, "worst {worst}");
+    assert_close(&wet, &direct, 1e-9, "FFT convolution vs direct");
 }
 
 #[test]
@@ -398,15 +376,19 @@ fn sample_plays_at_rate_from_start_and_loops() {
     let tone: Vec<f64> = (0..44_100)
         .map(|k| (std::f64::consts::TAU * 441.0 * k as f64 / 44_100.0).sin())
         .collect();
-    write_wav(&dir.join("tone.wav"), 44_100, &tone);
+    write_wav_f32(&dir.join("tone.wav"), 44_100, &tone);
     let x = render_file("(sample \"tone.wav\")", &dir, 1.5);
-    assert!(approx(zero_crossing_frequency(&x[..47_000]), 441.0, 0.1));
+    assert!(approx(
+        zero_crossing_frequency(&x[..47_000], SR),
+        441.0,
+        0.1
+    ));
     assert!(
         x[48_100..].iter().all(|v| *v == 0.0),
         "silence after the end"
     );
     let x = render_file("(sample \"tone.wav\" :rate 2)", &dir, 0.4);
-    assert!(approx(zero_crossing_frequency(&x), 882.0, 0.2));
+    assert!(approx(zero_crossing_frequency(&x, SR), 882.0, 0.2));
     let x = render_file("(sample \"tone.wav\" :loop 1)", &dir, 3.0);
     assert!(
         rms(&x[100_000..140_000]) > 0.6,
@@ -514,7 +496,7 @@ fn include_reads_definitions_relative_to_the_including_file() {
     );
     assert_eq!(x[0], 0.5);
     // Paths inside an included definition are relative to the file that defines it.
-    write_wav(&dir.join("lib/hit.wav"), 48_000, &[0.25, 0.5]);
+    write_wav_f32(&dir.join("lib/hit.wav"), 48_000, &[0.25, 0.5]);
     std::fs::write(dir.join("lib/hits.tt"), "(define hit (sample \"hit.wav\"))").unwrap();
     let x = render_file("(include \"lib/hits.tt\") (hit)", &dir, 0.001);
     assert_eq!(&x[..3], &[0.25, 0.5, 0.0]);

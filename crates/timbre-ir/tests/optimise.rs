@@ -6,10 +6,12 @@ mod common;
 use common::*;
 use timbre_ir::optimise::optimise;
 use timbre_ir::{Interpreter, RenderConfig};
+use timbre_testkit::assert_close;
 
-/// Renders `text` as written and optimised; returns the largest difference and the
-/// number of damped-sine nodes the optimiser made.
-fn compare(text: &str, seconds: f64) -> (f64, usize) {
+/// Renders `text` as written and optimised, asserts that the two agree within `tol`
+/// at every sample, and returns the number of damped-sine nodes the optimiser made.
+#[track_caller]
+fn compare(text: &str, seconds: f64, tol: f64) -> usize {
     let program = compile_with(text, &[], 5).unwrap();
     let root = program.root.unwrap();
     let plain = render_program(&program, seconds, 64);
@@ -26,22 +28,23 @@ fn compare(text: &str, seconds: f64) -> (f64, usize) {
         .iter()
         .filter(|n| graph.node(**n).op.kind() == "damped-sine")
         .count();
-    let diff = plain
-        .iter()
-        .zip(&fast)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    (diff, rotators)
+    assert_close(
+        &plain,
+        &fast,
+        tol,
+        &format!("{text} as written vs optimised"),
+    );
+    rotators
 }
 
 #[test]
 fn the_modal_tree_becomes_rotators() {
-    let (diff, rotators) = compare(
+    let rotators = compare(
         "(* 0.01 (combine (* (sine (* t (rvector 100 200 8000))) (damp (* t 0.002 (rvector 100 200 8000))))))",
         3.0,
+        1e-9,
     );
     assert_eq!(rotators, 1);
-    assert!(diff < 1e-9, "differs by {diff}");
 }
 
 #[test]
@@ -52,20 +55,18 @@ fn factors_in_any_order_and_amplitudes_are_kept() {
         "(combine (* (sine (* t 100 (iota 4))) (damp (* t 1))))",
     ] {
         let text = if text.starts_with("(combine") { text.to_string() } else { format!("(combine {text})") };
-        let (diff, rotators) = compare(&text, 1.0);
+        let rotators = compare(&text, 1.0, 1e-9);
         assert!(rotators >= 1, "{text}: not rewritten");
-        assert!(diff < 1e-9, "{text}: differs by {diff}");
     }
 }
 
 #[test]
 fn undamped_sines_stay_exact_over_long_renders() {
     // Re-anchored every block: no drift after minutes of a high partial.
-    let (diff, rotators) = compare("(sine (* t 9876.5))", 120.0);
-    assert_eq!(rotators, 1);
     // After 1.2 million cycles t·F itself is only exact to ~1e-10 cycles in the plain
     // tree, so the two agree to ~1e-9, far inside the 1e-5 the engines promise.
-    assert!(diff < 1e-7, "differs by {diff}");
+    let rotators = compare("(sine (* t 9876.5))", 120.0, 1e-7);
+    assert_eq!(rotators, 1);
 }
 
 #[test]
@@ -75,35 +76,36 @@ fn sines_of_varying_phase_are_left_alone() {
         "(sine (phasor 440))",
         "(* (sine (* t 440)) (damp (sine t)))",
     ] {
-        let (diff, _) = compare(text, 0.5);
-        assert!(diff < 1e-9, "{text}: differs by {diff}");
+        compare(text, 0.5, 1e-9);
     }
     // The first is not linear in t, the second has no t at all.
     assert_eq!(
-        compare("(sine (* t (+ 440 (sine t))))", 0.1).1,
+        compare("(sine (* t (+ 440 (sine t))))", 0.1, 1e-9),
         1,
         "only the inner (sine t)"
     );
-    assert_eq!(compare("(sine (phasor 440))", 0.1).1, 0);
+    assert_eq!(compare("(sine (phasor 440))", 0.1, 1e-9), 0);
 }
 
 #[test]
 fn a_bell_re_struck_every_second_becomes_rotators() {
-    let (diff, rotators) = compare(
+    let rotators = compare(
         "(let ((tau (mod t 1))) (* 0.01 (combine (* (sine (* tau (rvector 100 200 2000))) (damp (* tau 0.02 (rvector 100 200 2000)))))))",
         3.5,
+        1e-9,
     );
     assert_eq!(rotators, 1);
-    assert!(diff < 1e-9, "differs by {diff}");
     // A time shifted by a start, as a scene instance's is.
-    let (diff, rotators) = compare("(* (sine (* (- t 0.25) 300)) (damp (* (- t 0.25) 3)))", 1.0);
+    let rotators = compare(
+        "(* (sine (* (- t 0.25) 300)) (damp (* (- t 0.25) 3)))",
+        1.0,
+        1e-9,
+    );
     assert_eq!(rotators, 1);
-    assert!(diff < 1e-9, "differs by {diff}");
 }
 
 #[test]
 fn a_damp_of_another_time_stays_a_separate_factor() {
-    let (diff, rotators) = compare("(* (sine (* t 300)) (damp (* (mod t 0.5) 3)))", 1.2);
+    let rotators = compare("(* (sine (* t 300)) (damp (* (mod t 0.5) 3)))", 1.2, 1e-9);
     assert_eq!(rotators, 1);
-    assert!(diff < 1e-9, "differs by {diff}");
 }

@@ -7,6 +7,7 @@ use timbre_ir::{
     compile, CompileOptions, FsLoader, Interpreter, Program, Registry, RenderConfig, SourceFile,
 };
 use timbre_jit::Jit;
+use timbre_testkit::{assert_close, compare_close};
 
 const TOLERANCE: f64 = 1e-5;
 
@@ -35,9 +36,11 @@ fn compile_text(text: &str) -> Program {
     timbre_ir::compile_str(text, &options).unwrap_or_else(|e| panic!("{text}: {e:?}"))
 }
 
-/// Renders with both engines and returns the largest difference and where it is.
-fn compare(jit: &mut Jit, program: &Program, samples: usize) -> (f64, usize) {
-    compare_root(jit, program, program.root.unwrap(), samples)
+/// Renders with both engines; `Err` (from `timbre_testkit::compare_close`) names the
+/// first sample where they differ by more than `tol`, or where one side only is NaN
+/// or infinite.
+fn compare(jit: &mut Jit, program: &Program, samples: usize, tol: f64) -> Result<(), String> {
+    compare_root(jit, program, program.root.unwrap(), samples, tol)
 }
 
 fn compare_root(
@@ -45,31 +48,15 @@ fn compare_root(
     program: &Program,
     root: timbre_ir::NodeId,
     samples: usize,
-) -> (f64, usize) {
+    tol: f64,
+) -> Result<(), String> {
     let mut reference = vec![0.0; samples];
     Interpreter::new(&program.graph, root, config()).render(&mut reference);
     let mut compiled = vec![0.0; samples];
     jit.voice(&program.graph, root, config())
         .unwrap()
         .render(&mut compiled);
-    reference
-        .iter()
-        .zip(&compiled)
-        .enumerate()
-        .map(|(i, (a, b))| {
-            (
-                if a.is_nan() && b.is_nan() {
-                    0.0
-                } else {
-                    (a - b).abs()
-                },
-                i,
-            )
-        })
-        .fold(
-            (0.0, 0),
-            |m, d| if d.0 > m.0 || d.0.is_nan() { d } else { m },
-        )
+    compare_close(&reference, &compiled, tol)
 }
 
 #[test]
@@ -80,13 +67,9 @@ fn every_catalogue_example_renders_the_same_under_both_engines() {
             continue; // a named exemption (see tests/catalogue.rs in timbre-ir)
         }
         let program = compile_text(node.example);
-        let (diff, at) = compare(&mut jit, &program, 24_000);
-        assert!(
-            diff <= TOLERANCE,
-            "`{}`: {} differs by {diff} at sample {at}",
-            node.name,
-            node.example
-        );
+        if let Err(e) = compare(&mut jit, &program, 24_000, TOLERANCE) {
+            panic!("`{}`: {}: {e}", node.name, node.example);
+        }
     }
 }
 
@@ -102,13 +85,10 @@ fn every_example_renders_the_same_under_both_engines() {
             let seconds = program.settings.duration.unwrap_or(1.0).min(2.0);
             // A file's sound, or each of a scene's instances from its start.
             for root in program.sound_roots() {
-                let (diff, at) =
-                    compare_root(&mut jit, &program, root, (seconds * 48_000.0) as usize);
-                assert!(
-                    diff <= TOLERANCE,
-                    "{}: differs by {diff} at sample {at}",
-                    path.display()
-                );
+                let samples = (seconds * 48_000.0) as usize;
+                if let Err(e) = compare_root(&mut jit, &program, root, samples, TOLERANCE) {
+                    panic!("{}: {e}", path.display());
+                }
             }
             checked += 1;
         }
@@ -124,8 +104,9 @@ fn the_papers_trees_render_the_same() {
         "(sawtooth (+ (* t (+ 220 (* 12 (noise (* t 3))))) (* 0.25 (noise (* t 400)))))",
         "(* 0.1 (combine (sawtooth (phasor (+ (rvector 10 180 260) (* 12 (noise (+ (rvector 10 0 99) (* t 3)))))))))",
     ] {
-        let (diff, at) = compare(&mut jit, &compile_text(text), 48_000);
-        assert!(diff <= TOLERANCE, "{text}: differs by {diff} at sample {at}");
+        if let Err(e) = compare(&mut jit, &compile_text(text), 48_000, TOLERANCE) {
+            panic!("{text}: {e}");
+        }
     }
 }
 
@@ -195,11 +176,9 @@ fn every_inline_operation_matches() {
     ];
     for template in templates {
         let text = template.replace('X', x).replace('Y', y);
-        let (diff, at) = compare(&mut jit, &compile_text(&text), 96_000);
-        assert!(
-            diff <= TOLERANCE,
-            "{text}: differs by {diff} at sample {at}"
-        );
+        if let Err(e) = compare(&mut jit, &compile_text(&text), 96_000, TOLERANCE) {
+            panic!("{text}: {e}");
+        }
     }
 }
 
@@ -233,11 +212,10 @@ fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
         ("(* 12 (noise (* t 30.7)))", 12.0),
         ("(* (noise (- 1e6 (* t 30.7))) 0.25)", 0.25),
     ] {
-        let (diff, at) = compare(&mut jit, &compile_text(text), 96_000);
-        assert!(
-            diff < 1e-13 * f64::max(factors, 1.0),
-            "{text}: differs by {diff} at sample {at}"
-        );
+        let tol = 1e-13 * f64::max(factors, 1.0);
+        if let Err(e) = compare(&mut jit, &compile_text(text), 96_000, tol) {
+            panic!("{text}: {e}");
+        }
     }
 }
 
@@ -267,12 +245,7 @@ fn odd_block_lengths_and_split_renders_match() {
         for chunk in reference.chunks_mut(37) {
             interpreter.render(chunk);
         }
-        let diff = reference
-            .iter()
-            .zip(&parts)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        assert!(diff <= TOLERANCE, "{text}: differs by {diff}");
+        assert_close(&reference, &parts, TOLERANCE, text);
     }
 }
 
@@ -301,8 +274,9 @@ fn instances_of_one_shape_share_one_kernel() {
         "the second instance reused the first kernel"
     );
     assert_ne!(out_a, out_b, "but renders its own constants");
-    let (diff, _) = compare(&mut jit, &b, 4800);
-    assert!(diff <= TOLERANCE);
+    if let Err(e) = compare(&mut jit, &b, 4800, TOLERANCE) {
+        panic!("the second instance: {e}");
+    }
 }
 
 mod random_trees {
@@ -326,8 +300,8 @@ mod random_trees {
         fn random_trees_render_the_same(text in tree_strategy(smooth())) {
             let program = compile_text(&text);
             let mut jit = Jit::new().unwrap();
-            let (diff, at) = compare(&mut jit, &program, 2400);
-            prop_assert!(diff <= TOLERANCE, "{text}\ndiffers by {diff} at sample {at}");
+            let agreement = compare(&mut jit, &program, 2400, TOLERANCE);
+            prop_assert!(agreement.is_ok(), "{text}\n{}", agreement.unwrap_err());
         }
     }
 }

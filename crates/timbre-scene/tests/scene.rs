@@ -8,6 +8,7 @@ use timbre_ir::{
     compile, compile_str, CompileOptions, FsLoader, Program, Registry, RenderConfig, SourceFile,
 };
 use timbre_scene::{Engine, SceneRenderer};
+use timbre_testkit::{assert_close, onset, zero_crossing_frequency};
 
 const SR: f64 = 48_000.0;
 
@@ -48,7 +49,7 @@ fn only(program: &Program, name: &str) -> Program {
 }
 
 fn first_sound(x: &[f64]) -> usize {
-    x.iter().position(|v| *v != 0.0).expect("a sound")
+    onset(x, 0.0).expect("a sound")
 }
 
 #[test]
@@ -69,7 +70,7 @@ fn cubes_onsets_are_on_the_sample() {
     let x = render(&program, 1.0, Engine::Jit);
     let bee = render(&only(&program, "buzz"), 1.0, Engine::Jit);
     let wood: Vec<f64> = x.iter().zip(&bee).map(|(a, b)| a - b).collect();
-    let onset = wood.iter().position(|v| v.abs() > 1e-9).unwrap();
+    let onset = onset(&wood, 1e-9).unwrap();
     assert!(
         (24_000..=24_001).contains(&onset),
         "onset in the mix at {onset}"
@@ -118,15 +119,6 @@ fn amplitude_follows_the_force_keyframes() {
     assert!((envelope(2.0) - 0.4).abs() < 0.01);
 }
 
-/// Frequency in a window from zero crossings.
-fn frequency(x: &[f64]) -> f64 {
-    let ups: Vec<f64> = (1..x.len())
-        .filter(|&i| x[i - 1] < 0.0 && x[i] >= 0.0)
-        .map(|i| (i - 1) as f64 + x[i - 1] / (x[i - 1] - x[i]))
-        .collect();
-    (ups.len() - 1) as f64 * SR / (ups[ups.len() - 1] - ups[0])
-}
-
 #[test]
 fn keyframed_frequency_follows_linear_and_smooth_keys() {
     for (interp, mode) in [
@@ -150,7 +142,7 @@ fn keyframed_frequency_follows_linear_and_smooth_keys() {
                 ((centre - 0.01) * SR) as usize,
                 ((centre + 0.01) * SR) as usize,
             );
-            let measured = frequency(&x[a..b]);
+            let measured = zero_crossing_frequency(&x[a..b], SR);
             let expected = track.value(centre);
             assert!(
                 (measured / expected - 1.0).abs() < 0.005,
@@ -182,12 +174,7 @@ fn both_engines_render_the_cubes_alike() {
     let program = cubes();
     let a = render(&program, 4.0, Engine::Jit);
     let b = render(&program, 4.0, Engine::Interpreter);
-    let diff = a
-        .iter()
-        .zip(&b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max);
-    assert!(diff < 1e-5, "engines differ by {diff}");
+    assert_close(&a, &b, 1e-5, "the cubes, JIT vs interpreter");
 }
 
 #[test]

@@ -1,11 +1,12 @@
-//! Helpers shared by the end-to-end tests of the `timbre` binary: run it, read the WAV
-//! it wrote, and measure the sound (spectra, levels, frequencies).
+//! Helpers shared by the end-to-end tests of the `timbre` binary: run it and read the
+//! WAV it wrote. The measurements (spectra, levels, frequencies, WAV reading) are
+//! `timbre-testkit`'s, not here: tests use that crate directly.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use realfft::RealFftPlanner;
+use timbre_testkit::{read_wav, Wav};
 
 pub const SR: f64 = 48_000.0;
 
@@ -149,45 +150,6 @@ pub fn scene_duration(path: &Path) -> f64 {
     number.parse().expect(":duration is a number")
 }
 
-/// A decoded WAV file: its header and its samples as f64 in [-1, 1].
-#[derive(Debug)]
-pub struct Wav {
-    pub spec: hound::WavSpec,
-    pub samples: Vec<f64>,
-}
-
-impl Wav {
-    pub fn rate(&self) -> f64 {
-        f64::from(self.spec.sample_rate)
-    }
-
-    pub fn seconds(&self, from: f64, to: f64) -> &[f64] {
-        let a = (from * self.rate()).round() as usize;
-        let b = ((to * self.rate()).round() as usize).min(self.samples.len());
-        &self.samples[a..b]
-    }
-}
-
-pub fn read_wav(path: &Path) -> Wav {
-    let mut reader =
-        hound::WavReader::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let spec = reader.spec();
-    let samples: Vec<f64> = match spec.sample_format {
-        hound::SampleFormat::Float => reader
-            .samples::<f32>()
-            .map(|s| f64::from(s.unwrap()))
-            .collect(),
-        hound::SampleFormat::Int => {
-            let full = f64::from((1u32 << (spec.bits_per_sample - 1)) - 1);
-            reader
-                .samples::<i32>()
-                .map(|s| f64::from(s.unwrap()) / full)
-                .collect()
-        }
-    };
-    Wav { spec, samples }
-}
-
 /// Renders with `timbre render ARGS… -o DIR/out.wav` (from the workspace root) and
 /// reads the result; panics with stderr if the render fails.
 pub fn render_wav<I, S>(args: I) -> Wav
@@ -213,138 +175,4 @@ pub fn dir_entries(dir: &Path) -> Vec<String> {
         .collect();
     names.sort();
     names
-}
-
-/// Writes a mono 32-bit float WAV.
-pub fn write_wav_f32(path: &Path, rate: u32, samples: &[f64]) {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec).unwrap();
-    for &s in samples {
-        w.write_sample(s as f32).unwrap();
-    }
-    w.finalize().unwrap();
-}
-
-// ---------------------------------------------------------------- measurement
-
-pub fn rms(x: &[f64]) -> f64 {
-    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
-}
-
-pub fn peak(x: &[f64]) -> f64 {
-    x.iter().fold(0.0, |m, v| m.max(v.abs()))
-}
-
-pub fn energy(x: &[f64]) -> f64 {
-    x.iter().map(|v| v * v).sum()
-}
-
-/// Seconds after which `fraction` of the total energy has arrived.
-pub fn energy_time(x: &[f64], rate: f64, fraction: f64) -> f64 {
-    let total = energy(x);
-    let mut acc = 0.0;
-    for (i, v) in x.iter().enumerate() {
-        acc += v * v;
-        if acc >= fraction * total {
-            return i as f64 / rate;
-        }
-    }
-    x.len() as f64 / rate
-}
-
-/// Magnitude spectrum with a Hann window; bin `k` is at `k · rate / x.len()` Hz.
-pub fn spectrum(x: &[f64]) -> Vec<f64> {
-    let n = x.len();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(n);
-    let mut input: Vec<f64> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| v * (0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos()))
-        .collect();
-    let mut output = fft.make_output_vec();
-    fft.process(&mut input, &mut output).unwrap();
-    output.iter().map(|c| c.norm()).collect()
-}
-
-/// Frequencies of the `k` strongest local maxima of the spectrum, refined by parabolic
-/// interpolation of the log magnitude, strongest first.
-pub fn spectral_peaks(x: &[f64], rate: f64, k: usize) -> Vec<f64> {
-    let mag = spectrum(x);
-    let bin_hz = rate / x.len() as f64;
-    let mut peaks: Vec<(f64, f64)> = (1..mag.len() - 1)
-        .filter(|&i| mag[i] > mag[i - 1] && mag[i] >= mag[i + 1])
-        .map(|i| {
-            let (a, b, c) = (mag[i - 1].ln(), mag[i].ln(), mag[i + 1].ln());
-            let denom = a - 2.0 * b + c;
-            let offset = if denom.abs() > 0.0 {
-                0.5 * (a - c) / denom
-            } else {
-                0.0
-            };
-            (mag[i], (i as f64 + offset) * bin_hz)
-        })
-        .collect();
-    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
-    peaks.iter().take(k).map(|p| p.1).collect()
-}
-
-/// The strongest spectral peak between `lo` and `hi` Hz.
-pub fn strongest_peak_in(x: &[f64], rate: f64, lo: f64, hi: f64) -> f64 {
-    let mag = spectrum(x);
-    let bin_hz = rate / x.len() as f64;
-    let first = ((lo / bin_hz).ceil() as usize).max(1);
-    let last = ((hi / bin_hz).floor() as usize).min(mag.len() - 2);
-    let i = (first..=last)
-        .max_by(|&a, &b| mag[a].total_cmp(&mag[b]))
-        .expect("a non-empty band");
-    let (a, b, c) = (mag[i - 1].ln(), mag[i].ln(), mag[i + 1].ln());
-    let denom = a - 2.0 * b + c;
-    let offset = if denom.abs() > 0.0 {
-        0.5 * (a - c) / denom
-    } else {
-        0.0
-    };
-    (i as f64 + offset) * bin_hz
-}
-
-/// Power (sum of squared magnitudes) of the spectrum between `lo` and `hi` Hz.
-pub fn band_power(mag: &[f64], bin_hz: f64, lo: f64, hi: f64) -> f64 {
-    mag.iter()
-        .enumerate()
-        .filter(|(i, _)| {
-            let f = *i as f64 * bin_hz;
-            f >= lo && f < hi
-        })
-        .map(|(_, m)| m * m)
-        .sum()
-}
-
-/// Power-weighted mean frequency of the spectrum.
-pub fn spectral_centroid(x: &[f64], rate: f64) -> f64 {
-    let mag = spectrum(x);
-    let bin_hz = rate / x.len() as f64;
-    let (num, den) = mag.iter().enumerate().fold((0.0, 0.0), |(n, d), (i, m)| {
-        (n + i as f64 * bin_hz * m * m, d + m * m)
-    });
-    num / den
-}
-
-/// Frequency from interpolated upward zero crossings between the first and last.
-pub fn zero_crossing_frequency(x: &[f64], rate: f64) -> f64 {
-    let mut crossings = vec![];
-    for i in 1..x.len() {
-        if x[i - 1] < 0.0 && x[i] >= 0.0 {
-            let frac = -x[i - 1] / (x[i] - x[i - 1]);
-            crossings.push((i - 1) as f64 + frac);
-        }
-    }
-    assert!(crossings.len() > 2, "signal has no oscillation");
-    let cycles = (crossings.len() - 1) as f64;
-    cycles * rate / (crossings[crossings.len() - 1] - crossings[0])
 }

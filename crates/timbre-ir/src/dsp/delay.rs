@@ -120,6 +120,10 @@ impl StatefulKernel for Delay {
         d.f64(self.max_seconds);
     }
 
+    fn detail(&self) -> String {
+        format!("max={:?} s", self.max_seconds)
+    }
+
     fn new_state(&self, ctx: &StateContext<'_>) -> Vec<DelayLine> {
         lines(self.max_seconds, ctx)
     }
@@ -168,6 +172,10 @@ impl StatefulKernel for Comb {
         d.f64(self.max_seconds);
     }
 
+    fn detail(&self) -> String {
+        format!("max={:?} s", self.max_seconds)
+    }
+
     fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
         // One sample more: the loop reads a line whose newest sample is one old.
         let seconds = self.max_seconds + 1.0 / ctx.config.sample_rate;
@@ -212,6 +220,10 @@ impl StatefulKernel for Allpass {
 
     fn describe(&self, d: &mut Description) {
         d.f64(self.max_seconds);
+    }
+
+    fn detail(&self) -> String {
+        format!("max={:?} s", self.max_seconds)
     }
 
     fn new_state(&self, ctx: &StateContext<'_>) -> Vec<DelayLine> {

@@ -512,6 +512,10 @@ impl StatefulKernel for PinkNoise {
         d.u64(self.seed);
     }
 
+    fn detail(&self) -> String {
+        format!("seed={:#018x}", self.seed)
+    }
+
     fn width(&self, _args: &[usize]) -> usize {
         1
     }
@@ -543,6 +547,10 @@ impl StatefulKernel for MarkovNoise {
 
     fn describe(&self, d: &mut Description) {
         d.u64(self.seed);
+    }
+
+    fn detail(&self) -> String {
+        format!("seed={:#018x}", self.seed)
     }
 
     fn new_state(&self, ctx: &StateContext<'_>) -> Vec<Markov> {

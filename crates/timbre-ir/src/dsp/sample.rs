@@ -38,6 +38,11 @@ impl StatefulKernel for SamplePlayer {
             .u64(self.looping as u64);
     }
 
+    fn detail(&self) -> String {
+        let mode = if self.looping { "looping" } else { "once" };
+        format!("{:?}, start={:?} s, {mode}", self.path, self.start_seconds)
+    }
+
     fn width(&self, _args: &[usize]) -> usize {
         1
     }
