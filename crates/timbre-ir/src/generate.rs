@@ -12,15 +12,24 @@
 //! - **Domains are guarded.** `log` and `sqrt` take `(+ small (abs x))`, `pow` a
 //!   positive base and a bounded exponent, divisions `(+ 1 (abs x))` or a constant,
 //!   `exp` and `tan` a clamped argument, `damp` a non-negative one, `mod` a non-zero
-//!   divisor.
+//!   divisor. `dbamp` takes −60 to 0 dB, `ampdb` a signal kept away from 0 (and is
+//!   scaled back to about ±1), `midihz` notes 36 to 96 as a frequency, `hzmidi` a
+//!   positive frequency.
 //! - **Amplitudes stay bounded.** Each subtree carries an estimate of its largest
 //!   magnitude; a subtree whose estimate grows past a limit is scaled, clamped or
 //!   soft-clipped (`tanh`), and so is the sound if it may pass ±1. Elsewhere the tree is
 //!   left as generated.
-//! - **Stateful nodes** (filters, `delay`, `conv`, `pink`, `markov`, `phasor`, `adsr`)
-//!   appear only with [`GenConfig::stateful`]. Filters get constant or slowly varying
-//!   frequencies; `delay` a constant time, or a varying one with a maximum; `conv` a
-//!   small impulse-response tree of at most 0.01 s.
+//! - **Stateful nodes** (filters, `delay`, `comb`, `allpass`, `conv`, `pink`, `markov`,
+//!   `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`, `triangle-bl`) appear
+//!   only with [`GenConfig::stateful`]. Filters get constant or slowly varying
+//!   frequencies; `delay` a constant time, or a varying one with a maximum; `comb` and
+//!   `allpass` 1 to 20 ms likewise and a loop gain of at most 0.9; `conv` a small
+//!   impulse-response tree of at most 0.01 s; `latch` a square or pulse trigger (or a
+//!   condition, or without `smooth_only` a sine or noise); `lag` a time constant of 1
+//!   to 50 ms; `saw-bl`, `square-bl` and `triangle-bl` a phase, like their naive
+//!   counterparts.
+//! - **Every node of the catalogue** but `sample` (which reads a file) has a place;
+//!   `tests/generate.rs` checks that they are all reached.
 //! - **`smooth_only`** keeps the tree free of constructions that turn tiny rounding
 //!   differences into large output differences. See [`GenConfig::smooth_only`].
 //!
@@ -62,16 +71,20 @@ pub struct GenConfig {
     /// An exact value is one that any engine doing the same IEEE operations (without
     /// fused multiply-add contraction) gets bit for bit: numbers, `t`, `pi`, and
     /// `+ - * abs min max clamp floor frac mod`, comparisons, `and or not`, `if`,
-    /// `sawtooth square pulse triangle`, the vector nodes and `let` names, of exact
-    /// values. Everything else (`sine sin cos tan tanh exp log sqrt pow / damp`,
-    /// noises, `env`, stateful nodes) is inexact: it may flow into smooth consumers
-    /// (arithmetic, `sine`, `triangle`, `noise`, filters, delay times, `env`), but
-    /// never into `floor frac mod`, a comparison, `and or not`, the condition of `if`,
-    /// the phase of `sawtooth square pulse`, the width of `pulse`, the lane of `index`
+    /// `sawtooth square pulse triangle`, the vector nodes, `latch` and `let` names, of
+    /// exact values. Everything else (`sine sin cos tan tanh exp log sqrt pow / damp`,
+    /// `dbamp ampdb midihz hzmidi`, noises, `env`, the other stateful nodes) is
+    /// inexact: it may flow into smooth consumers (arithmetic, `sine`, `triangle`,
+    /// `triangle-bl`, `noise`, filters, delay times and gains, `lag`, `env`, what a
+    /// `latch` holds), but never into `floor frac mod`, a comparison, `and or not`,
+    /// the condition of `if`, the phase of `sawtooth square pulse saw-bl square-bl`
+    /// (the band-limited two turn a phase error into an error over the phase's step
+    /// per sample), the width of `pulse`, the lane of `index`, the trigger of `latch`
     /// or any argument of `adsr`.
     pub smooth_only: bool,
-    /// Allow the stateful nodes: filters, `delay`, `conv`, `pink`, `markov`, `phasor`,
-    /// `adsr`.
+    /// Allow the stateful nodes: filters, `delay`, `comb`, `allpass`, `conv`, `pink`,
+    /// `markov`, `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`,
+    /// `triangle-bl`.
     pub stateful: bool,
 }
 
@@ -166,9 +179,14 @@ enum Production {
     Index,
     Vector,
     Rvector,
+    Level,
     Filter,
     Delay,
+    Feedforward,
     Comb,
+    Allpass,
+    Latch,
+    Lag,
     Conv,
     Env,
     Adsr,
@@ -231,6 +249,20 @@ fn joined(args: &[Ex]) -> String {
         .map(|a| a.s.as_str())
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// The band-limited waveforms (stateful), with their weights among the waveforms.
+const BAND_LIMITED: [(f64, &str); 3] = [(0.8, "saw-bl"), (0.5, "square-bl"), (0.6, "triangle-bl")];
+
+/// Whether a waveform of an exact phase is exact: the naive ones (the band-limited
+/// ones are stateful).
+fn exact_wave(wave: &str) -> bool {
+    matches!(wave, "triangle" | "sawtooth" | "square" | "pulse")
+}
+
+/// MIDI note number of a frequency in Hz (what `hzmidi` computes).
+fn note_of(hz: f64) -> f64 {
+    69.0 + 12.0 * (hz / 440.0).log2()
 }
 
 /// A divisor for normalising by an amplitude estimate.
@@ -531,6 +563,9 @@ impl<'a, R: Rng> Gen<'a, R> {
                 waves.push((0.7, "pulse"));
                 if !ex {
                     waves.push((3.0, "sine"));
+                    if self.stateful {
+                        waves.extend(BAND_LIMITED);
+                    }
                 }
                 let wave = self.weighted(&waves);
                 let freq = self.const_freq(w, lo, hi);
@@ -545,7 +580,7 @@ impl<'a, R: Rng> Gen<'a, R> {
                 } else {
                     format!("({wave} {phase})")
                 };
-                Ex::new(s, 1.0, wave != "sine")
+                Ex::new(s, 1.0, exact_wave(wave))
             }
             Leaf::Const => {
                 let (s, b) = self.const_vec(w, -1.0, 1.0);
@@ -626,17 +661,25 @@ impl<'a, R: Rng> Gen<'a, R> {
                 (1.0, P::Decay),
                 (0.8, P::Noise),
                 (1.0, P::Env),
+                (1.0, P::Level),
             ]);
             if st {
                 choices.extend([
                     (0.6, P::Markov),
                     (3.0, P::Filter),
                     (1.0, P::Delay),
-                    (0.5, P::Comb),
+                    (0.4, P::Feedforward),
+                    (0.6, P::Comb),
+                    (0.6, P::Allpass),
+                    (0.6, P::Lag),
                     (0.6, P::Conv),
                     (0.8, P::Adsr),
                 ]);
             }
+        }
+        if st {
+            // Exact when what it holds and its trigger are.
+            choices.push((0.6, P::Latch));
         }
         if wide {
             choices.push((1.5, P::Vector));
@@ -1015,7 +1058,7 @@ impl<'a, R: Rng> Gen<'a, R> {
                 // Cubic interpolation overshoots a little between samples.
                 Ex::new(s, a.b * 1.25, false)
             }
-            P::Comb => {
+            P::Feedforward => {
                 let a = self.audio(w, d, false);
                 let name = self.name();
                 let (time, max) = self.delay_time(1, 0);
@@ -1034,7 +1077,8 @@ impl<'a, R: Rng> Gen<'a, R> {
                     a.s,
                     num(g)
                 );
-                Ex::new(s, a.b * (1.0 + g.abs()), false)
+                // Cubic interpolation overshoots a little between samples.
+                Ex::new(s, a.b * (1.0 + 1.25 * g.abs()), false)
             }
             P::Conv => {
                 let a = self.audio(w, d, false);
@@ -1048,6 +1092,11 @@ impl<'a, R: Rng> Gen<'a, R> {
                 let s = format!("(conv {} {ir} {length})", a.s);
                 Ex::new(s, a.b * gain, false)
             }
+            P::Level => self.level(w, d),
+            P::Comb => self.comb(w, d),
+            P::Allpass => self.allpass(w, d),
+            P::Latch => self.latch(w, d, ex),
+            P::Lag => self.lag(w, d),
             P::Env => self.env(w, d),
             P::Adsr => self.adsr(w, d),
             P::Let => {
@@ -1196,14 +1245,22 @@ impl<'a, R: Rng> Gen<'a, R> {
         waves.push((1.0, "pulse"));
         if !ex {
             waves.push((3.0, "sine"));
+            if self.stateful {
+                waves.extend(BAND_LIMITED);
+            }
         }
         let wave = self.weighted(&waves);
-        // Discontinuous in the phase: needs an exact phase.
-        let jumps = matches!(wave, "sawtooth" | "square" | "pulse");
+        // Discontinuous in the phase: needs an exact phase. (The band-limited saw and
+        // square are continuous, but they jump within a sample or two: a rounding
+        // error in the phase, over the phase's step per sample, is what they change.)
+        let jumps = matches!(
+            wave,
+            "sawtooth" | "square" | "pulse" | "saw-bl" | "square-bl"
+        );
         let phase_ex = ex || (sm && jumps);
         if wave != "pulse" {
             let ph = self.phase(w, depth, phase_ex);
-            return Ex::new(format!("({wave} {})", ph.s), 1.0, wave != "sine" && ph.x);
+            return Ex::new(format!("({wave} {})", ph.s), 1.0, exact_wave(wave) && ph.x);
         }
         let ws = self.widths(w, 2);
         let ph = self.phase(ws[0], depth, phase_ex);
@@ -1285,11 +1342,33 @@ impl<'a, R: Rng> Gen<'a, R> {
         }
         self.spend(2);
         let ws = self.widths(w, 2);
+        // MIDI notes 36 to 96 (65 Hz to 1 kHz), as far as the range allows.
+        let (note_lo, note_hi) = (note_of(lo).max(36.0), note_of(hi).min(96.0));
+        let choice = match (ex, note_hi - note_lo >= 6.0) {
+            (true, _) => self.int(0, 1),
+            (false, false) => self.int(0, 2),
+            (false, true) => self.int(0, 4),
+        };
+        if choice == 3 {
+            // A note (or a chord) with a deviation in semitones: `midihz` is positive
+            // whatever the deviation.
+            self.spend(1);
+            let (note, _) = self.const_vec(ws[0], note_lo, note_hi);
+            let m = self.slow_audio(ws[1], depth - 1, false);
+            let semitones = self.logu(0.05, 7.0) / norm(m.b);
+            let s = format!("(midihz (+ {note} (* {} {})))", num(semitones), m.s);
+            return Ex::new(s, hi * 1.5, false);
+        }
         let f0 = self.const_freq(ws[0], lo, hi);
-        let choice = if ex { self.int(0, 1) } else { self.int(0, 2) };
         let m = self.slow_audio(ws[1], depth - 1, ex);
         let amount = self.logu(0.003, 0.5) / norm(m.b);
         match choice {
+            4 => {
+                // Bent by up to a fifth, in semitones.
+                let semitones = amount * 14.0;
+                let s = format!("(midihz (+ (hzmidi {f0}) (* {} {})))", num(semitones), m.s);
+                Ex::new(s, hi * 1.5, false)
+            }
             0 => {
                 // A deviation in Hz, relative to the lowest frequency.
                 let dev = lo * amount;
@@ -1413,6 +1492,228 @@ impl<'a, R: Rng> Gen<'a, R> {
         };
         self.scope = scope;
         result
+    }
+
+    /// A loop delay for `comb` and `allpass` of width `w`, 1 to 20 ms, and a maximum
+    /// when it varies (or by chance).
+    fn loop_delay(&mut self, w: usize, depth: usize) -> (String, Option<String>) {
+        if !self.grow(depth) || self.p(0.5) {
+            let (time, longest) = self.const_vec(w, 0.001, 0.02);
+            let max = self.p(0.3).then(|| num(longest * self.uni(1.0, 1.5)));
+            return (time, max);
+        }
+        let c = self.uni(0.003, 0.015);
+        let m = self.slow_audio(w, depth - 1, false);
+        let dev = (c - 0.001) / norm(m.b);
+        let time = format!("(+ {} (* {} {}))", num(c), num(dev), m.s);
+        let max = num(c + dev * m.b + 0.001);
+        (time, Some(max))
+    }
+
+    /// A loop gain for `comb` (its feedback) and `allpass` of width `w`, and its
+    /// largest magnitude, at most 0.9: constant, or a slow signal clamped to it.
+    fn loop_gain(&mut self, w: usize, depth: usize) -> (String, f64) {
+        let top = self.uni(0.1, 0.9);
+        let constant = !self.grow(depth) || self.p(0.7);
+        if constant && w == 1 {
+            let sign = if self.p(0.3) { -1.0 } else { 1.0 };
+            return (num(sign * top), top);
+        }
+        if constant {
+            return (self.const_vec(w, -top, top).0, top);
+        }
+        let m = self.slow_audio(w, depth - 1, false);
+        let s = format!(
+            "(clamp (* {} {}) {} {})",
+            num(top / norm(m.b)),
+            m.s,
+            num(-top),
+            num(top)
+        );
+        (s, top)
+    }
+
+    /// A feedback `comb` of width `w`, sometimes damped.
+    fn comb(&mut self, w: usize, depth: usize) -> Ex {
+        let ws = self.widths(w, 3);
+        let x = self.audio(ws[0], depth, false);
+        let (delay, max) = self.loop_delay(ws[1], depth);
+        let (feedback, g) = self.loop_gain(ws[2], depth);
+        let damp = self.p(0.4).then(|| num(self.uni(0.0, 0.9)));
+        let s = self.call(
+            "comb",
+            &[
+                ("x", Some(x.s)),
+                ("delay", Some(delay)),
+                ("feedback", Some(feedback)),
+                ("damp", damp),
+                ("max", max),
+            ],
+            "",
+        );
+        // The loop's gain at its peaks, 1/(1 − |g|) (the damping low-pass does not
+        // add to it), and a little for the cubic interpolation of the delay.
+        Ex::new(s, x.b * 1.25 / (1.0 - g), false)
+    }
+
+    /// A Schroeder `allpass` of width `w`.
+    fn allpass(&mut self, w: usize, depth: usize) -> Ex {
+        let ws = self.widths(w, 3);
+        let x = self.audio(ws[0], depth, false);
+        let (delay, max) = self.loop_delay(ws[1], depth);
+        let (gain, g) = self.loop_gain(ws[2], depth);
+        let s = self.call(
+            "allpass",
+            &[
+                ("x", Some(x.s)),
+                ("delay", Some(delay)),
+                ("gain", Some(gain)),
+                ("max", max),
+            ],
+            "",
+        );
+        // The sum of |h| of its impulse response is 1 + 2|g|; with interpolation and
+        // a varying delay, more: allow 1/(1 − |g|) for that.
+        Ex::new(s, x.b * (1.0 + 2.0 * g) / (1.0 - g), false)
+    }
+
+    /// A `latch` of width `w`: a signal sampled and held at the rising edges of a
+    /// trigger. Exact if `ex` (it copies what it holds).
+    fn latch(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let ws = self.widths(w, 2);
+        let x = self.audio(ws[0], depth, ex);
+        let trigger = self.trigger(ws[1], depth);
+        let s = self.call(
+            "latch",
+            &[("x", Some(x.s)), ("trigger", Some(trigger.s))],
+            "",
+        );
+        Ex::new(s, x.b, x.x && trigger.x)
+    }
+
+    /// A trigger for `latch` of width `w` (a rising edge is a step to above 0): held
+    /// steps of a modulator, or a lower sample rate. Exact in `smooth_only` mode: the
+    /// latch is discontinuous in it.
+    fn trigger(&mut self, w: usize, depth: usize) -> Ex {
+        // Not too slow: the first edge is at 0, where many signals are 0.
+        let (lo, hi) = if self.slow {
+            (4.0, 60.0)
+        } else if self.p(0.5) {
+            (20.0, 200.0)
+        } else {
+            (200.0, 3000.0)
+        };
+        let rate = self.const_freq(w, lo, hi);
+        let mut choices = vec![(2.0, 0), (1.5, 1), (1.0, 2)];
+        if !self.smooth_only {
+            choices.push((1.0, 3));
+        }
+        match self.weighted(&choices) {
+            0 => Ex::new(format!("(square (* t {rate}))"), 1.0, true),
+            1 => {
+                let width = num(self.uni(0.05, 0.95));
+                let phase = format!("(* t {rate})");
+                let s = self.call("pulse", &[("x", Some(phase)), ("width", Some(width))], "");
+                Ex::new(s, 1.0, true)
+            }
+            2 => self.cond(w, depth),
+            _ if self.p(0.5) => Ex::new(format!("(sine (* t {rate}))"), 1.0, false),
+            _ => {
+                let seed = self.seed();
+                Ex::new(format!("(noise (* t {rate}){seed})"), 1.0, false)
+            }
+        }
+    }
+
+    /// A `lag` of width `w`: a signal smoothed with a time constant of 1 to 50 ms,
+    /// constant or slowly varying.
+    fn lag(&mut self, w: usize, depth: usize) -> Ex {
+        let ws = self.widths(w, 2);
+        // Smoothing steps is what it is for: often those of a held signal.
+        let x = if self.p(0.3) {
+            self.latch(ws[0], depth, false)
+        } else {
+            self.audio(ws[0], depth, false)
+        };
+        let seconds = if !self.grow(depth) || self.p(0.6) {
+            if ws[1] == 1 {
+                num(self.logu(0.001, 0.05))
+            } else {
+                self.const_vec(ws[1], 0.001, 0.05).0
+            }
+        } else {
+            let c = self.logu(0.003, 0.03);
+            let m = self.slow_audio(ws[1], depth - 1, false);
+            let dev = (c - 0.001) / norm(m.b);
+            format!("(+ {} (* {} {}))", num(c), num(dev), m.s)
+        };
+        let s = self.call("lag", &[("x", Some(x.s)), ("seconds", Some(seconds))], "");
+        // Exponential smoothing stays within what it smooths.
+        Ex::new(s, x.b, false)
+    }
+
+    /// `dbamp`, `ampdb` or `hzmidi` of width `w`: a gain in decibels, a signal's
+    /// level in decibels, or a frequency's note number as a signal.
+    fn level(&mut self, w: usize, depth: usize) -> Ex {
+        match self.int(0, 3) {
+            0 | 1 => {
+                // A gain of −60 to 0 dB, constant or slowly varying.
+                let ws = self.widths(w, 2);
+                let lo = self.uni(-60.0, -12.0);
+                let hi = self.uni(lo + 6.0, 0.0);
+                let db = if !self.grow(depth) || self.p(0.35) {
+                    self.const_vec(ws[0], lo, hi).0
+                } else {
+                    let m = self.slow_audio(ws[0], depth - 1, false);
+                    let (mid, half) = ((lo + hi) / 2.0, (hi - lo) / 2.0 / norm(m.b));
+                    let s = format!("(+ {} (* {} {}))", num(mid), num(half), m.s);
+                    if self.p(0.3) {
+                        format!("(clamp {s} {} {})", num(lo), num(hi))
+                    } else {
+                        s
+                    }
+                };
+                let gain = 10f64.powf(hi / 20.0);
+                if ws[0] == w && self.p(0.2) {
+                    return Ex::new(format!("(dbamp {db})"), gain, false);
+                }
+                let a = self.audio(ws[1], depth, false);
+                Ex::new(format!("(* (dbamp {db}) {})", a.s), a.b * gain, false)
+            }
+            2 => {
+                // The level of a signal kept away from 0, scaled to about ±1.
+                let a = self.audio(w, depth, false);
+                let (arg, lo, hi) = if self.p(0.5) {
+                    let c = self.uni(1.5, 4.0);
+                    let k = 1.0 / norm(a.b);
+                    let s = format!("(+ {} (* {} {}))", num(c), num(k), a.s);
+                    (s, c - 1.0, c + 1.0)
+                } else {
+                    let small: f64 = self.pick(&[0.1, 0.5, 1.0]);
+                    let s = format!("(+ {} (abs {}))", num(small), a.s);
+                    (s, small, small + a.b)
+                };
+                let db = (20.0 * lo.log10()).abs().max((20.0 * hi.log10()).abs());
+                let s = format!("(* {} (ampdb {arg}))", num(0.999 / norm(db)));
+                Ex::new(s, 1.0, false)
+            }
+            _ => {
+                // A pitch as a signal: a frequency's note number, centred and scaled.
+                // The frequency is positive; `max` keeps it so should an amplitude
+                // estimate fall short.
+                let (lo, hi) = self.rate_range();
+                let f = self.freq(w, depth, false, lo, hi);
+                let (low, high) = (note_of(lo / 2.0), note_of(2.0 * f.b));
+                let (mid, half) = ((low + high) / 2.0, (high - low) / 2.0);
+                let hz = if f.s.starts_with('(') {
+                    format!("(max {} {})", num(lo / 2.0), f.s)
+                } else {
+                    f.s
+                };
+                let s = format!("(* {} (- (hzmidi {hz}) {}))", num(1.0 / half), num(mid));
+                Ex::new(s, 1.0, false)
+            }
+        }
     }
 
     /// An `env` of width `w`, alone or shaping a signal.
