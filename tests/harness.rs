@@ -244,3 +244,13 @@ fn every_case_calls_at_least_one_builtin_node() {
     let uncovered = timbre_conformance::uncovered_builtins();
     eprintln!("built-in nodes without a conformance case: {uncovered:?}");
 }
+
+/// The tidy check of the node catalogue: every built-in node is called by a case.
+#[test]
+fn every_catalogue_node_has_a_conformance_case() {
+    let missing = timbre_conformance::uncovered_builtins();
+    assert!(
+        missing.is_empty(),
+        "no case in tests/conformance/ calls {missing:?}: add one that measures it"
+    );
+}
