@@ -300,6 +300,17 @@ fn block_size_does_not_change_the_output() {
 }
 
 #[test]
+fn block_size_does_not_change_where_a_decayed_instance_ends() {
+    // cubes.tt: wood1 has no stop and ends once decayed, at about 0.8 s of 4.
+    let cubes = example("cubes").into_os_string();
+    let with = |block: &str| render_bytes(&[cubes.clone(), "--block-size".into(), block.into()]);
+    assert!(
+        with("64") == with("1000"),
+        "--block-size 64 and 1000 give different files"
+    );
+}
+
+#[test]
 fn formats_have_the_right_header_and_matching_content() {
     let base = ["--expr", "(* 0.9 (sine (* t 441)))", "--duration", "0.2"];
     let f32_wav = render_wav(s(&base));
