@@ -883,6 +883,49 @@ fn bad_usage_exits_2() {
     }
 }
 
+/// 1 KB of doubling definitions: `a20` applies `a0` 2^20 times, a chain of two million
+/// distinct nodes.
+fn doubling_file() -> String {
+    let mut text = String::from("(define a0 (x) (sine (+ x 0.1)))\n");
+    for i in 1..=20 {
+        text += &format!("(define a{i} (x) (a{p} (a{p} x)))\n", p = i - 1);
+    }
+    text + "(* 0.5 (a20 t))\n"
+}
+
+#[test]
+fn a_small_file_of_a_deep_tree_checks_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("doubling.tt");
+    std::fs::write(&file, doubling_file()).unwrap();
+    assert!(std::fs::metadata(&file).unwrap().len() <= 1024);
+    let run = run_in(Some(dir.path()), ["check", "doubling.tt"]);
+    run.assert_success();
+    assert!(run.stdout.starts_with("ok: one sound"), "{}", run.stdout);
+    // Too large for the code generator: the interpreter renders it. It keeps one
+    // buffer per node, so a small block keeps the test's memory down (256 MB rather
+    // than 4 GB at the default 256 samples).
+    let run = run_in(
+        Some(dir.path()),
+        [
+            "render",
+            "doubling.tt",
+            "--duration",
+            "0.01",
+            "--block-size",
+            "16",
+            "-o",
+            "out.wav",
+            "--quiet",
+        ],
+    );
+    run.assert_success();
+    let wav = read_wav(&dir.path().join("out.wav"));
+    assert_eq!(wav.samples.len(), 480);
+    assert!(wav.samples.iter().all(|x| x.is_finite() && x.abs() <= 0.5));
+    assert!(peak(&wav.samples) > 0.1);
+}
+
 #[test]
 fn check_reports_ok_without_writing_anything() {
     let dir = tempfile::tempdir().unwrap();

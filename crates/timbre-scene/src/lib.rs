@@ -296,9 +296,14 @@ impl SceneRenderer {
 
     fn voice(&mut self, graph: &Graph, root: NodeId) -> Result<Voice, JitError> {
         Ok(match (self.engine, &mut self.jit) {
-            (Engine::Jit, Some(jit)) => {
-                Voice::Jit(Box::new(jit.voice(graph, root, self.config)?))
-            }
+            (Engine::Jit, Some(jit)) => match jit.voice(graph, root, self.config) {
+                Ok(voice) => Voice::Jit(Box::new(voice)),
+                // Too large to compile: the reference interpreter renders it.
+                Err(JitError::TooLarge { .. }) => {
+                    Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config)))
+                }
+                Err(e) => return Err(e),
+            },
             _ => Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config))),
         })
     }

@@ -386,3 +386,18 @@ fn a_decayed_instance_ends_at_a_window_of_its_own_timeline() {
         }
     }
 }
+
+#[test]
+fn a_tree_too_large_to_compile_is_interpreted() {
+    // A chain of 2^15 distinct nodes, over the code generator's limit.
+    let mut text = String::from("(define a0 (x) (sine (+ x 0.1)))\n");
+    for i in 1..=14 {
+        text += &format!("(define a{i} (x) (a{p} (a{p} x)))\n", p = i - 1);
+    }
+    text += "(* 0.5 (a14 t))";
+    let program = scene(&text);
+    assert!(program.graph.len() > timbre_jit::MAX_KERNEL_STEPS);
+    let jit = render_with(&program, 1000, 64, Engine::Jit);
+    let interp = render_with(&program, 1000, 64, Engine::Interpreter);
+    assert_same_bits(&jit, &interp, "the JIT engine's fallback");
+}
