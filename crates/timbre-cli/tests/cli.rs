@@ -310,6 +310,77 @@ fn block_size_does_not_change_where_a_decayed_instance_ends() {
     );
 }
 
+/// A scene whose random nodes read a keyframed variable: as a class parameter (the
+/// whoosh's noise, with white and pink noise) and inside a class body (the rumble).
+const KEYFRAMED_NOISE: &str = "(scene :sample-rate 48000 :duration 0.5 :seed 3)
+(keyframes speed :interp smooth (0 3) (0.2 40) (0.5 9))
+(define-sound whoosh (s) (* (noise (* t s)) (white) (pink)))
+(define-sound rumble (gain) (* gain (noise (* t speed))))
+(instance a (whoosh :s speed) :start 0)
+(instance b (whoosh :s speed) :start 0.125 :gain 0.5)
+(instance c (rumble :gain 0.3) :start 0.05)
+";
+
+/// Renders `KEYFRAMED_NOISE` with `engine` in three separate processes; returns the
+/// three files' bytes.
+fn keyframed_noise_in_three_processes(engine: &str) -> Vec<Vec<u8>> {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.tt"), KEYFRAMED_NOISE).unwrap();
+    (0..3)
+        .map(|i| {
+            let out = format!("out{i}.wav");
+            run_in(
+                Some(dir.path()),
+                ["render", "scene.tt", "--engine", engine, "-o", &out, "-q"],
+            )
+            .assert_success();
+            std::fs::read(dir.path().join(&out)).unwrap()
+        })
+        .collect()
+}
+
+fn samples_of(bytes: &[u8]) -> Vec<f64> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("x.wav");
+    std::fs::write(&path, bytes).unwrap();
+    read_wav(&path).samples
+}
+
+#[track_caller]
+fn assert_all_equal(files: &[Vec<u8>], engine: &str) {
+    assert!(!files[0].is_empty());
+    for (i, f) in files.iter().enumerate().skip(1) {
+        assert!(
+            *f == files[0],
+            "processes 0 and {i} rendered different files ({engine})"
+        );
+    }
+}
+
+#[test]
+fn random_nodes_reading_keyframes_give_the_same_bytes_in_every_process() {
+    assert_all_equal(&keyframed_noise_in_three_processes("jit"), "jit");
+}
+
+#[test]
+fn random_nodes_reading_keyframes_give_the_same_bytes_in_every_interpreter_process() {
+    assert_all_equal(&keyframed_noise_in_three_processes("interp"), "interp");
+}
+
+#[test]
+fn random_nodes_reading_keyframes_agree_across_engines_and_processes() {
+    let jit = samples_of(&keyframed_noise_in_three_processes("jit")[0]);
+    let interp = samples_of(&keyframed_noise_in_three_processes("interp")[0]);
+    assert_eq!(jit.len(), 24_000);
+    assert!(peak(&jit) > 0.01, "a silent test");
+    let diff = jit
+        .iter()
+        .zip(&interp)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(diff < 1e-5, "the JIT and the interpreter differ by {diff}");
+}
+
 #[test]
 fn formats_have_the_right_header_and_matching_content() {
     let base = ["--expr", "(* 0.9 (sine (* t 441)))", "--duration", "0.2"];
