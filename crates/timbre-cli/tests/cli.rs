@@ -304,6 +304,88 @@ fn block_size_does_not_change_the_output() {
 }
 
 #[test]
+fn block_size_does_not_change_where_a_decayed_instance_ends() {
+    // cubes.tt: wood1 has no stop and ends once decayed, at about 0.8 s of 4.
+    let cubes = example("cubes").into_os_string();
+    let with = |block: &str| render_bytes(&[cubes.clone(), "--block-size".into(), block.into()]);
+    assert!(
+        with("64") == with("1000"),
+        "--block-size 64 and 1000 give different files"
+    );
+}
+
+/// A scene whose random nodes read a keyframed variable: as a class parameter (the
+/// whoosh's noise, with white and pink noise) and inside a class body (the rumble).
+const KEYFRAMED_NOISE: &str = "(scene :sample-rate 48000 :duration 0.5 :seed 3)
+(keyframes speed :interp smooth (0 3) (0.2 40) (0.5 9))
+(define-sound whoosh (s) (* (noise (* t s)) (white) (pink)))
+(define-sound rumble (gain) (* gain (noise (* t speed))))
+(instance a (whoosh :s speed) :start 0)
+(instance b (whoosh :s speed) :start 0.125 :gain 0.5)
+(instance c (rumble :gain 0.3) :start 0.05)
+";
+
+/// Renders `KEYFRAMED_NOISE` with `engine` in three separate processes; returns the
+/// three files' bytes.
+fn keyframed_noise_in_three_processes(engine: &str) -> Vec<Vec<u8>> {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.tt"), KEYFRAMED_NOISE).unwrap();
+    (0..3)
+        .map(|i| {
+            let out = format!("out{i}.wav");
+            run_in(
+                Some(dir.path()),
+                ["render", "scene.tt", "--engine", engine, "-o", &out, "-q"],
+            )
+            .assert_success();
+            std::fs::read(dir.path().join(&out)).unwrap()
+        })
+        .collect()
+}
+
+fn samples_of(bytes: &[u8]) -> Vec<f64> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("x.wav");
+    std::fs::write(&path, bytes).unwrap();
+    read_wav(&path).samples
+}
+
+#[track_caller]
+fn assert_all_equal(files: &[Vec<u8>], engine: &str) {
+    assert!(!files[0].is_empty());
+    for (i, f) in files.iter().enumerate().skip(1) {
+        assert!(
+            *f == files[0],
+            "processes 0 and {i} rendered different files ({engine})"
+        );
+    }
+}
+
+#[test]
+fn random_nodes_reading_keyframes_give_the_same_bytes_in_every_process() {
+    assert_all_equal(&keyframed_noise_in_three_processes("jit"), "jit");
+}
+
+#[test]
+fn random_nodes_reading_keyframes_give_the_same_bytes_in_every_interpreter_process() {
+    assert_all_equal(&keyframed_noise_in_three_processes("interp"), "interp");
+}
+
+#[test]
+fn random_nodes_reading_keyframes_agree_across_engines_and_processes() {
+    let jit = samples_of(&keyframed_noise_in_three_processes("jit")[0]);
+    let interp = samples_of(&keyframed_noise_in_three_processes("interp")[0]);
+    assert_eq!(jit.len(), 24_000);
+    assert!(peak(&jit) > 0.01, "a silent test");
+    let diff = jit
+        .iter()
+        .zip(&interp)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(diff < 1e-5, "the JIT and the interpreter differ by {diff}");
+}
+
+#[test]
 fn formats_have_the_right_header_and_matching_content() {
     let base = ["--expr", "(* 0.9 (sine (* t 441)))", "--duration", "0.2"];
     let f32_wav = render_wav(s(&base));
@@ -863,6 +945,49 @@ fn bad_usage_exits_2() {
         );
         assert!(!out.exists(), "{args:?} wrote a file");
     }
+}
+
+/// 1 KB of doubling definitions: `a20` applies `a0` 2^20 times, a chain of two million
+/// distinct nodes.
+fn doubling_file() -> String {
+    let mut text = String::from("(define a0 (x) (sine (+ x 0.1)))\n");
+    for i in 1..=20 {
+        text += &format!("(define a{i} (x) (a{p} (a{p} x)))\n", p = i - 1);
+    }
+    text + "(* 0.5 (a20 t))\n"
+}
+
+#[test]
+fn a_small_file_of_a_deep_tree_checks_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("doubling.tt");
+    std::fs::write(&file, doubling_file()).unwrap();
+    assert!(std::fs::metadata(&file).unwrap().len() <= 1024);
+    let run = run_in(Some(dir.path()), ["check", "doubling.tt"]);
+    run.assert_success();
+    assert!(run.stdout.starts_with("ok: one sound"), "{}", run.stdout);
+    // Too large for the code generator: the interpreter renders it (after the
+    // compiled engine's rewrites, which must not recurse). It keeps one buffer per
+    // node, so a one-sample block and a few samples keep the test small.
+    let run = run_in(
+        Some(dir.path()),
+        [
+            "render",
+            "doubling.tt",
+            "--duration",
+            "0.0005",
+            "--block-size",
+            "1",
+            "-o",
+            "out.wav",
+            "--quiet",
+        ],
+    );
+    run.assert_success();
+    let wav = read_wav(&dir.path().join("out.wav"));
+    assert_eq!(wav.samples.len(), 24);
+    assert!(wav.samples.iter().all(|x| x.is_finite() && x.abs() <= 0.5));
+    assert!(peak(&wav.samples) > 0.1);
 }
 
 #[test]

@@ -11,6 +11,14 @@
 //!   multiply per sample instead of a sine and an exponential. A lone
 //!   `(sine (* τ F))` becomes `DampedSine(τ, F, 0)`. This is the modal tree's inner
 //!   loop.
+//!
+//! Every analysis is a single pass in id order (a node's arguments have smaller ids),
+//! each node's facts computed from its arguments' facts, so the passes use no
+//! recursion, whatever the graph's depth (a 1 KB file can build a chain of millions of
+//! nodes). A product is split into its factors only if it has at most
+//! [`MAX_FACTORS`] of them (a product of shared products has exponentially many);
+//! larger products are kept as written, so the time taken is at most linear in the
+//! graph's size times [`MAX_FACTORS`].
 
 use std::sync::Arc;
 
@@ -18,16 +26,22 @@ use crate::dsp::rotator::DampedSine;
 use crate::graph::{Graph, NodeId};
 use crate::op::{BinaryOp, ImpulseResponse, Op, UnaryOp};
 
+/// Products with more factors than this (counting a shared factor each time it occurs)
+/// are not rewritten: flattening them would copy the shared parts.
+pub const MAX_FACTORS: usize = 64;
+
 /// An optimised copy of what `root` needs of `graph`, and where `root` is in it.
 pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
     let needed = reachable(graph, root);
+    let facts = Facts::new(graph, &needed);
     let mut out = Graph::new();
     let mut map: Vec<NodeId> = vec![NodeId(0); graph.len()];
+    let mut parts = vec![];
     for (id, node) in graph.nodes() {
         if !needed[id.index()] {
             continue;
         }
-        let new = match damped_sine(graph, &mut out, &map, id) {
+        let new = match facts.damped_sine(graph, &mut out, &map, id, &mut parts) {
             Some(rewritten) => rewritten,
             None => {
                 let args = node.args.iter().map(|a| map[a.index()]).collect();
@@ -68,35 +82,133 @@ fn reachable(graph: &Graph, root: NodeId) -> Vec<bool> {
     needed
 }
 
-/// Whether `id` is a time: a one-lane value that advances by one sample period per
-/// sample except at occasional jumps (`t`, `(mod t 1)`, `(- t 0.5)`, `(frac t)` …).
-fn is_time_like(graph: &Graph, id: NodeId) -> bool {
-    let node = graph.node(id);
-    match node.op {
-        Op::Time => true,
-        Op::Binary(BinaryOp::Mod | BinaryOp::Add | BinaryOp::Sub) => {
-            is_time_like(graph, node.args[0]) && graph.scalar(node.args[1]).is_some()
-        }
-        Op::Unary(UnaryOp::Frac) => is_time_like(graph, node.args[0]),
-        _ => false,
-    }
+/// What the rewrites need to know of each needed node, computed in one pass in id
+/// order from the facts of its arguments.
+struct Facts {
+    /// Whether the node is a time: a one-lane value that advances by one sample period
+    /// per sample except at occasional jumps (`t`, `(mod t 1)`, `(- t 0.5)`,
+    /// `(frac t)` …).
+    time_like: Vec<bool>,
+    /// If the node is `τ·K` with τ time-like and K constant: an index into `linear`.
+    linear_of: Vec<Option<u32>>,
+    /// τ and K (lane by lane) of the nodes that are linear in time.
+    linear: Vec<(NodeId, Vec<f64>)>,
+    /// Factors of the node as a product (1 if it is not a multiplication), counted up
+    /// to `MAX_FACTORS + 1`.
+    factor_count: Vec<u32>,
+    /// Whether the node is a product with a factor `(sine (* τ F))` (or is one).
+    has_sine: Vec<bool>,
 }
 
-/// If `id` is `τ·K` with τ time-like and K constant: τ and K (lane by lane).
-fn linear_in_time(graph: &Graph, id: NodeId) -> Option<(NodeId, Vec<f64>)> {
-    if is_time_like(graph, id) {
-        return Some((id, vec![1.0]));
+impl Facts {
+    fn new(graph: &Graph, needed: &[bool]) -> Self {
+        let n = graph.len();
+        let mut facts = Facts {
+            time_like: vec![false; n],
+            linear_of: vec![None; n],
+            linear: vec![],
+            factor_count: vec![1; n],
+            has_sine: vec![false; n],
+        };
+        let cap = MAX_FACTORS as u32 + 1;
+        for (id, node) in graph.nodes() {
+            let i = id.index();
+            if !needed[i] {
+                continue;
+            }
+            let arg = |k: usize| node.args[k].index();
+            facts.time_like[i] = match node.op {
+                Op::Time => true,
+                Op::Binary(BinaryOp::Mod | BinaryOp::Add | BinaryOp::Sub) => {
+                    facts.time_like[arg(0)] && graph.scalar(node.args[1]).is_some()
+                }
+                Op::Unary(UnaryOp::Frac) => facts.time_like[arg(0)],
+                _ => false,
+            };
+            let linear = if facts.time_like[i] {
+                Some((id, vec![1.0]))
+            } else if let Op::Binary(BinaryOp::Mul) = node.op {
+                let (a, b) = (node.args[0], node.args[1]);
+                let found = match (facts.linear_in_time(a), graph.const_value(b)) {
+                    (Some(lin), Some(c)) => Some((lin, c)),
+                    _ => facts.linear_in_time(b).zip(graph.const_value(a)),
+                };
+                found.map(|((time, k), c)| (time, broadcast(k, c, |x, y| x * y)))
+            } else {
+                None
+            };
+            if let Some(linear) = linear {
+                facts.linear_of[i] = Some(facts.linear.len() as u32);
+                facts.linear.push(linear);
+            }
+            if let Op::Binary(BinaryOp::Mul) = node.op {
+                facts.factor_count[i] =
+                    (facts.factor_count[arg(0)] + facts.factor_count[arg(1)]).min(cap);
+                facts.has_sine[i] = facts.has_sine[arg(0)] || facts.has_sine[arg(1)];
+            } else {
+                facts.has_sine[i] = facts.time_coefficient(graph, id, UnaryOp::Sine).is_some();
+            }
+        }
+        facts
     }
-    let node = graph.node(id);
-    let Op::Binary(BinaryOp::Mul) = node.op else {
-        return None;
-    };
-    let (a, b) = (node.args[0], node.args[1]);
-    let ((time, k), c) = match (linear_in_time(graph, a), graph.const_value(b)) {
-        (Some(lin), Some(c)) => (lin, c.to_vec()),
-        _ => (linear_in_time(graph, b)?, graph.const_value(a)?.to_vec()),
-    };
-    Some((time, broadcast(&k, &c, |x, y| x * y)))
+
+    /// τ and K if `id` is `τ·K` with τ time-like and K constant.
+    fn linear_in_time(&self, id: NodeId) -> Option<(NodeId, &[f64])> {
+        let (time, k) = &self.linear[self.linear_of[id.index()]? as usize];
+        Some((*time, k))
+    }
+
+    /// τ and K if `id` is `(op (* τ K))`.
+    fn time_coefficient(&self, graph: &Graph, id: NodeId, op: UnaryOp) -> Option<(NodeId, &[f64])> {
+        let node = graph.node(id);
+        match node.op {
+            Op::Unary(u) if u == op => self.linear_in_time(node.args[0]),
+            _ => None,
+        }
+    }
+
+    /// `id` rewritten with a rotator, if it is a product with a factor
+    /// `(sine (* τ F))` of at most [`MAX_FACTORS`] factors, or such a sine alone.
+    fn damped_sine(
+        &self,
+        graph: &Graph,
+        out: &mut Graph,
+        map: &[NodeId],
+        id: NodeId,
+        parts: &mut Vec<NodeId>,
+    ) -> Option<NodeId> {
+        if !self.has_sine[id.index()] || self.factor_count[id.index()] as usize > MAX_FACTORS {
+            return None;
+        }
+        factors(graph, id, parts);
+        let sine = parts
+            .iter()
+            .position(|f| self.time_coefficient(graph, *f, UnaryOp::Sine).is_some())?;
+        let (time, freq) = self.time_coefficient(graph, parts.remove(sine), UnaryOp::Sine)?;
+        // A damping factor of the same time, if there is one.
+        let same_time = |f: &NodeId| {
+            self.time_coefficient(graph, *f, UnaryOp::Damp)
+                .is_some_and(|(t, _)| t == time)
+        };
+        let damping = match parts.iter().position(same_time) {
+            Some(i) => self
+                .time_coefficient(graph, parts.remove(i), UnaryOp::Damp)?
+                .1
+                .to_vec(),
+            None => vec![0.0],
+        };
+        let freq = out.add(Op::Const(Arc::from(freq)), vec![]);
+        let damping = out.add(Op::Const(Arc::from(damping)), vec![]);
+        let damped_sine = Op::Stateful(Arc::new(DampedSine));
+        let mut product = out.add(damped_sine, vec![map[time.index()], freq, damping]);
+        for factor in parts.drain(..) {
+            product = out.add(
+                Op::Binary(BinaryOp::Mul),
+                vec![product, map[factor.index()]],
+            );
+        }
+        Some(product)
+    }
 }
 
 fn broadcast(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
@@ -105,54 +217,19 @@ fn broadcast(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
     (0..width).map(|l| f(lane(a, l), lane(b, l))).collect()
 }
 
-/// The factors of a product: `(* (* a b) c)` has factors a, b, c.
+/// The factors of a product, left to right, into `into` (cleared first): `(* (* a b)
+/// c)` has factors a, b, c. Iterative; the caller bounds the count.
 fn factors(graph: &Graph, id: NodeId, into: &mut Vec<NodeId>) {
-    let node = graph.node(id);
-    if let Op::Binary(BinaryOp::Mul) = node.op {
-        factors(graph, node.args[0], into);
-        factors(graph, node.args[1], into);
-    } else {
-        into.push(id);
+    into.clear();
+    let mut stack = vec![id];
+    while let Some(id) = stack.pop() {
+        let node = graph.node(id);
+        if let Op::Binary(BinaryOp::Mul) = node.op {
+            // The right factor after the left one.
+            stack.push(node.args[1]);
+            stack.push(node.args[0]);
+        } else {
+            into.push(id);
+        }
     }
-}
-
-/// τ and K if `id` is `(op (* τ K))`.
-fn time_coefficient(graph: &Graph, id: NodeId, op: UnaryOp) -> Option<(NodeId, Vec<f64>)> {
-    let node = graph.node(id);
-    match node.op {
-        Op::Unary(u) if u == op => linear_in_time(graph, node.args[0]),
-        _ => None,
-    }
-}
-
-fn damped_sine(graph: &Graph, out: &mut Graph, map: &[NodeId], id: NodeId) -> Option<NodeId> {
-    let node = graph.node(id);
-    let mut parts = vec![];
-    match node.op {
-        Op::Binary(BinaryOp::Mul) => factors(graph, id, &mut parts),
-        Op::Unary(UnaryOp::Sine) => parts.push(id),
-        _ => return None,
-    }
-    let sine = parts
-        .iter()
-        .position(|f| time_coefficient(graph, *f, UnaryOp::Sine).is_some())?;
-    let (time, freq) = time_coefficient(graph, parts.remove(sine), UnaryOp::Sine)?;
-    // A damping factor of the same time, if there is one.
-    let same_time =
-        |f: &NodeId| time_coefficient(graph, *f, UnaryOp::Damp).is_some_and(|(t, _)| t == time);
-    let damping = match parts.iter().position(same_time) {
-        Some(i) => time_coefficient(graph, parts.remove(i), UnaryOp::Damp)?.1,
-        None => vec![0.0],
-    };
-    let freq = out.add(Op::Const(Arc::from(freq)), vec![]);
-    let damping = out.add(Op::Const(Arc::from(damping)), vec![]);
-    let damped_sine = Op::Stateful(Arc::new(DampedSine));
-    let mut product = out.add(damped_sine, vec![map[time.index()], freq, damping]);
-    for factor in parts {
-        product = out.add(
-            Op::Binary(BinaryOp::Mul),
-            vec![product, map[factor.index()]],
-        );
-    }
-    Some(product)
 }

@@ -109,3 +109,118 @@ fn a_damp_of_another_time_stays_a_separate_factor() {
     let rotators = compare("(* (sine (* t 300)) (damp (* (mod t 0.5) 3)))", 1.2, 1e-9);
     assert_eq!(rotators, 1);
 }
+
+// ------------------------------------------------------------- very deep graphs
+
+use timbre_ir::op::{BinaryOp, Op, UnaryOp};
+use timbre_ir::{Graph, NodeId};
+
+/// Nodes in each deep chain: what a 1 KB file of doubling definitions builds.
+const DEEP: usize = 1 << 20;
+
+/// Optimises `root` of a deep graph (which must not overflow the stack) and renders a
+/// few samples of both: they agree within `tolerance`. Returns the rotators made.
+fn deep_agrees(graph: &Graph, root: NodeId, tolerance: f64) -> usize {
+    assert!(graph.len() >= DEEP, "only {} nodes", graph.len());
+    let (optimised, new_root) = optimise(graph, root);
+    let config = RenderConfig {
+        sample_rate: SR,
+        block_size: 16,
+    };
+    let render = |g: &Graph, r: NodeId| {
+        let mut voice = Interpreter::new(g, r, config);
+        let mut out = vec![0.0; 40];
+        voice.render(&mut out);
+        out
+    };
+    let (plain, fast) = (render(graph, root), render(&optimised, new_root));
+    assert!(plain.iter().all(|x| x.is_finite()));
+    assert!(plain.iter().any(|x| *x != 0.0), "a silent test");
+    for (i, (a, b)) in plain.iter().zip(&fast).enumerate() {
+        assert!(
+            (a - b).abs() <= tolerance,
+            "sample {i}: {a} as written, {b} optimised"
+        );
+    }
+    optimised
+        .schedule(new_root)
+        .iter()
+        .filter(|n| optimised.node(**n).op.kind() == "damped-sine")
+        .count()
+}
+
+fn mul(g: &mut Graph, a: NodeId, k: f64) -> NodeId {
+    let k = g.constant(k);
+    g.add(Op::Binary(BinaryOp::Mul), vec![a, k])
+}
+
+fn sine(g: &mut Graph, a: NodeId) -> NodeId {
+    g.add(Op::Unary(UnaryOp::Sine), vec![a])
+}
+
+#[test]
+fn a_chain_of_a_million_sines_and_products_is_optimised_without_recursion() {
+    // x ← (sine (* t 1.0001)), then x ← (* x 0.1), x ← (sine (+ x 0.25)) alternately: a
+    // contraction (|d/dx| ≤ 0.2π), so rounding differences die out along the chain.
+    let mut g = Graph::new();
+    let t = g.add(Op::Time, vec![]);
+    let f = mul(&mut g, t, 1.0001);
+    let mut x = sine(&mut g, f);
+    let quarter = g.constant(0.25);
+    while g.len() < DEEP {
+        x = mul(&mut g, x, 0.1);
+        x = g.add(Op::Binary(BinaryOp::Add), vec![x, quarter]);
+        x = sine(&mut g, x);
+    }
+    // The first sine is a rotator; the others read a sine.
+    assert_eq!(deep_agrees(&g, x, 1e-9), 1);
+}
+
+#[test]
+fn a_product_of_a_million_factors_is_kept_as_written() {
+    // (* (* (* (sine (* t 440)) k) k′) …): too many factors to flatten at the top.
+    let mut g = Graph::new();
+    let t = g.add(Op::Time, vec![]);
+    let f = mul(&mut g, t, 440.0);
+    let mut p = sine(&mut g, f);
+    let mut i = 0;
+    while g.len() < DEEP {
+        p = mul(
+            &mut g,
+            p,
+            if i % 2 == 0 { 1.000_000_1 } else { 0.999_999_9 },
+        );
+        i += 1;
+    }
+    assert_eq!(deep_agrees(&g, p, 1e-9), 1);
+}
+
+#[test]
+fn a_time_shifted_a_million_times_is_still_a_time() {
+    // τ = t + c − c + c − … : time-like through a million additions.
+    let mut g = Graph::new();
+    let mut tau = g.add(Op::Time, vec![]);
+    let c = g.constant(1e-9);
+    while g.len() < DEEP {
+        tau = g.add(Op::Binary(BinaryOp::Add), vec![tau, c]);
+        tau = g.add(Op::Binary(BinaryOp::Sub), vec![tau, c]);
+    }
+    let f = mul(&mut g, tau, 440.0);
+    let root = sine(&mut g, f);
+    assert_eq!(deep_agrees(&g, root, 1e-9), 1);
+}
+
+#[test]
+fn a_time_scaled_a_million_times_is_still_linear_in_time() {
+    // (* (* (* t k) 1/k) …) 440: linear in time through a million products.
+    let mut g = Graph::new();
+    let mut x = g.add(Op::Time, vec![]);
+    let mut i = 0;
+    while g.len() < DEEP {
+        x = mul(&mut g, x, if i % 2 == 0 { 1.0001 } else { 1.0 / 1.0001 });
+        i += 1;
+    }
+    let f = mul(&mut g, x, 440.0);
+    let root = sine(&mut g, f);
+    assert_eq!(deep_agrees(&g, root, 1e-9), 1);
+}

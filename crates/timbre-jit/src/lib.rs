@@ -39,7 +39,18 @@ pub enum JitError {
     Host(String),
     #[error("code generation failed: {0}")]
     Codegen(String),
+    /// The tree has more than [`MAX_KERNEL_STEPS`] nodes to compute: render it with the
+    /// interpreter.
+    #[error("a tree of {steps} nodes is too large to compile (at most {MAX_KERNEL_STEPS})")]
+    TooLarge { steps: usize },
 }
+
+/// The most nodes one kernel computes. The code generator's time and memory grow with
+/// the number of nodes (about 10 KB each while compiling), and a 1 KB file can build a
+/// tree of millions; larger trees are refused with [`JitError::TooLarge`] rather than
+/// exhausting memory. Realistic trees are far smaller: lanes make a thousand modes one
+/// node.
+pub const MAX_KERNEL_STEPS: usize = 1 << 14;
 
 /// `kernel(interp, buffers, params, n, t0, states)`; see `codegen`.
 type KernelFn =
@@ -146,8 +157,12 @@ impl Jit {
         })
     }
 
-    /// Compiles (or finds in the cache) the kernel of a schedule.
+    /// Compiles (or finds in the cache) the kernel of a schedule of at most
+    /// [`MAX_KERNEL_STEPS`] steps.
     pub fn compile(&mut self, steps: &[Step], block_size: usize) -> Result<Arc<Kernel>, JitError> {
+        if steps.len() > MAX_KERNEL_STEPS {
+            return Err(JitError::TooLarge { steps: steps.len() });
+        }
         let shape = shape_hash(steps, block_size);
         if let Some(kernel) = self.cache.get(&shape) {
             return Ok(kernel.clone());
@@ -233,13 +248,18 @@ impl Jit {
     }
 
     /// A voice of `root` rendered by a compiled kernel, after the rewrites of
-    /// [`timbre_ir::optimise`].
+    /// [`timbre_ir::optimise`]. A tree of more than [`MAX_KERNEL_STEPS`] nodes is
+    /// [`JitError::TooLarge`].
     pub fn voice(
         &mut self,
         graph: &Graph,
         root: NodeId,
         config: RenderConfig,
     ) -> Result<JitVoice, JitError> {
+        let steps = graph.schedule(root).len();
+        if steps > MAX_KERNEL_STEPS {
+            return Err(JitError::TooLarge { steps });
+        }
         // Pairs of samples are computed together: the block holds a whole number of them.
         let config = RenderConfig {
             block_size: config.block_size.max(2).div_ceil(2) * 2,

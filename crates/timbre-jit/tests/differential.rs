@@ -279,6 +279,33 @@ fn instances_of_one_shape_share_one_kernel() {
     }
 }
 
+/// A file of `depth` doubling definitions: a chain of 2^(depth+1) distinct nodes.
+fn doubling(depth: usize) -> String {
+    let mut text = String::from("(define a0 (x) (sine (+ x 0.1)))\n");
+    for i in 1..=depth {
+        text += &format!("(define a{i} (x) (a{p} (a{p} x)))\n", p = i - 1);
+    }
+    text + &format!("(* 0.5 (a{depth} t))")
+}
+
+#[test]
+fn trees_too_large_to_compile_are_refused_not_compiled() {
+    let mut jit = Jit::new().unwrap();
+    let small = compile_text(&doubling(12));
+    assert!(small.graph.schedule(small.root.unwrap()).len() <= timbre_jit::MAX_KERNEL_STEPS);
+    assert!(jit
+        .voice(&small.graph, small.root.unwrap(), config())
+        .is_ok());
+    let large = compile_text(&doubling(13));
+    let steps = large.graph.schedule(large.root.unwrap()).len();
+    assert!(steps > timbre_jit::MAX_KERNEL_STEPS);
+    match jit.voice(&large.graph, large.root.unwrap(), config()) {
+        Err(timbre_jit::JitError::TooLarge { steps: s }) => assert_eq!(s, steps),
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("a tree of {steps} nodes was compiled"),
+    }
+}
+
 mod random_trees {
     use super::*;
     use proptest::prelude::*;

@@ -25,8 +25,68 @@ pub struct InstanceId(u64);
 
 /// Output below this is silence, for ending instances that have decayed (−120 dBFS).
 const SILENCE: f64 = 1e-6;
-/// An instance with no stop ends after this long below [`SILENCE`], once heard.
-const SILENT_SECONDS: f64 = 0.1;
+/// An instance with no stop ends once it has been below −120 dBFS this long, after
+/// having been heard. The decision is taken only at the ends of windows of the same
+/// length counted from the instance's first sample, so where it ends does not depend
+/// on the block size or on how a render is split into calls.
+pub const SILENT_SECONDS: f64 = 0.1;
+
+/// Samples per decay window at `sample_rate`, also the span of silence after which an
+/// instance without a stop ends: `round(SILENT_SECONDS · rate)`, at least 1.
+pub fn silence_window(sample_rate: f64) -> u64 {
+    ((SILENT_SECONDS * sample_rate).round() as u64).max(1)
+}
+
+/// Decides when an instance without a stop has decayed, the same way whatever the
+/// block size and however a render is split into calls.
+///
+/// The instance's timeline (from its first sample) is cut into windows of
+/// `W = round(SILENT_SECONDS · rate)` samples (4800 at 48 kHz). The instance ends at
+/// the end of the first window after which it has been heard (some sample at or above
+/// [`SILENCE`]) and its last `W` samples or more were all below [`SILENCE`]. Its last
+/// sample is therefore a function of its own samples only: between `W` and `2W`
+/// samples after it falls silent, at a multiple of `W` from its start.
+#[derive(Clone, Debug)]
+struct DecayWatch {
+    window: u64,
+    /// Samples left in the current window.
+    left: u64,
+    heard: bool,
+    /// Samples below [`SILENCE`] since the last one at or above it.
+    silent: u64,
+}
+
+impl DecayWatch {
+    /// A watch for an instance rendered at `sample_rate`, before its first sample.
+    fn new(sample_rate: f64) -> Self {
+        let window = silence_window(sample_rate);
+        DecayWatch {
+            window,
+            left: window,
+            heard: false,
+            silent: 0,
+        }
+    }
+
+    /// Takes the instance's next sample (as mixed, after any fade); true if the
+    /// instance ends after it (it is the last sample of a window and the instance has
+    /// decayed).
+    #[inline]
+    fn push(&mut self, x: f64) -> bool {
+        if x.abs() >= SILENCE {
+            self.heard = true;
+            self.silent = 0;
+        } else {
+            self.silent += 1;
+        }
+        self.left -= 1;
+        if self.left > 0 {
+            return false;
+        }
+        self.left = self.window;
+        self.heard && self.silent >= self.window
+    }
+}
 
 enum Voice {
     Interpreter(Box<Interpreter>),
@@ -73,9 +133,8 @@ struct Active {
     /// A stop the host asked for: the mixer fades out from this sample.
     fade_from: Option<u64>,
     gains: Vec<f64>,
-    ends_when_silent: bool,
-    heard: bool,
-    silent_samples: u64,
+    /// For an instance that ends once it has decayed (no stop): when it has.
+    decay: Option<DecayWatch>,
 }
 
 /// Renders a scene: the sum of its instances, in interleaved frames of `channels`.
@@ -90,7 +149,6 @@ pub struct SceneRenderer {
     active: Vec<Active>,
     position: u64,
     scratch: Vec<f64>,
-    silent_limit: u64,
     fade_samples: u64,
     next_id: u64,
 }
@@ -117,7 +175,6 @@ impl SceneRenderer {
             active: vec![],
             position: 0,
             scratch: vec![0.0; config.block_size.max(1)],
-            silent_limit: (SILENT_SECONDS * sr) as u64,
             fade_samples: (DECLICK_OUT * sr).round().max(1.0) as u64,
             next_id: 0,
         })
@@ -228,6 +285,8 @@ impl SceneRenderer {
             return true;
         }
         if let Some(a) = self.active.iter_mut().find(|a| a.id == id) {
+            // Its stop ends it now, not its decay.
+            a.decay = None;
             a.fade_from = Some(a.fade_from.map_or(at, |f| f.min(at)));
             a.end = Some(a.end.map_or(end, |e| e.min(end)));
             return true;
@@ -237,9 +296,14 @@ impl SceneRenderer {
 
     fn voice(&mut self, graph: &Graph, root: NodeId) -> Result<Voice, JitError> {
         Ok(match (self.engine, &mut self.jit) {
-            (Engine::Jit, Some(jit)) => {
-                Voice::Jit(Box::new(jit.voice(graph, root, self.config)?))
-            }
+            (Engine::Jit, Some(jit)) => match jit.voice(graph, root, self.config) {
+                Ok(voice) => Voice::Jit(Box::new(voice)),
+                // Too large to compile: the reference interpreter renders it.
+                Err(JitError::TooLarge { .. }) => {
+                    Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config)))
+                }
+                Err(e) => return Err(e),
+            },
             _ => Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config))),
         })
     }
@@ -270,15 +334,14 @@ impl SceneRenderer {
                 id: p.id,
                 voice,
                 next: p.start,
+                decay: (p.ends_when_silent && p.end.is_none())
+                    .then(|| DecayWatch::new(self.config.sample_rate)),
                 end: p.end,
                 fade_from: None,
                 gains: p.gains,
-                ends_when_silent: p.ends_when_silent,
-                heard: false,
-                silent_samples: 0,
             });
         }
-        let (silent_limit, fade) = (self.silent_limit, self.fade_samples);
+        let fade = self.fade_samples;
         for active in &mut self.active {
             // Sample-accurate start: the first block of a voice may begin mid-block.
             let from = active.next.max(self.position);
@@ -290,6 +353,7 @@ impl SceneRenderer {
             let n = (until - from) as usize;
             let scratch = &mut self.scratch[..n];
             active.voice.render(scratch);
+            let mut next = until;
             for (k, x) in scratch.iter().enumerate() {
                 let gain = match active.fade_from {
                     Some(f) => {
@@ -307,23 +371,16 @@ impl SceneRenderer {
                 for (y, g) in frame.iter_mut().zip(&active.gains) {
                     *y += x * g;
                 }
-                if x.abs() >= SILENCE {
-                    active.heard = true;
-                    active.silent_samples = 0;
-                } else {
-                    active.silent_samples += 1;
+                if active.decay.as_mut().is_some_and(|d| d.push(x)) {
+                    // Decayed: this is its last sample, whatever the block.
+                    next = from + k as u64 + 1;
+                    active.end = Some(next);
+                    break;
                 }
             }
-            active.next = until;
+            active.next = next;
         }
-        self.active.retain(|a| {
-            let stopped = a.end.is_some_and(|e| a.next >= e);
-            let decayed = a.ends_when_silent
-                && a.end.is_none()
-                && a.heard
-                && a.silent_samples >= silent_limit;
-            !(stopped || decayed)
-        });
+        self.active.retain(|a| a.end.is_none_or(|e| a.next < e));
         self.position = end;
         Ok(())
     }

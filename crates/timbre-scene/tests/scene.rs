@@ -266,3 +266,125 @@ fn a_stereo_scene_pans_and_routes_its_instances() {
         "everywhere"
     );
 }
+
+// ------------------------------------------------ the end of a decayed instance
+
+fn render_with(program: &Program, samples: usize, block_size: usize, engine: Engine) -> Vec<f64> {
+    let config = RenderConfig {
+        sample_rate: SR,
+        block_size,
+    };
+    let mut renderer = SceneRenderer::new(program, config, engine).unwrap();
+    let mut out = vec![0.0; samples * renderer.channels()];
+    renderer.render(&mut out).unwrap();
+    out
+}
+
+/// Renders in calls of uneven lengths (none a multiple of the block or the window).
+fn render_split(program: &Program, samples: usize, engine: Engine) -> Vec<f64> {
+    let mut renderer = SceneRenderer::new(program, config(), engine).unwrap();
+    let channels = renderer.channels();
+    let mut out = vec![0.0; samples * channels];
+    let lengths = [1, 999, 4801, 17, 20_011, 3, 255, 257, 7_777];
+    let mut at = 0;
+    for len in lengths.iter().cycle() {
+        if at == samples {
+            break;
+        }
+        let len = (*len).min(samples - at);
+        renderer
+            .render(&mut out[at * channels..(at + len) * channels])
+            .unwrap();
+        at += len;
+    }
+    out
+}
+
+fn assert_same_bits(a: &[f64], b: &[f64], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: lengths");
+    if let Some(i) = a
+        .iter()
+        .zip(b)
+        .position(|(x, y)| x.to_bits() != y.to_bits())
+    {
+        panic!("{what}: sample {i} is {} here, {} there", a[i], b[i]);
+    }
+}
+
+#[test]
+fn the_cubes_are_the_same_bits_whatever_the_block_size_or_split() {
+    // wood1 has no stop: it ends once it has decayed, which must not depend on blocks.
+    let program = cubes();
+    let samples = (4.0 * SR) as usize;
+    let reference = render_with(&program, samples, 256, Engine::Jit);
+    for block in [1, 64, 1000] {
+        let x = render_with(&program, samples, block, Engine::Jit);
+        assert_same_bits(&x, &reference, &format!("block size {block}"));
+    }
+    let split = render_split(&program, samples, Engine::Jit);
+    assert_same_bits(&split, &reference, "split render");
+}
+
+#[test]
+fn a_decayed_instance_ends_at_a_window_of_its_own_timeline() {
+    // A strike starting mid-block that decays to −120 dBFS in about 0.07 s.
+    let start = 0.0123;
+    let program = scene(&format!(
+        "(define-sound click (f) (* (sine (* t f)) (damp (* t 200))))
+         (instance c (click :f 700) :start {start})"
+    ));
+    let samples = (0.6 * SR) as usize;
+    let first = (start * SR).round() as usize;
+    let window = timbre_scene::silence_window(SR) as usize;
+    assert_eq!(window, 4800);
+    for engine in [Engine::Interpreter, Engine::Jit] {
+        let reference = render_with(&program, samples, 256, engine);
+        // Its last sample at or above −120 dBFS, on its own timeline.
+        let loud = reference
+            .iter()
+            .rposition(|x| x.abs() >= 1e-6)
+            .expect("it sounds")
+            - first;
+        // It ends at the first window end after `window` silent samples.
+        let windows = (loud + 1 + window).div_ceil(window);
+        let last = first + windows * window - 1;
+        assert!(
+            reference[last] != 0.0 && reference[last + 1..].iter().all(|x| *x == 0.0),
+            "{engine:?}: the instance's last sample should be {last}"
+        );
+        for block in [1, 64, 1000] {
+            let x = render_with(&program, samples, block, engine);
+            assert_same_bits(&x, &reference, &format!("{engine:?}, block size {block}"));
+        }
+        let split = render_split(&program, samples, engine);
+        assert_same_bits(&split, &reference, &format!("{engine:?}, split render"));
+        // And the renderer lets go of it exactly there, whatever the block size.
+        for block in [1, 1000] {
+            let config = RenderConfig {
+                sample_rate: SR,
+                block_size: block,
+            };
+            let mut renderer = SceneRenderer::new(&program, config, engine).unwrap();
+            let mut out = vec![0.0; last];
+            renderer.render(&mut out).unwrap();
+            assert_eq!(renderer.active_instances(), 1, "playing before its end");
+            renderer.render(&mut [0.0]).unwrap();
+            assert_eq!(renderer.active_instances(), 0, "ended after {last}");
+        }
+    }
+}
+
+#[test]
+fn a_tree_too_large_to_compile_is_interpreted() {
+    // A chain of 2^15 distinct nodes, over the code generator's limit.
+    let mut text = String::from("(define a0 (x) (sine (+ x 0.1)))\n");
+    for i in 1..=14 {
+        text += &format!("(define a{i} (x) (a{p} (a{p} x)))\n", p = i - 1);
+    }
+    text += "(* 0.5 (a14 t))";
+    let program = scene(&text);
+    assert!(program.graph.len() > timbre_jit::MAX_KERNEL_STEPS);
+    let jit = render_with(&program, 1000, 64, Engine::Jit);
+    let interp = render_with(&program, 1000, 64, Engine::Interpreter);
+    assert_same_bits(&jit, &interp, "the JIT engine's fallback");
+}

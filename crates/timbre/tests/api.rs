@@ -289,3 +289,81 @@ fn a_library_file_is_read_only_through_the_engines_loader() {
     assert!(library.classes().iter().any(|(name, _)| name == "beep"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A node written by the host: a slow wobble of its input, stateless.
+struct Wobble;
+
+impl timbre_ir::CustomNode for Wobble {
+    fn name(&self) -> &str {
+        "wobble"
+    }
+    fn arity(&self) -> std::ops::RangeInclusive<usize> {
+        1..=1
+    }
+    fn eval_block(
+        &self,
+        ctx: &timbre_ir::BlockContext,
+        args: &[timbre_ir::Lanes<'_>],
+        out: &mut [f64],
+        _state: &mut (dyn std::any::Any + Send),
+    ) {
+        for lane in 0..ctx.width {
+            let x = args[0].lane(lane);
+            for k in 0..ctx.len {
+                out[lane * ctx.len + k] = x[k] + 0.1 * (3.0 * x[k]).sin();
+            }
+        }
+    }
+}
+
+/// A class whose random nodes read a variable the host sets and the host's node.
+const RANDOM_CLASS: &str =
+    "(define-sound swish (speed) (* (noise (* t speed)) (noise (* 30 (wobble t))) (white)))";
+
+/// An engine of its own (its own registry, library, variable and scene), with an
+/// instance of the swish started; the variable to set while it plays.
+fn swish_scene(backend: Backend) -> (timbre::Scene, Variable) {
+    let mut engine = engine().with_backend(backend).with_seed(11);
+    engine.registry_mut().register(Wobble);
+    let library = engine.load_library(RANDOM_CLASS).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    let speed = Variable::new(20.0);
+    scene
+        .start(
+            "swish",
+            &[("speed", ParamValue::Variable(speed.clone()))],
+            0.01,
+        )
+        .unwrap();
+    (scene, speed)
+}
+
+fn render_swish(scene: &mut timbre::Scene, speed: &Variable) -> Vec<f64> {
+    let mut out = scene.render_offline(0.1).unwrap();
+    speed.set(35.0);
+    out.extend(scene.render_offline(0.25).unwrap());
+    out
+}
+
+#[test]
+fn random_nodes_reading_variables_and_host_nodes_are_the_same_in_every_engine() {
+    for backend in [Backend::Jit, Backend::Interpreter] {
+        // Both alive at once, so nothing of one can sit at the other's address.
+        let (mut a, speed_a) = swish_scene(backend);
+        let (mut b, speed_b) = swish_scene(backend);
+        let x = render_swish(&mut a, &speed_a);
+        let y = render_swish(&mut b, &speed_b);
+        assert_eq!(x.len(), (0.25 * SR) as usize);
+        assert!(x.iter().any(|v| v.abs() > 0.01), "a silent test");
+        if let Some(i) = x
+            .iter()
+            .zip(&y)
+            .position(|(p, q)| p.to_bits() != q.to_bits())
+        {
+            panic!(
+                "{backend:?}: two engines differ at sample {i}: {} and {}",
+                x[i], y[i]
+            );
+        }
+    }
+}
