@@ -83,16 +83,45 @@ pub enum ImpulseResponse {
 /// exactly when they are the same node (given the same children). Node identity
 /// (hash-consing) and the structural hash random seeds come from are both made of
 /// it, so it never holds an address or anything else that changes between runs.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
-pub struct Description(Vec<u64>);
+///
+/// A description either keeps its words (to compare two ops) or only hashes them
+/// (to fingerprint one, without allocating).
+#[derive(Clone, Debug)]
+pub struct Description(Words);
+
+#[derive(Clone, Debug)]
+enum Words {
+    Kept(Vec<u64>),
+    Hashed(crate::graph::StableHasher),
+}
+
+impl Default for Description {
+    fn default() -> Self {
+        Description(Words::Kept(Vec::new()))
+    }
+}
+
+impl PartialEq for Description {
+    fn eq(&self, other: &Self) -> bool {
+        self.words() == other.words()
+    }
+}
 
 impl Description {
     pub fn new() -> Self {
         Self::default()
     }
 
+    /// A description that only feeds its words to `hasher`.
+    pub(crate) fn hashing(hasher: crate::graph::StableHasher) -> Self {
+        Description(Words::Hashed(hasher))
+    }
+
     pub fn u64(&mut self, x: u64) -> &mut Self {
-        self.0.push(x);
+        match &mut self.0 {
+            Words::Kept(words) => words.push(x),
+            Words::Hashed(hasher) => hasher.write_u64(x),
+        }
         self
     }
 
@@ -119,8 +148,20 @@ impl Description {
         self
     }
 
+    /// The words kept (none for a hashing description).
     pub fn words(&self) -> &[u64] {
-        &self.0
+        match &self.0 {
+            Words::Kept(words) => words,
+            Words::Hashed(_) => &[],
+        }
+    }
+
+    /// The hasher of a hashing description.
+    pub(crate) fn into_hasher(self) -> Option<crate::graph::StableHasher> {
+        match self.0 {
+            Words::Hashed(hasher) => Some(hasher),
+            Words::Kept(_) => None,
+        }
     }
 }
 
@@ -244,8 +285,10 @@ impl Op {
     /// Feeds everything that distinguishes this op from another into `h`: two nodes
     /// with equal fingerprints and equal children are the same node.
     pub(crate) fn fingerprint(&self, h: &mut crate::graph::StableHasher) {
-        for word in self.description().words() {
-            h.write_u64(*word);
+        let mut d = Description::hashing(std::mem::take(h));
+        self.describe(&mut d);
+        if let Some(hasher) = d.into_hasher() {
+            *h = hasher;
         }
     }
 
