@@ -371,6 +371,27 @@ pub enum UnaryOp {
 }
 
 impl UnaryOp {
+    /// Every variant, in declaration order: `ALL[op as usize] == op`.
+    pub const ALL: &[UnaryOp] = &[
+        UnaryOp::Neg,
+        UnaryOp::Exp,
+        UnaryOp::Log,
+        UnaryOp::Sqrt,
+        UnaryOp::Abs,
+        UnaryOp::Sin,
+        UnaryOp::Cos,
+        UnaryOp::Tan,
+        UnaryOp::Tanh,
+        UnaryOp::Floor,
+        UnaryOp::Frac,
+        UnaryOp::Not,
+        UnaryOp::Sine,
+        UnaryOp::Sawtooth,
+        UnaryOp::Square,
+        UnaryOp::Triangle,
+        UnaryOp::Damp,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             UnaryOp::Neg => "-",
@@ -450,6 +471,27 @@ pub enum BinaryOp {
 }
 
 impl BinaryOp {
+    /// Every variant, in declaration order: `ALL[op as usize] == op`.
+    pub const ALL: &[BinaryOp] = &[
+        BinaryOp::Add,
+        BinaryOp::Sub,
+        BinaryOp::Mul,
+        BinaryOp::Div,
+        BinaryOp::Pow,
+        BinaryOp::Min,
+        BinaryOp::Max,
+        BinaryOp::Mod,
+        BinaryOp::Lt,
+        BinaryOp::Gt,
+        BinaryOp::Le,
+        BinaryOp::Ge,
+        BinaryOp::Eq,
+        BinaryOp::Ne,
+        BinaryOp::And,
+        BinaryOp::Or,
+        BinaryOp::Pulse,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             BinaryOp::Add => "+",
@@ -609,4 +651,19 @@ pub fn timer_gain(t: f64, length: Option<f64>, fade_in: f64, fade_out: f64) -> f
         }
     }
     gain
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_lists_every_op_at_its_discriminant() {
+        for (i, op) in UnaryOp::ALL.iter().enumerate() {
+            assert_eq!(*op as usize, i, "{op:?}");
+        }
+        for (i, op) in BinaryOp::ALL.iter().enumerate() {
+            assert_eq!(*op as usize, i, "{op:?}");
+        }
+    }
 }
