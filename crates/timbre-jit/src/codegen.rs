@@ -763,7 +763,7 @@ fn unary(b: &mut FunctionBuilder, helpers: &Helpers, op: UnaryOp, x: Value, unit
         }
         // Rare transcendental functions: the interpreter's own, per sample.
         UnaryOp::Log | UnaryOp::Sin | UnaryOp::Cos | UnaryOp::Tan | UnaryOp::Tanh => {
-            let code = b.ins().iconst(I64, unary_code(op) as i64);
+            let code = b.ins().iconst(I64, op as i64);
             per_lane(b, x, |b, v| {
                 let call = b.ins().call(helpers.unary, &[code, v]);
                 b.inst_results(call)[0]
@@ -824,7 +824,7 @@ fn binary(
             select(b, high, one, minus)
         }
         BinaryOp::Pow => {
-            let code = b.ins().iconst(I64, binary_code(op) as i64);
+            let code = b.ins().iconst(I64, op as i64);
             per_lane2(b, x, y, |b, u, v| {
                 let call = b.ins().call(helpers.binary, &[code, u, v]);
                 b.inst_results(call)[0]
@@ -847,36 +847,21 @@ fn ternary(b: &mut FunctionBuilder, op: TernaryOp, x: Value, y: Value, z: Value)
     }
 }
 
-/// The unary operations called back by number (see `unary_from_code`).
-const UNARY_CALLBACKS: [UnaryOp; 5] = [
-    UnaryOp::Log,
-    UnaryOp::Sin,
-    UnaryOp::Cos,
-    UnaryOp::Tan,
-    UnaryOp::Tanh,
-];
-const BINARY_CALLBACKS: [BinaryOp; 1] = [BinaryOp::Pow];
-
-fn unary_code(op: UnaryOp) -> usize {
-    UNARY_CALLBACKS
-        .iter()
-        .position(|o| *o == op)
-        .expect("a called-back unary op")
-}
-
-fn binary_code(op: BinaryOp) -> usize {
-    BINARY_CALLBACKS
-        .iter()
-        .position(|o| *o == op)
-        .expect("a called-back binary op")
-}
-
+/// A called-back unary operation: `code` is its discriminant (`op as u64`, see
+/// [`UnaryOp::ALL`]). An unknown code (which no kernel emits) gives NaN.
 pub(crate) extern "C" fn call_unary(code: u64, x: f64) -> f64 {
-    UNARY_CALLBACKS[code as usize].apply(x)
+    usize::try_from(code)
+        .ok()
+        .and_then(|code| UnaryOp::ALL.get(code))
+        .map_or(f64::NAN, |op| op.apply(x))
 }
 
+/// A called-back binary operation, as [`call_unary`].
 pub(crate) extern "C" fn call_binary(code: u64, x: f64, y: f64) -> f64 {
-    BINARY_CALLBACKS[code as usize].apply(x, y)
+    usize::try_from(code)
+        .ok()
+        .and_then(|code| BinaryOp::ALL.get(code))
+        .map_or(f64::NAN, |op| op.apply(x, y))
 }
 
 /// splitmix64's finaliser on a scalar i64, as `timbre_ir::dsp::noise::mix64`.
@@ -1355,4 +1340,36 @@ fn lane_noise(
         }
     };
     noise_polynomial(b, u, &mut coefficient)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn same(a: f64, b: f64) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    /// Kernels pass an op's discriminant; every op decodes to itself, and a code
+    /// that is no op gives NaN rather than a panic.
+    #[test]
+    fn callback_codes_are_discriminants() {
+        for &op in UnaryOp::ALL {
+            for x in [-2.5, 0.3, 7.0] {
+                assert!(same(call_unary(op as u64, x), op.apply(x)), "{op:?}");
+            }
+        }
+        for &op in BinaryOp::ALL {
+            assert!(
+                same(call_binary(op as u64, 1.7, 0.4), op.apply(1.7, 0.4)),
+                "{op:?}"
+            );
+        }
+        for code in [UnaryOp::ALL.len() as u64, u64::MAX] {
+            assert!(call_unary(code, 1.0).is_nan());
+        }
+        for code in [BinaryOp::ALL.len() as u64, u64::MAX] {
+            assert!(call_binary(code, 1.0, 2.0).is_nan());
+        }
+    }
 }
