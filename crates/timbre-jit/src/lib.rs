@@ -4,9 +4,9 @@
 //! instantiation) into one native function per tree *shape*. Pure element-wise
 //! nodes are fused into SIMD loops over lanes and pairs of samples; every other
 //! node is computed by calling back into the reference interpreter, so each node has
-//! exactly one definition of its semantics. Constants, states and the sample rate
-//! are reached through pointers, so instances of one shape share one kernel and a
-//! new instance costs no compilation.
+//! exactly one definition of its semantics. Constants, states (noise seeds among
+//! them) and the sample rate are reached through pointers, so instances of one
+//! shape share one kernel and a new instance costs no compilation.
 //!
 //! This crate is *not* a second semantics: the interpreter in `timbre-ir` is the
 //! reference, and the tests compare the two at every sample.
@@ -29,7 +29,7 @@ use cranelift_module::{FuncId, Linkage, Module};
 use timbre_ir::op::Op;
 use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
 
-use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SLOTS};
+use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SEED, NOISE_SLOTS};
 use crate::plan::PlanStep;
 
 /// Why a tree could not be compiled.
@@ -250,19 +250,24 @@ impl Jit {
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
-        // floor of the last lattice cell (none yet: NaN equals nothing) and its five
-        // polynomial coefficients per lane of each noise; two partial sums per sample of each
-        // combine (used when its argument is summed in a lane region).
+        // floor of the last lattice cell (none yet: NaN equals nothing), its five
+        // polynomial coefficients and the seed per lane of each noise; two partial sums
+        // per sample of each combine (used when its argument is summed in a lane
+        // region).
         let no_cell = f64::NAN;
         let mut states: Vec<Vec<f64>> = interp
             .steps()
             .iter()
             .map(|s| match s.op {
                 Op::Phasor => vec![0.0; s.width],
-                Op::Noise { .. } => {
+                Op::Noise { seed } => {
                     // Slot-major: each slot's lanes side by side (see NOISE_SLOTS).
-                    let mut state = vec![0.0; NOISE_SLOTS * s.width];
-                    state[..s.width].fill(no_cell);
+                    let lanes = s.width;
+                    let mut state = vec![0.0; NOISE_SLOTS * lanes];
+                    state[..lanes].fill(no_cell);
+                    // The bits of the mixed seed, which the kernel loads as an integer.
+                    let mixed = f64::from_bits(timbre_ir::dsp::noise::mix64(seed));
+                    state[NOISE_SEED * lanes..(NOISE_SEED + 1) * lanes].fill(mixed);
                     state
                 }
                 Op::Combine => vec![0.0; 2 * config.block_size],
@@ -363,8 +368,8 @@ extern "C" fn step_callback(interp: *mut Interpreter, step: u64, n: u64) {
     interp.eval_step(step as usize, n as usize);
 }
 
-/// What makes two schedules share a kernel: everything but constant values and the
-/// data of called-back nodes, which the kernel reads at run time.
+/// What makes two schedules share a kernel: everything but constant values, noise
+/// seeds and the data of called-back nodes, which the kernel reads at run time.
 fn shape_hash(steps: &[Step], block_size: usize) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     block_size.hash(&mut h);
@@ -378,7 +383,7 @@ fn shape_hash(steps: &[Step], block_size: usize) -> u64 {
             Op::Unary(op) => (2u8, *op as u8).hash(&mut h),
             Op::Binary(op) => (3u8, *op as u8).hash(&mut h),
             Op::Ternary(op) => (4u8, *op as u8).hash(&mut h),
-            Op::Noise { seed } => (5u8, *seed).hash(&mut h),
+            Op::Noise { .. } => 5u8.hash(&mut h),
             Op::Combine => 6u8.hash(&mut h),
             Op::Phasor => 8u8.hash(&mut h),
             _ => 7u8.hash(&mut h),
