@@ -14,9 +14,9 @@
 mod approx;
 mod codegen;
 mod plan;
+mod shape;
 
 use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -31,6 +31,7 @@ use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
 
 use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SEED, NOISE_SLOTS};
 use crate::plan::PlanStep;
+use crate::shape::Shape;
 
 /// Why a tree could not be compiled.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +78,7 @@ pub struct Jit {
     module: JITModule,
     context: Context,
     builder_context: FunctionBuilderContext,
-    cache: HashMap<u64, Arc<Kernel>>,
+    cache: HashMap<Shape, Arc<Kernel>>,
     helpers: [FuncId; 3],
     next_name: usize,
 }
@@ -148,7 +149,7 @@ impl Jit {
 
     /// Compiles (or finds in the cache) the kernel of a schedule.
     pub fn compile(&mut self, steps: &[Step], block_size: usize) -> Result<Arc<Kernel>, JitError> {
-        let shape = shape_hash(steps, block_size);
+        let shape = Shape::of(steps, block_size);
         if let Some(kernel) = self.cache.get(&shape) {
             return Ok(kernel.clone());
         }
@@ -366,28 +367,4 @@ extern "C" fn step_callback(interp: *mut Interpreter, step: u64, n: u64) {
     // SAFETY: kernels pass the interpreter they were called with.
     let interp = unsafe { &mut *interp };
     interp.eval_step(step as usize, n as usize);
-}
-
-/// What makes two schedules share a kernel: everything but constant values, noise
-/// seeds and the data of called-back nodes, which the kernel reads at run time.
-fn shape_hash(steps: &[Step], block_size: usize) -> u64 {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    block_size.hash(&mut h);
-    for step in steps {
-        step.args.hash(&mut h);
-        step.width.hash(&mut h);
-        step.constant.hash(&mut h);
-        match &step.op {
-            Op::Const(_) => 0u8.hash(&mut h),
-            Op::Time => 1u8.hash(&mut h),
-            Op::Unary(op) => (2u8, *op as u8).hash(&mut h),
-            Op::Binary(op) => (3u8, *op as u8).hash(&mut h),
-            Op::Ternary(op) => (4u8, *op as u8).hash(&mut h),
-            Op::Noise { .. } => 5u8.hash(&mut h),
-            Op::Combine => 6u8.hash(&mut h),
-            Op::Phasor => 8u8.hash(&mut h),
-            _ => 7u8.hash(&mut h),
-        }
-    }
-    h.finish()
 }
