@@ -251,3 +251,30 @@ fn a_voice_outlives_its_jit() {
     let diff = largest_difference(&reference, &compiled);
     assert!(diff <= TOLERANCE, "differs by {diff}");
 }
+
+/// A voice is rendered and dropped on another thread, and its generation is freed
+/// there.
+#[test]
+fn a_voice_frees_its_generation_on_another_thread() {
+    let mut jit = Jit::with_kernels_per_generation(1).unwrap();
+    let program = nested(2);
+    let root = program.root.unwrap();
+    let mut reference = vec![0.0; 4800];
+    Interpreter::new(&program.graph, root, config()).render(&mut reference);
+    let mut voice = jit.voice(&program.graph, root, config()).unwrap();
+    // A second shape starts a second generation: only the voice holds the first.
+    let other = nested(3);
+    jit.voice(&other.graph, other.root.unwrap(), config())
+        .unwrap();
+    assert_eq!(jit.live_generations(), 2);
+    let compiled = std::thread::spawn(move || {
+        let mut compiled = vec![0.0; 4800];
+        voice.render(&mut compiled);
+        compiled
+    })
+    .join()
+    .unwrap();
+    assert_eq!(jit.live_generations(), 1);
+    let diff = largest_difference(&reference, &compiled);
+    assert!(diff <= TOLERANCE, "differs by {diff}");
+}
