@@ -491,3 +491,18 @@ pub fn timer_gain(t: f64, length: Option<f64>, fade_in: f64, fade_out: f64) -> f
     }
     gain
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_lists_every_op_at_its_discriminant() {
+        for (i, op) in UnaryOp::ALL.iter().enumerate() {
+            assert_eq!(*op as usize, i, "{op:?}");
+        }
+        for (i, op) in BinaryOp::ALL.iter().enumerate() {
+            assert_eq!(*op as usize, i, "{op:?}");
+        }
+    }
+}

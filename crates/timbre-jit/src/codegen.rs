@@ -6,10 +6,11 @@
 //! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
 //! the sample rate, `params[1]` its reciprocal), the samples in this block, the index
 //! of its first sample, and the table of per-step state of nodes compiled inline (a
-//! phasor's phase per lane, a noise's cell and coefficients, a combine's partial
-//! sums), followed by one entry per step for splatted copies (`Region::splatted`).
-//! Everything that differs between instances of one tree shape (constants, states,
-//! the sample rate) is reached through these pointers, so instances share the code.
+//! phasor's phase per lane, a noise's cell, coefficients and seed, a combine's
+//! partial sums), followed by one entry per step for splatted copies
+//! (`Region::splatted`). Everything that differs between instances of one tree shape
+//! (constants, states, noise seeds, the sample rate) is reached through these
+//! pointers, so instances share the code.
 
 use std::collections::HashMap;
 
@@ -160,7 +161,8 @@ impl KernelBuilder<'_, '_> {
             for &(s, table) in &state_tables {
                 let state = match steps[s].op {
                     Op::Phasor => InlineState::load(b, table, lane, &[types::F64]),
-                    _ => InlineState::load(b, table, lane, &[types::F64; NOISE_SLOTS]),
+                    // The cached slots; the seed is read where it is used.
+                    _ => InlineState::load(b, table, lane, &[types::F64; NOISE_SEED]),
                 };
                 states.insert(s, state);
             }
@@ -202,9 +204,15 @@ impl KernelBuilder<'_, '_> {
                         _ if is_elementwise(&step.op) => {
                             elementwise(b, &helpers, steps, step, &args)
                         }
-                        Op::Noise { seed } => {
+                        Op::Noise { .. } => {
                             let scale = scaled.get(&node).map(|&(_, k)| values[&k]);
-                            gradient_noise(b, *seed, &states[&node].vars, args[0], scale)
+                            let state = &states[&node];
+                            // One lane: its slots are consecutive.
+                            let seed = SeedSlot {
+                                address: state.address,
+                                offset: (8 * NOISE_SEED) as i32,
+                            };
+                            gradient_noise(b, seed, &state.vars, args[0], scale)
                         }
                         Op::Phasor => phasor(
                             b,
@@ -455,8 +463,8 @@ impl KernelBuilder<'_, '_> {
                         _ if is_elementwise(&step.op) => {
                             elementwise(b, &helpers, steps, step, &args)
                         }
-                        Op::Noise { seed } => {
-                            lane_noise(b, *seed, states[&node].vars[0], &noise_rows[&node], args[0])
+                        Op::Noise { .. } => {
+                            lane_noise(b, states[&node].vars[0], &noise_rows[&node], args[0])
                         }
                         Op::Phasor => {
                             // out = frac(phase + offset), or phase without an offset;
@@ -848,17 +856,20 @@ fn ternary(b: &mut FunctionBuilder, op: TernaryOp, x: Value, y: Value, z: Value)
     }
 }
 
-/// A unary operation called back by number: its index in `UnaryOp::ALL`.
+/// A called-back unary operation: `code` is its discriminant (`op as u64`, see
+/// [`UnaryOp::ALL`]). An unknown code (which no kernel emits) gives NaN.
 pub(crate) extern "C" fn call_unary(code: u64, x: f64) -> f64 {
-    UnaryOp::ALL
-        .get(code as usize)
+    usize::try_from(code)
+        .ok()
+        .and_then(|code| UnaryOp::ALL.get(code))
         .map_or(f64::NAN, |op| op.apply(x))
 }
 
-/// A binary operation called back by number: its index in `BinaryOp::ALL`.
+/// A called-back binary operation, as [`call_unary`].
 pub(crate) extern "C" fn call_binary(code: u64, x: f64, y: f64) -> f64 {
-    BinaryOp::ALL
-        .get(code as usize)
+    usize::try_from(code)
+        .ok()
+        .and_then(|code| BinaryOp::ALL.get(code))
         .map_or(f64::NAN, |op| op.apply(x, y))
 }
 
@@ -909,8 +920,8 @@ impl InlineState {
 }
 
 /// The gradient at lattice point `i` (scalar i64): a hash mapped to [−1, 1).
-fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
-    let key = b.ins().bxor_imm_s(i, mixed_seed);
+fn gradient(b: &mut FunctionBuilder, mixed_seed: Value, i: Value) -> Value {
+    let key = b.ins().bxor(i, mixed_seed);
     let h = mix64(b, key);
     let top = b.ins().ushr_imm_u(h, 11);
     let x = b.ins().fcvt_from_uint(types::F64, top);
@@ -922,8 +933,28 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: i64, i: Value) -> Value {
 
 /// Slots of a noise's state per lane: the floor of the last lattice cell (NaN before
 /// the first, and after a non-finite x), then the cell's five polynomial coefficients
-/// g0, c3, c4, c5, c6 (see [`noise_polynomial`]).
-pub(crate) const NOISE_SLOTS: usize = 6;
+/// g0, c3, c4, c5, c6 (see [`noise_polynomial`]), then its seed ([`NOISE_SEED`]).
+pub(crate) const NOISE_SLOTS: usize = 7;
+
+/// The slot of a noise's seed, as the hash mixes it (`dsp::noise::mix64(seed)`, its
+/// bits stored in the `f64` slot and loaded as an integer). The seed is data, not
+/// code, so that noises differing only in their seeds share a kernel. The voice
+/// writes it and the kernel only reads it, where a lattice cell changes.
+pub(crate) const NOISE_SEED: usize = 6;
+
+/// Where a noise's seed is ([`NOISE_SEED`]): loaded where it is used, in the slow
+/// path of a new lattice cell, so that it takes no register in the sample loop.
+#[derive(Clone, Copy)]
+struct SeedSlot {
+    address: Value,
+    offset: i32,
+}
+
+impl SeedSlot {
+    fn load(self, b: &mut FunctionBuilder) -> Value {
+        b.ins().load(I64, mem(), self.address, self.offset)
+    }
+}
 
 /// `timbre_ir::op::noise` (1-D gradient noise) of both samples, inline.
 ///
@@ -936,12 +967,11 @@ pub(crate) const NOISE_SLOTS: usize = 6;
 /// differs from the interpreter's lerp by rounding only (below 1e-13, tested).
 fn gradient_noise(
     b: &mut FunctionBuilder,
-    seed: u64,
+    seed: SeedSlot,
     cache: &[Variable],
     x: Value,
     scale: Option<Value>,
 ) -> Value {
-    let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
     let cell = cache[0];
     let fl = b.ins().floor(x);
     let last = b.use_var(cell);
@@ -952,7 +982,8 @@ fn gradient_noise(
     let slow = b.create_block();
     b.set_cold_block(slow);
     let join = b.create_block();
-    for _ in 0..NOISE_SLOTS {
+    // u, then the five coefficients.
+    for _ in 0..cache.len() {
         b.append_block_param(join, F64X2);
     }
     b.ins().brif(both_same, fast, &[], slow, &[]);
@@ -969,6 +1000,7 @@ fn gradient_noise(
     // second sample's (the later one) remembered.
     b.switch_to_block(slow);
     let mut coefficients = [[x; 5]; 2];
+    let mixed_seed = seed.load(b);
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
         coefficients[lane as usize] = cell_coefficients(b, mixed_seed, f);
@@ -1061,7 +1093,7 @@ fn noise_polynomial(
 /// hashed gradients, or for a non-finite floor (x = ±∞ or NaN) from the gradients
 /// that give the interpreter's answers with u taken as 1 (see [`slow_path_u`]):
 /// G0 = 0 for ±∞ and NaN for NaN, G1 = 0.
-fn cell_coefficients(b: &mut FunctionBuilder, mixed_seed: i64, floor: Value) -> [Value; 5] {
+fn cell_coefficients(b: &mut FunctionBuilder, mixed_seed: Value, floor: Value) -> [Value; 5] {
     // `as i64` in Rust saturates, and makes NaN 0: fcvt_to_sint_sat does the same.
     let i = b.ins().fcvt_to_sint_sat(I64, floor);
     let next = b.ins().iadd_imm_s(i, 1);
@@ -1280,14 +1312,7 @@ struct NoiseRows {
 /// computed again only when a lane's cell changes. Otherwise `u = x − cell` does not
 /// wait for the floor, and the coefficients are read from memory, off the critical
 /// path, rather than held in registers.
-fn lane_noise(
-    b: &mut FunctionBuilder,
-    seed: u64,
-    cell: Variable,
-    rows: &NoiseRows,
-    x: Value,
-) -> Value {
-    let mixed_seed = timbre_ir::dsp::noise::mix64(seed) as i64;
+fn lane_noise(b: &mut FunctionBuilder, cell: Variable, rows: &NoiseRows, x: Value) -> Value {
     let fl = b.ins().floor(x);
     let last = b.use_var(cell);
     let same = b.ins().fcmp(FloatCC::Equal, fl, last);
@@ -1304,6 +1329,12 @@ fn lane_noise(
     b.ins().jump(join, &[BlockArg::Value(u)]);
 
     b.switch_to_block(slow);
+    // Every lane holds the seed: the first lane's.
+    let seed = SeedSlot {
+        address: rows.lanes[0],
+        offset: NOISE_SEED as i32 * rows.row,
+    };
+    let mixed_seed = seed.load(b);
     for lane in 0..2u8 {
         let f = b.ins().extractlane(fl, lane);
         let mut coefficients = cell_coefficients(b, mixed_seed, f);
@@ -1338,4 +1369,36 @@ fn lane_noise(
         }
     };
     noise_polynomial(b, u, &mut coefficient)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn same(a: f64, b: f64) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    /// Kernels pass an op's discriminant; every op decodes to itself, and a code
+    /// that is no op gives NaN rather than a panic.
+    #[test]
+    fn callback_codes_are_discriminants() {
+        for &op in UnaryOp::ALL {
+            for x in [-2.5, 0.3, 7.0] {
+                assert!(same(call_unary(op as u64, x), op.apply(x)), "{op:?}");
+            }
+        }
+        for &op in BinaryOp::ALL {
+            assert!(
+                same(call_binary(op as u64, 1.7, 0.4), op.apply(1.7, 0.4)),
+                "{op:?}"
+            );
+        }
+        for code in [UnaryOp::ALL.len() as u64, u64::MAX] {
+            assert!(call_unary(code, 1.0).is_nan());
+        }
+        for code in [BinaryOp::ALL.len() as u64, u64::MAX] {
+            assert!(call_binary(code, 1.0, 2.0).is_nan());
+        }
+    }
 }

@@ -4,9 +4,11 @@
 //! instantiation) into one native function per tree *shape*. Pure element-wise
 //! nodes are fused into SIMD loops over lanes and pairs of samples; every other
 //! node is computed by calling back into the reference interpreter, so each node has
-//! exactly one definition of its semantics. Constants, states and the sample rate
-//! are reached through pointers, so instances of one shape share one kernel and a
-//! new instance costs no compilation.
+//! exactly one definition of its semantics. Constants, states (noise seeds among
+//! them) and the sample rate are reached through pointers, so instances of one
+//! shape share one kernel and a new instance costs no compilation. Kernels are
+//! compiled into *generations* of bounded size, and a generation's code is freed
+//! when its last kernel is dropped (see [`Jit`]).
 //!
 //! This crate is *not* a second semantics: the interpreter in `timbre-ir` is the
 //! reference, and the tests compare the two at every sample.
@@ -14,13 +16,15 @@
 mod approx;
 mod codegen;
 mod plan;
+mod shape;
 
 use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use cranelift_codegen::ir::{AbiParam, InstBuilder, MemFlagsData, Signature};
+use cranelift_codegen::isa::OwnedTargetIsa;
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_codegen::Context;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
@@ -29,8 +33,9 @@ use cranelift_module::{FuncId, Linkage, Module};
 use timbre_ir::op::Op;
 use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
 
-use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SLOTS};
+use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SEED, NOISE_SLOTS};
 use crate::plan::PlanStep;
+use crate::shape::Shape;
 
 /// Why a tree could not be compiled.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +73,8 @@ pub struct Kernel {
     /// the state table after the states, at `steps + step`: room for two values per
     /// sample of a block.
     splatted: Vec<usize>,
+    /// The module holding `entry`'s code, which lives as long as this.
+    _generation: Arc<Generation>,
 }
 
 impl std::fmt::Debug for Kernel {
@@ -80,40 +87,52 @@ impl std::fmt::Debug for Kernel {
     }
 }
 
-/// The compiler: owns the generated code and a cache of kernels by tree shape.
+/// Kernels compiled into one generation (one cranelift module) before the [`Jit`]
+/// starts the next: the bound on the code its cache keeps alive.
+pub const KERNELS_PER_GENERATION: usize = 256;
+
+/// The compiler: a cache of kernels by tree shape, and the generated code.
 ///
-/// Kernels stay valid for the life of the process: generated code is never freed
-/// (cranelift-jit's own policy for a dropped module), so a voice may outlive its `Jit`.
+/// Kernels are compiled into *generations*, one cranelift module each (cranelift
+/// frees code only by freeing its whole module). When the current generation holds
+/// [`KERNELS_PER_GENERATION`] kernels, the next kernel starts a new generation and
+/// the cache forgets the old one's kernels (a later voice of such a shape compiles it
+/// again). A generation's code is freed when the last [`Kernel`] compiled into it is
+/// dropped: each kernel holds its generation, and each [`JitVoice`] its kernel, so
+/// voices may outlive their `Jit`, and a long-running host keeps the code of at most
+/// one full generation for its cache plus the generations its live voices use.
 pub struct Jit {
-    module: JITModule,
+    isa: OwnedTargetIsa,
+    /// Where new kernels are compiled.
+    generation: Arc<Generation>,
+    /// Kernels compiled into `generation`.
+    generation_kernels: usize,
+    kernels_per_generation: usize,
     context: Context,
     builder_context: FunctionBuilderContext,
-    cache: HashMap<u64, Arc<Kernel>>,
-    helpers: [FuncId; 3],
+    /// Kernels of the current generation, by shape.
+    cache: HashMap<Shape, Arc<Kernel>>,
     next_name: usize,
+    kernels_compiled: usize,
+    /// Generations of this `Jit` not yet freed.
+    live_generations: Arc<AtomicUsize>,
 }
 
-impl Jit {
-    pub fn new() -> Result<Self, JitError> {
-        let mut flags = settings::builder();
-        // No cranelift optimiser: the plan and the code generator already fold,
-        // share and hoist (see `docs/architecture.md`), and the optimiser's code
-        // motion lengthens live ranges in the sixteen vector registers: the swarm
-        // ran 10 % slower with it, nothing ran faster, and compiling took longer.
-        for (name, value) in [
-            ("opt_level", "none"),
-            ("use_colocated_libcalls", "false"),
-            ("is_pic", "false"),
-        ] {
-            flags
-                .set(name, value)
-                .map_err(|e| JitError::Host(e.to_string()))?;
-        }
-        let isa = cranelift_native::builder()
-            .map_err(|e| JitError::Host(e.to_string()))?
-            .finish(settings::Flags::new(flags))
-            .map_err(|e| JitError::Host(e.to_string()))?;
-        let mut builder = JITBuilder::with_isa(isa, cranelift_module::default_libcall_names());
+/// One cranelift module: some kernels' code, freed when the last of them is dropped.
+struct Generation {
+    /// In a mutex so that the last kernel may free it on any thread (a module is
+    /// `Send`, not `Sync`); only the `Jit` locks it, to compile. `None` only while
+    /// it is freed.
+    module: Mutex<Option<JITModule>>,
+    /// The helper functions kernels call, declared in this module.
+    helpers: [FuncId; 3],
+    live: Arc<AtomicUsize>,
+}
+
+impl Generation {
+    fn new(isa: &OwnedTargetIsa, live: &Arc<AtomicUsize>) -> Result<Self, JitError> {
+        let mut builder =
+            JITBuilder::with_isa(isa.clone(), cranelift_module::default_libcall_names());
         builder.symbol("timbre_step", step_callback as *const u8);
         builder.symbol("timbre_unary", codegen::call_unary as *const u8);
         builder.symbol("timbre_binary", codegen::call_binary as *const u8);
@@ -147,14 +166,84 @@ impl Jit {
                 signature(&[I64, F64, F64], true),
             )?,
         ];
+        live.fetch_add(1, Ordering::Relaxed);
+        Ok(Generation {
+            module: Mutex::new(Some(module)),
+            helpers,
+            live: live.clone(),
+        })
+    }
+}
+
+impl Drop for Generation {
+    fn drop(&mut self) {
+        let module = self
+            .module
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take();
+        if let Some(module) = module {
+            // SAFETY: the module's code is reached only through `Kernel::entry`, every
+            // kernel holds its generation, and a kernel runs only within
+            // `JitVoice::render`, which borrows the voice and so its kernel. This was
+            // the last reference: none of the code is running or can be called.
+            unsafe { module.free_memory() };
+        }
+        self.live.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+impl Jit {
+    /// A compiler whose generations hold [`KERNELS_PER_GENERATION`] kernels.
+    pub fn new() -> Result<Self, JitError> {
+        Self::with_kernels_per_generation(KERNELS_PER_GENERATION)
+    }
+
+    /// A compiler whose generations hold `kernels` kernels (at least one).
+    pub fn with_kernels_per_generation(kernels: usize) -> Result<Self, JitError> {
+        let mut flags = settings::builder();
+        // No cranelift optimiser: the plan and the code generator already fold,
+        // share and hoist (see `docs/architecture.md`), and the optimiser's code
+        // motion lengthens live ranges in the sixteen vector registers: the swarm
+        // ran 10 % slower with it, nothing ran faster, and compiling took longer.
+        for (name, value) in [
+            ("opt_level", "none"),
+            ("use_colocated_libcalls", "false"),
+            ("is_pic", "false"),
+        ] {
+            flags
+                .set(name, value)
+                .map_err(|e| JitError::Host(e.to_string()))?;
+        }
+        let isa = cranelift_native::builder()
+            .map_err(|e| JitError::Host(e.to_string()))?
+            .finish(settings::Flags::new(flags))
+            .map_err(|e| JitError::Host(e.to_string()))?;
+        let live_generations = Arc::new(AtomicUsize::new(0));
+        let generation = Arc::new(Generation::new(&isa, &live_generations)?);
+        let mut context = Context::new();
+        context.func.signature.call_conv = isa.default_call_conv();
         Ok(Jit {
-            context: module.make_context(),
-            module,
+            isa,
+            generation,
+            generation_kernels: 0,
+            kernels_per_generation: kernels.max(1),
+            context,
             builder_context: FunctionBuilderContext::new(),
             cache: HashMap::new(),
-            helpers,
             next_name: 0,
+            kernels_compiled: 0,
+            live_generations,
         })
+    }
+
+    /// Starts a new generation: the cache forgets the current one's kernels, whose
+    /// code lives on while kernels compiled into it do.
+    fn start_generation(&mut self) -> Result<(), JitError> {
+        self.cache.clear();
+        self.generation = Arc::new(Generation::new(&self.isa, &self.live_generations)?);
+        self.generation_kernels = 0;
+        Ok(())
     }
 
     /// Compiles (or finds in the cache) the kernel of a schedule of at most
@@ -163,14 +252,25 @@ impl Jit {
         if steps.len() > MAX_KERNEL_STEPS {
             return Err(JitError::TooLarge { steps: steps.len() });
         }
-        let shape = shape_hash(steps, block_size);
+        let shape = Shape::of(steps, block_size);
         if let Some(kernel) = self.cache.get(&shape) {
             return Ok(kernel.clone());
         }
+        if self.generation_kernels >= self.kernels_per_generation {
+            self.start_generation()?;
+        }
         let start = Instant::now();
+        let generation = self.generation.clone();
+        let mut module = generation
+            .module
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let Some(module) = module.as_mut() else {
+            unreachable!("a generation's module is taken only when it is dropped")
+        };
         let plan = plan::plan(steps);
         let splatted = splatted_steps(&plan, steps.len());
-        let call_conv = self.module.target_config().default_call_conv;
+        let call_conv = module.target_config().default_call_conv;
         self.context.func.signature = kernel_signature(call_conv);
         {
             let mut b = FunctionBuilder::new(&mut self.context.func, &mut self.builder_context);
@@ -179,9 +279,9 @@ impl Jit {
             b.switch_to_block(entry);
             let params = b.block_params(entry).to_vec();
             let helpers = Helpers {
-                step: self.module.declare_func_in_func(self.helpers[0], b.func),
-                unary: self.module.declare_func_in_func(self.helpers[1], b.func),
-                binary: self.module.declare_func_in_func(self.helpers[2], b.func),
+                step: module.declare_func_in_func(generation.helpers[0], b.func),
+                unary: module.declare_func_in_func(generation.helpers[1], b.func),
+                binary: module.declare_func_in_func(generation.helpers[2], b.func),
             };
             let param = |b: &mut FunctionBuilder, k: i32| {
                 b.ins().load(
@@ -210,21 +310,20 @@ impl Jit {
             kb.emit(&plan);
             b.ins().return_(&[]);
             b.seal_all_blocks();
-            b.finalize(self.module.target_config());
+            b.finalize(module.target_config());
         }
         let name = format!("kernel{}", self.next_name);
         self.next_name += 1;
-        let id = self
-            .module
+        let id = module
             .declare_function(&name, Linkage::Local, &self.context.func.signature)
             .map_err(|e| JitError::Codegen(e.to_string()))?;
-        let defined = self.module.define_function(id, &mut self.context);
-        self.module.clear_context(&mut self.context);
+        let defined = module.define_function(id, &mut self.context);
+        module.clear_context(&mut self.context);
         defined.map_err(|e| JitError::Codegen(format!("{e:?}")))?;
-        self.module
+        module
             .finalize_definitions()
             .map_err(|e| JitError::Codegen(e.to_string()))?;
-        let code = self.module.get_finalized_function(id);
+        let code = module.get_finalized_function(id);
         let (inline_nodes, callback_nodes) = plan.iter().fold((0, 0), |(i, c), step| match step {
             PlanStep::Region(r) => (i + r.nodes.len() + r.combines.len(), c),
             PlanStep::Callback(_) => (i, c + 1),
@@ -236,13 +335,17 @@ impl Jit {
             .collect();
         let kernel = Arc::new(Kernel {
             // SAFETY: `code` was generated with `kernel_signature`, which matches
-            // `KernelFn`, and generated code is never freed.
+            // `KernelFn`, and stays valid while its generation lives, which the
+            // kernel holds.
             entry: unsafe { std::mem::transmute::<*const u8, KernelFn>(code) },
             compile_time: start.elapsed(),
             inline_nodes,
             callback_nodes,
             splatted,
+            _generation: generation.clone(),
         });
+        self.generation_kernels += 1;
+        self.kernels_compiled += 1;
         self.cache.insert(shape, kernel.clone());
         Ok(kernel)
     }
@@ -270,19 +373,24 @@ impl Jit {
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
-        // floor of the last lattice cell (none yet: NaN equals nothing) and its five
-        // polynomial coefficients per lane of each noise; two partial sums per sample of each
-        // combine (used when its argument is summed in a lane region).
+        // floor of the last lattice cell (none yet: NaN equals nothing), its five
+        // polynomial coefficients and the seed per lane of each noise; two partial sums
+        // per sample of each combine (used when its argument is summed in a lane
+        // region).
         let no_cell = f64::NAN;
         let mut states: Vec<Vec<f64>> = interp
             .steps()
             .iter()
             .map(|s| match s.op {
                 Op::Phasor => vec![0.0; s.width],
-                Op::Noise { .. } => {
+                Op::Noise { seed } => {
                     // Slot-major: each slot's lanes side by side (see NOISE_SLOTS).
-                    let mut state = vec![0.0; NOISE_SLOTS * s.width];
-                    state[..s.width].fill(no_cell);
+                    let lanes = s.width;
+                    let mut state = vec![0.0; NOISE_SLOTS * lanes];
+                    state[..lanes].fill(no_cell);
+                    // The bits of the mixed seed, which the kernel loads as an integer.
+                    let mixed = f64::from_bits(timbre_ir::dsp::noise::mix64(seed));
+                    state[NOISE_SEED * lanes..(NOISE_SEED + 1) * lanes].fill(mixed);
                     state
                 }
                 Op::Combine => vec![0.0; 2 * config.block_size],
@@ -309,15 +417,27 @@ impl Jit {
         })
     }
 
-    /// Kernels compiled so far.
+    /// Kernels in the cache (those of the current generation).
     pub fn cached_kernels(&self) -> usize {
         self.cache.len()
+    }
+
+    /// Kernels compiled so far, over every generation.
+    pub fn kernels_compiled(&self) -> usize {
+        self.kernels_compiled
+    }
+
+    /// Generations whose code is not yet freed: the current one, and those that
+    /// kernels still in use were compiled into.
+    pub fn live_generations(&self) -> usize {
+        self.live_generations.load(Ordering::Relaxed)
     }
 }
 
 /// An instance of a compiled tree: its own buffers and states, a shared kernel.
 pub struct JitVoice {
     interp: Interpreter,
+    /// Shared with the other voices of its shape; keeps its generation's code alive.
     kernel: Arc<Kernel>,
     /// Step buffers of `interp`, for the kernel.
     buffers: Vec<*mut f64>,
@@ -381,28 +501,4 @@ extern "C" fn step_callback(interp: *mut Interpreter, step: u64, n: u64) {
     // SAFETY: kernels pass the interpreter they were called with.
     let interp = unsafe { &mut *interp };
     interp.eval_step(step as usize, n as usize);
-}
-
-/// What makes two schedules share a kernel: everything but constant values and the
-/// data of called-back nodes, which the kernel reads at run time.
-fn shape_hash(steps: &[Step], block_size: usize) -> u64 {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    block_size.hash(&mut h);
-    for step in steps {
-        step.args.hash(&mut h);
-        step.width.hash(&mut h);
-        step.constant.hash(&mut h);
-        match &step.op {
-            Op::Const(_) => 0u8.hash(&mut h),
-            Op::Time => 1u8.hash(&mut h),
-            Op::Unary(op) => (2u8, *op as u8).hash(&mut h),
-            Op::Binary(op) => (3u8, *op as u8).hash(&mut h),
-            Op::Ternary(op) => (4u8, *op as u8).hash(&mut h),
-            Op::Noise { seed } => (5u8, *seed).hash(&mut h),
-            Op::Combine => 6u8.hash(&mut h),
-            Op::Phasor => 8u8.hash(&mut h),
-            _ => 7u8.hash(&mut h),
-        }
-    }
-    h.finish()
 }

@@ -10,8 +10,10 @@
 //! the kernel calls back into the interpreter, which computes that node exactly as it
 //! always does.
 
-use timbre_ir::op::{Op, UnaryOp};
+use timbre_ir::op::Op;
 use timbre_ir::Step;
+
+use crate::shape::Kind;
 
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) enum PlanStep {
@@ -35,13 +37,9 @@ pub(crate) struct Region {
     pub splatted: Vec<usize>,
 }
 
-/// Whether a step is computed inline in a region.
+/// Whether a step is computed inline in a region (see [`Kind::is_inline`]).
 pub(crate) fn is_inline(op: &Op) -> bool {
-    match op {
-        Op::Time | Op::Binary(_) | Op::Ternary(_) | Op::Noise { .. } | Op::Phasor => true,
-        Op::Unary(u) => !matches!(u, UnaryOp::Tan),
-        _ => false,
-    }
+    Kind::of(op).is_inline()
 }
 
 /// Builds the plan for a schedule (see the module documentation).
