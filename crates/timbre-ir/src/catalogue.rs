@@ -904,7 +904,7 @@ fn max_delay(l: &Lowerer<'_>, b: &Bound<'_>, time: usize, max: usize) -> Result<
                 )
                 .label(time.span, "this delay time changes")
                 .help(format!(
-                    "give the longest delay in seconds: (… :max 0.5), e.g. ({} x time 0.5)",
+                    "give the longest delay in seconds with `:max`, e.g. ({} … :max 0.5)",
                     b.call.name
                 )))
         }
