@@ -101,6 +101,9 @@ fn describe(op: &Op) -> (String, &'static str) {
             )
         }
         Op::Variable(_) => ("variable".into(), KEYFRAME),
+        Op::Stateful(kernel) if !kernel.detail().is_empty() => {
+            (format!("{}\\n{}", kernel.name(), kernel.detail()), "")
+        }
         _ => (op.name(), ""),
     }
 }

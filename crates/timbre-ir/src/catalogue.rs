@@ -933,7 +933,8 @@ impl Lowerer<'_> {
         self.graph.add(Op::Stateful(Arc::new(kernel)), args)
     }
 
-    fn fold(&mut self, op: BinaryOp, nodes: &[NodeId]) -> NodeId {
+    /// `op` folded from the left over one or more nodes.
+    pub(crate) fn fold(&mut self, op: BinaryOp, nodes: &[NodeId]) -> NodeId {
         let mut acc = nodes[0];
         for next in &nodes[1..] {
             acc = self.graph.add(Op::Binary(op), vec![acc, *next]);

@@ -424,11 +424,7 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
                     .collect(),
             )
         }
-        Op::Stateful(kernel) => State::Kernel(kernel.new_state(&StateContext {
-            graph,
-            width: w,
-            config,
-        })),
+        Op::Stateful(kernel) => State::Kernel(kernel.new_state(&StateContext { width: w, config })),
         Op::Custom(node) => State::Kernel(node.new_state(w, sr)),
         Op::Const(_)
         | Op::Time

@@ -6,14 +6,11 @@
 use std::any::Any;
 use std::fmt;
 
-use crate::graph::Graph;
 use crate::interp::RenderConfig;
 use crate::op::Description;
 
 /// What a kernel may use to build its state.
-pub struct StateContext<'a> {
-    /// The graph the node belongs to.
-    pub graph: &'a Graph,
+pub struct StateContext {
     /// Lanes of the node's output.
     pub width: usize,
     pub config: RenderConfig,
@@ -44,15 +41,6 @@ impl<'a> Inputs<'a> {
     /// Lanes of argument `arg`.
     pub fn width(&self, arg: usize) -> usize {
         self.widths[self.args[arg]]
-    }
-
-    /// Number of arguments.
-    pub fn len(&self) -> usize {
-        self.args.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.args.is_empty()
     }
 }
 
@@ -98,7 +86,7 @@ pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
         args.iter().copied().max().unwrap_or(1)
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State;
+    fn new_state(&self, ctx: &StateContext) -> Self::State;
 
     /// Computes the next `inputs.n` samples of every lane.
     fn process(&self, state: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>);
@@ -110,7 +98,7 @@ pub trait DynKernel: fmt::Debug + Send + Sync + 'static {
     fn describe(&self, d: &mut Description);
     fn detail(&self) -> String;
     fn width(&self, args: &[usize]) -> usize;
-    fn new_state(&self, ctx: &StateContext<'_>) -> Box<dyn Any + Send>;
+    fn new_state(&self, ctx: &StateContext) -> Box<dyn Any + Send>;
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>);
 }
 
@@ -131,7 +119,7 @@ impl<K: StatefulKernel> DynKernel for K {
         StatefulKernel::width(self, args)
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Box<dyn Any + Send> {
+    fn new_state(&self, ctx: &StateContext) -> Box<dyn Any + Send> {
         Box::new(StatefulKernel::new_state(self, ctx))
     }
 

@@ -11,7 +11,7 @@
 //! on both sides.
 
 use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
-use crate::op::{frac, Description};
+use crate::op::frac;
 
 /// Which waveform.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,9 +103,7 @@ impl StatefulKernel for BandLimited {
         }
     }
 
-    fn describe(&self, _d: &mut Description) {}
-
-    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<f64> {
+    fn new_state(&self, ctx: &StateContext) -> Vec<f64> {
         vec![f64::NAN; ctx.width]
     }
 

@@ -17,7 +17,7 @@ impl StatefulKernel for Latch {
         "latch"
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
         vec![(0.0, false); ctx.width]
     }
 
@@ -53,7 +53,7 @@ impl StatefulKernel for Lag {
         "lag"
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
         vec![(None, f64::NAN, 1.0); ctx.width]
     }
 

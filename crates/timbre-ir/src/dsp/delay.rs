@@ -98,7 +98,7 @@ impl DelayLine {
 }
 
 /// Delay lines, one per lane, long enough for `max_seconds` at the render's rate.
-fn lines(max_seconds: f64, ctx: &StateContext<'_>) -> Vec<DelayLine> {
+fn lines(max_seconds: f64, ctx: &StateContext) -> Vec<DelayLine> {
     let max = (max_seconds * ctx.config.sample_rate).ceil() as usize;
     (0..ctx.width).map(|_| DelayLine::new(max)).collect()
 }
@@ -124,7 +124,7 @@ impl StatefulKernel for Delay {
         format!("max={:?} s", self.max_seconds)
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<DelayLine> {
+    fn new_state(&self, ctx: &StateContext) -> Vec<DelayLine> {
         lines(self.max_seconds, ctx)
     }
 
@@ -176,7 +176,7 @@ impl StatefulKernel for Comb {
         format!("max={:?} s", self.max_seconds)
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
         // One sample more: the loop reads a line whose newest sample is one old.
         let seconds = self.max_seconds + 1.0 / ctx.config.sample_rate;
         lines(seconds, ctx).into_iter().map(|l| (l, 0.0)).collect()
@@ -226,7 +226,7 @@ impl StatefulKernel for Allpass {
         format!("max={:?} s", self.max_seconds)
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<DelayLine> {
+    fn new_state(&self, ctx: &StateContext) -> Vec<DelayLine> {
         lines(self.max_seconds + 1.0 / ctx.config.sample_rate, ctx)
     }
 

@@ -394,7 +394,7 @@ impl StatefulKernel for AdsrEnvelope {
         "adsr"
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<Adsr> {
+    fn new_state(&self, ctx: &StateContext) -> Vec<Adsr> {
         vec![Adsr::new(); ctx.width]
     }
 

@@ -410,7 +410,7 @@ impl StatefulKernel for Biquad {
         }
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
         let fresh = (
             BiquadState::default(),
             BiquadCoeffs::default(),
@@ -449,7 +449,7 @@ impl StatefulKernel for OnePoleLowpass {
         "onepole"
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
         vec![(OnePole::default(), 0.0, f64::NAN); ctx.width]
     }
 
@@ -479,7 +479,7 @@ impl StatefulKernel for Resonator {
         "resonator"
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Self::State {
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
         let fresh = (
             ResonatorState::default(),
             ResonatorCoeffs::new(1.0, 1.0, ctx.config.sample_rate),

@@ -520,7 +520,7 @@ impl StatefulKernel for PinkNoise {
         1
     }
 
-    fn new_state(&self, _ctx: &StateContext<'_>) -> Pink {
+    fn new_state(&self, _ctx: &StateContext) -> Pink {
         Pink::new()
     }
 
@@ -553,7 +553,7 @@ impl StatefulKernel for MarkovNoise {
         format!("seed={:#018x}", self.seed)
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Vec<Markov> {
+    fn new_state(&self, ctx: &StateContext) -> Vec<Markov> {
         vec![Markov::new(); ctx.width]
     }
 

@@ -17,7 +17,7 @@ impl StatefulKernel for DampedSine {
         "damped-sine"
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> RotatorBank {
+    fn new_state(&self, ctx: &StateContext) -> RotatorBank {
         RotatorBank {
             lanes: vec![Rotator::default(); ctx.width],
             last_time: None,

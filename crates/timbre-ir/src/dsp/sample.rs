@@ -47,7 +47,7 @@ impl StatefulKernel for SamplePlayer {
         1
     }
 
-    fn new_state(&self, ctx: &StateContext<'_>) -> Playback {
+    fn new_state(&self, ctx: &StateContext) -> Playback {
         let sr = ctx.config.sample_rate;
         Playback {
             frames: resample(&self.data, sr),

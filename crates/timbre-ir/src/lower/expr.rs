@@ -401,13 +401,7 @@ impl Lowerer<'_> {
             Build::Fold(op @ (BinaryOp::And | BinaryOp::Or)) if nodes.len() == 1 => {
                 self.graph.add(Op::Binary(op), vec![nodes[0], nodes[0]])
             }
-            Build::Fold(op) => {
-                let mut acc = nodes[0];
-                for next in &nodes[1..] {
-                    acc = self.graph.add(Op::Binary(op), vec![acc, *next]);
-                }
-                acc
-            }
+            Build::Fold(op) => self.fold(op, &nodes),
             Build::Args(build) => {
                 let bound = Bound {
                     call,
