@@ -32,6 +32,7 @@ mod loader;
 mod lower;
 pub mod op;
 pub mod optimise;
+pub mod space;
 
 pub use custom::{BlockContext, CustomNode, Lanes};
 pub use dump::dump;

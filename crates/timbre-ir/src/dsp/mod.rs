@@ -24,12 +24,15 @@
 //! The stateful nodes' kernels ([`crate::kernel::StatefulKernel`]) live beside
 //! the building blocks they use.
 
+pub mod air;
 pub mod analysis;
 pub mod blep;
 pub mod control;
 pub mod conv;
 pub mod delay;
+pub mod fdn;
 pub mod envelope;
+pub mod expressive;
 pub mod filter;
 pub mod noise;
 pub mod rotator;

@@ -1,0 +1,1 @@
+//! The 2006 schematic paper's expressive nodes.

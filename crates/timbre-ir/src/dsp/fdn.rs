@@ -1,0 +1,1 @@
+//! Late reverberation: a feedback delay network with a given RT60 per band.
