@@ -15,13 +15,14 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 6] = [
+pub const WORKLOADS: [&str; 7] = [
     "bell-100",
     "wood-500",
     "bell-1000",
     "swarm-50",
     "bell-100-restruck",
     "scene-500",
+    "space-100",
 ];
 
 /// The standard workload called `name` (one of [`WORKLOADS`]).
@@ -33,6 +34,7 @@ pub fn workload(name: &str) -> Option<Workload> {
         "swarm-50" => swarm(50),
         "bell-100-restruck" => bell_restruck(100),
         "scene-500" => collisions(500),
+        "space-100" => moving_sources(100),
         _ => return None,
     })
 }
@@ -190,6 +192,32 @@ pub fn collisions(n: usize) -> Workload {
     }
 }
 
+/// `n` sources, each a tone, moving on straight lines past a spaced stereo pair (a
+/// second each way, then back), heard with exact propagation: the cost of space.
+pub fn moving_sources(n: usize) -> Workload {
+    let mut source = String::from(
+        "(scene :channels 2 :duration 10)
+         (define-sound tone (f) (* 0.01 (sine (* t f))))
+         (listener :position (0 0 0) :pair spaced :spacing 0.5)\n",
+    );
+    for k in 0..n {
+        let angle = k as f64 * 2.399_963; // the golden angle: directions spread evenly
+        let (dx, dy) = (angle.cos(), angle.sin());
+        let near = 5.0 + (k % 10) as f64;
+        let (x0, y0) = (-40.0 * dx - near * dy, -40.0 * dy + near * dx);
+        let (x1, y1) = (40.0 * dx - near * dy, 40.0 * dy + near * dx);
+        source += &format!(
+            "(source s{k} :position (keyframes :interp linear (0 ({x0} {y0} 1)) (2 ({x1} {y1} 1)) (4 ({x0} {y0} 1))))
+             (instance i{k} (tone :f {}) :source s{k})\n",
+            200.0 + 7.0 * k as f64
+        );
+    }
+    Workload {
+        name: leak(format!("space-{n}")),
+        source,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -206,6 +234,7 @@ mod tests {
             assert!(WORKLOADS.contains(&w.name));
         }
         assert_eq!(compile(&collisions(500)).instances.len(), 500);
+        assert_eq!(compile(&moving_sources(100)).instances.len(), 100);
         assert!(workload("bell-7").is_none());
     }
 

@@ -167,7 +167,9 @@ fn measure(
             ] {
                 let mut scene = SceneRenderer::new(&program, CONFIG, engine)
                     .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
-                times.push(time_render(samples, buffer, |out| {
+                // `samples` frames of every channel.
+                let values = samples * scene.channels() as u64;
+                times.push(time_render(values, buffer, |out| {
                     scene.render(out).expect("kernels of a benchmark compile")
                 }));
             }

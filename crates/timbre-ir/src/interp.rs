@@ -134,6 +134,34 @@ impl Interpreter {
         }
     }
 
+    /// Lanes of the root: the frames [`Interpreter::render_frames`] writes.
+    pub fn root_width(&self) -> usize {
+        self.steps.last().map_or(1, |s| s.width)
+    }
+
+    /// Renders the next `out.len() / root_width` samples of every lane of the root,
+    /// interleaved (frame after frame).
+    pub fn render_frames(&mut self, out: &mut [f64]) {
+        let width = self.root_width();
+        for chunk in out.chunks_mut(self.config.block_size * width) {
+            let n = chunk.len() / width;
+            self.render_block(n);
+            self.interleave_root(n, chunk);
+        }
+    }
+
+    /// The root's first `n` samples of the current block, frame after frame.
+    pub fn interleave_root(&self, n: usize, out: &mut [f64]) {
+        let width = self.root_width();
+        let bs = self.config.block_size;
+        let root = &self.buffers[self.buffers.len() - 1];
+        for lane in 0..width {
+            for (k, x) in root[lane * bs..lane * bs + n].iter().enumerate() {
+                out[k * width + lane] = *x;
+            }
+        }
+    }
+
     /// Renders `n ≤ block_size` samples into the node buffers.
     fn render_block(&mut self, n: usize) {
         for i in 0..self.steps.len() {

@@ -293,11 +293,25 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2)) (instance a (hit :amp 1 :freq 3))", "timbre::duplicate-instance", "instance `a` is defined twice", "a"),
     ("(define hit (x) x) (instance a (hit 1))", "timbre::not-a-class", "`hit` is a tree, not a sound class", "(hit 1)"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k :interp cubic (0 1))", "timbre::bad-keyframes", "unknown interpolation cubic", "cubic"),
-    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k (0 1 2))", "timbre::bad-keyframes", "a key is (time value), two numbers", "(0 1 2)"),
+    ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k (0 1 2))", "timbre::bad-keyframes", "a key is (time value) or (time (x y z)), of numbers", "(0 1 2)"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (instance a (hit :amp 1 :freq 2) :speed 2)", "timbre::unknown-keyword", "`instance` has no option `:speed`", ":speed"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (sine t) (instance a (hit :amp 1 :freq 2))", "timbre::sound-and-instances", "the file has both a top-level sound and instances", "(sine t)"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k :csv \"m.csv\" :frame-rate 24)", "timbre::bad-keyframes", "a CSV track needs a `:column`", "(keyframes k :csv \"m.csv\" :frame-rate 24)"),
-    ("(define-sound a (f) (sine (* t f))) (instance x (a :f 1) :pan 0.5)", "timbre::bad-instance", "`:pan 0.5` needs a stereo scene", "0.5"),
+    ("(define-sound a (f) (sine (* t f))) (instance x (a :f 1) :pan 0.5)", "timbre::bad-instance", "`:pan` needs a stereo scene", "0.5"),
+    ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (instance x (a :f 1) :pan 2)", "timbre::bad-instance", "`:pan 2` is not a position from -1 to 1", "2"),
+    // Space.
+    ("(keyframes p (0 (1 2 3)) (1 (4 5)))", "timbre::bad-keyframes", "this key has 2 values, the first has 3", "(1 (4 5))"),
+    ("(source car :position (keyframes (0 (1 2)) (1 (3 4))))", "timbre::bad-position", "the source's position has 2 coordinates, not 3", "(keyframes (0 (1 2)) (1 (3 4)))"),
+    ("(source car :position (1 2))", "timbre::bad-position", "the source's position has 2 coordinates, not 3", "(1 2)"),
+    ("(scene :speed-of-sound 0)", "timbre::bad-scene", "speed of sound 0 is not positive", "0"),
+    ("(scene :distance-law cubic)", "timbre::bad-scene", "unknown distance law cubic", "cubic"),
+    ("(define-sound a (f) (sine (* t f))) (listener) (source car :position (0 1 0)) (instance x (a :f 1) :source cat)", "timbre::unknown-source", "unknown source cat", "cat"),
+    ("(define-sound a (f) (sine (* t f))) (source car :position (0 1 0)) (instance x (a :f 1) :source car)", "timbre::no-listener", "an instance is placed in space, but the scene has no listener", "car"),
+    ("(define-sound a (f) (sine (* t f))) (listener :pair spaced)", "timbre::bad-listener", "a microphone pair needs a stereo scene", "spaced"),
+    ("(keyframes k (0 1)) (listener :position k)", "timbre::bad-position", "the listener's position has 1 coordinate, not 3", "k"),
+    ("(listener :position carr) (keyframes car (0 (0 0 0)))", "timbre::unknown-position", "no keyframed position `carr`", "carr"),
+    ("(listener :position car) (listener)", "timbre::unknown-position", "no keyframed position `car`", "car"),
+    ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (listener) (instance x (a :f 1) :at (0 1 0) :pan 0)", "timbre::bad-instance", "an instance placed in space is panned by its place", "0"),
     ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (instance x (a :f 1) :channel 2)", "timbre::bad-instance", "channel 2 is not one of the scene's 2", "2"),
     ("(scene :channels 0)", "timbre::bad-scene", "0 is not a number of channels", "0"),
 ];
@@ -347,6 +361,14 @@ fn suggestions_name_the_closest_node_or_parameter() {
     );
     assert!(help("(let ((freq 1)) (sine (* t frq)))").starts_with("did you mean `freq`?"));
     assert!(help("(lowpass (white) 1000 :qq 2)").contains(":x :freq :q"));
+    assert_eq!(
+        help("(define-sound a () (sine t)) (listener) (source car :position (0 1 0)) (instance x (a) :source cat)"),
+        "did you mean `car`?"
+    );
+    assert_eq!(
+        help("(listener :position carr) (keyframes car (0 (0 0 0)))"),
+        "did you mean `car`?"
+    );
 }
 
 #[test]

@@ -457,29 +457,51 @@ impl JitVoice {
         &self.kernel
     }
 
-    /// Renders the next `out.len()` samples.
+    /// Lanes of the root: the frames [`JitVoice::render_frames`] writes.
+    pub fn root_width(&self) -> usize {
+        self.interp.root_width()
+    }
+
+    /// Renders the next `out.len()` samples (of a one-lane root).
     pub fn render(&mut self, out: &mut [f64]) {
         let block = self.interp.config().block_size;
         for chunk in out.chunks_mut(block) {
             let n = chunk.len();
-            let t0 = self.interp.position();
-            // SAFETY: the buffer table holds one valid buffer of `width × block`
-            // samples per step (with room for the last pair), and the interpreter
-            // pointer is exclusive for the call: callbacks re-enter it only to compute
-            // steps whose buffers the kernel is not reading or writing at that time.
-            unsafe {
-                (self.kernel.entry)(
-                    &mut self.interp,
-                    self.buffers.as_ptr(),
-                    self.params.as_ptr(),
-                    n as u64,
-                    t0,
-                    self.state_pointers.as_ptr(),
-                );
-            }
-            self.interp.advance(n);
+            self.render_block(n);
             chunk.copy_from_slice(self.interp.root_output(n));
         }
+    }
+
+    /// Renders the next `out.len() / root_width` samples of every lane of the root,
+    /// interleaved.
+    pub fn render_frames(&mut self, out: &mut [f64]) {
+        let width = self.root_width();
+        let block = self.interp.config().block_size;
+        for chunk in out.chunks_mut(block * width) {
+            let n = chunk.len() / width;
+            self.render_block(n);
+            self.interp.interleave_root(n, chunk);
+        }
+    }
+
+    /// Computes the next `n ≤ block_size` samples into the step buffers.
+    fn render_block(&mut self, n: usize) {
+        let t0 = self.interp.position();
+        // SAFETY: the buffer table holds one valid buffer of `width × block`
+        // samples per step (with room for the last pair), and the interpreter
+        // pointer is exclusive for the call: callbacks re-enter it only to compute
+        // steps whose buffers the kernel is not reading or writing at that time.
+        unsafe {
+            (self.kernel.entry)(
+                &mut self.interp,
+                self.buffers.as_ptr(),
+                self.params.as_ptr(),
+                n as u64,
+                t0,
+                self.state_pointers.as_ptr(),
+            );
+        }
+        self.interp.advance(n);
     }
 }
 

@@ -94,10 +94,19 @@ enum Voice {
 }
 
 impl Voice {
+    /// Lanes of its root: 1 (heard in every channel) or one per channel.
+    fn width(&self) -> usize {
+        match self {
+            Voice::Interpreter(v) => v.root_width(),
+            Voice::Jit(v) => v.root_width(),
+        }
+    }
+
+    /// Renders `out.len() / width` frames of its lanes, interleaved.
     fn render(&mut self, out: &mut [f64]) {
         match self {
-            Voice::Interpreter(v) => v.render(out),
-            Voice::Jit(v) => v.render(out),
+            Voice::Interpreter(v) => v.render_frames(out),
+            Voice::Jit(v) => v.render_frames(out),
         }
     }
 }
@@ -118,10 +127,9 @@ struct Pending {
     /// a file's one sound plays to the end).
     ends_when_silent: bool,
     start: u64,
-    /// First sample after the instance, if it stops (its timer has faded it out).
+    /// First sample after the instance, if it stops (its timer has faded it out and
+    /// the last of its sound has reached the receivers).
     end: Option<u64>,
-    /// Gain into each output channel.
-    gains: Vec<f64>,
 }
 
 struct Active {
@@ -132,7 +140,6 @@ struct Active {
     end: Option<u64>,
     /// A stop the host asked for: the mixer fades out from this sample.
     fade_from: Option<u64>,
-    gains: Vec<f64>,
     /// For an instance that ends once it has decayed (no stop): when it has.
     decay: Option<DecayWatch>,
 }
@@ -194,7 +201,6 @@ impl SceneRenderer {
                 ends_when_silent: false,
                 start: 0,
                 end: None,
-                gains: vec![1.0; channels],
             }],
             (None, instances) => instances.iter().map(|i| renderer.pending(i, sr)).collect(),
         };
@@ -217,8 +223,7 @@ impl SceneRenderer {
             start: (instance.start * sr).round() as u64,
             end: instance
                 .stop
-                .map(|stop| ((stop + DECLICK_OUT) * sr).round() as u64),
-            gains: instance.channel_gains.clone(),
+                .map(|stop| ((stop + DECLICK_OUT + instance.tail) * sr).round() as u64),
         }
     }
 
@@ -264,7 +269,6 @@ impl SceneRenderer {
                 ends_when_silent: end.is_none(),
                 start,
                 end,
-                gains: vec![1.0; self.channels],
             },
         );
         self.active.reserve(self.pending.len());
@@ -295,6 +299,11 @@ impl SceneRenderer {
     }
 
     fn voice(&mut self, graph: &Graph, root: NodeId) -> Result<Voice, JitError> {
+        // Room for a block of its frames (made here, so rendering does not allocate).
+        let frames = self.config.block_size.max(1) * graph.width(root);
+        if self.scratch.len() < frames {
+            self.scratch.resize(frames, 0.0);
+        }
         Ok(match (self.engine, &mut self.jit) {
             (Engine::Jit, Some(jit)) => match jit.voice(graph, root, self.config) {
                 Ok(voice) => Voice::Jit(Box::new(voice)),
@@ -338,7 +347,6 @@ impl SceneRenderer {
                     .then(|| DecayWatch::new(self.config.sample_rate)),
                 end: p.end,
                 fade_from: None,
-                gains: p.gains,
             });
         }
         let fade = self.fade_samples;
@@ -351,10 +359,11 @@ impl SceneRenderer {
             }
             let offset = (from - self.position) as usize;
             let n = (until - from) as usize;
-            let scratch = &mut self.scratch[..n];
+            let width = active.voice.width();
+            let scratch = &mut self.scratch[..n * width];
             active.voice.render(scratch);
             let mut next = until;
-            for (k, x) in scratch.iter().enumerate() {
+            for (k, lanes) in scratch.chunks_exact(width).enumerate() {
                 let gain = match active.fade_from {
                     Some(f) => {
                         let s = from + k as u64;
@@ -366,12 +375,18 @@ impl SceneRenderer {
                     }
                     None => 1.0,
                 };
-                let x = x * gain;
                 let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
-                for (y, g) in frame.iter_mut().zip(&active.gains) {
-                    *y += x * g;
+                if width == 1 {
+                    for y in frame.iter_mut() {
+                        *y += lanes[0] * gain;
+                    }
+                } else {
+                    for (y, x) in frame.iter_mut().zip(lanes) {
+                        *y += x * gain;
+                    }
                 }
-                if active.decay.as_mut().is_some_and(|d| d.push(x)) {
+                let loudest = lanes.iter().fold(0.0f64, |m, x| m.max(x.abs())) * gain;
+                if active.decay.as_mut().is_some_and(|d| d.push(loudest)) {
                     // Decayed: this is its last sample, whatever the block.
                     next = from + k as u64 + 1;
                     active.end = Some(next);

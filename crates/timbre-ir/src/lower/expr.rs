@@ -90,6 +90,15 @@ impl Lowerer<'_> {
             let track = track.clone();
             return Ok(self.keyframe_node(track));
         }
+        if let Some(tracks) = self.vector_keyframes.get(name) {
+            // A vector: one lane per coordinate.
+            let tracks = tracks.clone();
+            let lanes = tracks
+                .iter()
+                .map(|t| self.keyframe_node(t.clone()))
+                .collect();
+            return Ok(self.graph.add(Op::Concat, lanes));
+        }
         if let Some(def) = self.definitions.get(name) {
             if def.params.is_empty() {
                 let def = def.clone();

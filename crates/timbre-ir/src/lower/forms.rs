@@ -19,6 +19,9 @@ pub const FORMS: &[&str] = &[
     "scene",
     "keyframes",
     "instance",
+    "listener",
+    "microphone",
+    "source",
 ];
 
 impl Lowerer<'_> {
@@ -60,6 +63,10 @@ impl Lowerer<'_> {
             }
             Some("include") => self.read_include(&form, origin),
             Some("scene") if included_at.is_none() => self.read_scene(&form, origin),
+            Some("listener" | "microphone" | "source") if included_at.is_none() => {
+                self.space_forms.push((form, origin.clone()));
+                Ok(())
+            }
             _ => {
                 if let Some(file) = included_at {
                     Err(Diag::new(
@@ -171,7 +178,7 @@ impl Lowerer<'_> {
             .label(name_expr.span, "cannot be redefined")
             .help("choose another name for your tree"));
         }
-        if self.keyframes.contains_key(name) {
+        if self.keyframes.contains_key(name) || self.vector_keyframes.contains_key(name) {
             return Err(err(
                 "timbre::duplicate-define",
                 format!("`{name}` is already a keyframed variable"),

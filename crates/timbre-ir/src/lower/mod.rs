@@ -18,6 +18,7 @@ mod files;
 mod forms;
 mod library;
 mod scene;
+mod space;
 
 pub(crate) use forms::is_reserved;
 pub use forms::FORMS;
@@ -168,6 +169,13 @@ pub(crate) struct Lowerer<'a> {
     depth: usize,
     /// Keyframed variables by name.
     keyframes: HashMap<String, Arc<crate::keyframes::KeyframeTrack>>,
+    /// Keyframed vectors (positions) by name, one track per coordinate.
+    vector_keyframes: HashMap<String, Arc<[Arc<crate::keyframes::KeyframeTrack>]>>,
+    /// Sources, receivers and the medium of a scene in space.
+    space: space::Space,
+    /// `listener`, `microphone` and `source` forms, read once all other forms are
+    /// (so they may name keyframes defined further down).
+    space_forms: Vec<(Expr, Origin)>,
     /// `instance` forms, lowered once all forms are read; and the lowered instances.
     instance_forms: Vec<(Expr, Origin)>,
     instances: Vec<Instance>,
@@ -199,6 +207,9 @@ impl<'a> Lowerer<'a> {
             expanding: vec![],
             depth: 0,
             keyframes: HashMap::new(),
+            vector_keyframes: HashMap::new(),
+            space: space::Space::default(),
+            space_forms: vec![],
             instance_forms: vec![],
             instances: vec![],
             time_offset: 0.0,
@@ -240,6 +251,11 @@ impl<'a> Lowerer<'a> {
                         .help("a sound is one lane: sum its lanes with (combine …) or pick one with (index …)")
                         .in_source(&origin.source),
                 );
+            }
+        }
+        for (form, origin) in std::mem::take(&mut self.space_forms) {
+            if let Err(diag) = self.read_space_form(&form, &origin) {
+                self.errors.push(diag);
             }
         }
         let instance_forms = std::mem::take(&mut self.instance_forms);

@@ -18,11 +18,51 @@ use super::{Lowerer, Origin, Scope};
 use crate::error::Diag;
 use crate::graph::NodeId;
 use crate::keyframes::{CsvTime, Interpolation, KeyframeError, KeyframeTrack};
-use crate::op::{BinaryOp, Op};
+use crate::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 
 /// Fade-in at an instance's start and fade-out at its stop, in seconds.
 pub const DECLICK_IN: f64 = 0.001;
 pub const DECLICK_OUT: f64 = 0.005;
+
+const KEYFRAMES_USAGE: &str = "(keyframes name :interp linear (0 0.2) (1 0.9)) or (keyframes name :csv \"motion.csv\" :column \"force\" :frame-rate 24)";
+
+/// A keyframed variable: one value, or a vector (a position) of several.
+pub(crate) enum Track {
+    Scalar(Arc<KeyframeTrack>),
+    /// One track per coordinate, keyed at the same times.
+    Vector(Arc<[Arc<KeyframeTrack>]>),
+}
+
+/// `(time value)` or `(time (x y …))`: the time and the value(s).
+fn key_parts(key: &Expr) -> Option<(f64, Vec<f64>)> {
+    let number = |e: &Expr| match e.kind {
+        ExprKind::Number(x) => Some(x),
+        _ => None,
+    };
+    let [time, value] = key.as_list()? else {
+        return None;
+    };
+    let time = number(time)?;
+    let value = match value.as_list() {
+        Some(items) if !items.is_empty() => items.iter().map(number).collect::<Option<_>>()?,
+        Some(_) => return None,
+        None => vec![number(value)?],
+    };
+    Some((time, value))
+}
+
+fn key_is_vector(key: &Expr) -> bool {
+    key.as_list()
+        .and_then(|items| items.get(1))
+        .is_some_and(|v| v.as_list().is_some())
+}
+
+/// A list of strings, as `:columns ("x" "y" "z")` takes (not a key).
+fn is_string_list(e: &Expr) -> bool {
+    e.as_list().is_some_and(|items| {
+        !items.is_empty() && items.iter().all(|i| matches!(i.kind, ExprKind::Str(_)))
+    })
+}
 
 /// One instance of a sound class in a scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,12 +74,13 @@ pub struct Instance {
     pub start: f64,
     /// Scene time at which it is switched off (after the fade-out), if given.
     pub stop: Option<f64>,
-    /// Its gain into each of the scene's output channels.
-    pub channel_gains: Vec<f64>,
+    /// Seconds it may still be heard after its stop: the sound's longest way from
+    /// its source to a receiver.
+    pub tail: f64,
 }
 
 /// The options of a scene form: `:key value` pairs after the fixed parts.
-struct Options<'e> {
+pub(crate) struct Options<'e> {
     pairs: Vec<(&'e str, Span, &'e Expr)>,
 }
 
@@ -54,7 +95,7 @@ impl<'e> Options<'e> {
 
 impl Lowerer<'_> {
     /// Splits `items` into `:key value` pairs, reporting anything else.
-    fn options<'e>(
+    pub(crate) fn options<'e>(
         &self,
         items: &'e [Expr],
         form: &str,
@@ -105,7 +146,12 @@ impl Lowerer<'_> {
         Ok(Options { pairs })
     }
 
-    fn constant_option(&mut self, value: &Expr, what: &str, origin: &Origin) -> Result<f64, Diag> {
+    pub(crate) fn constant_option(
+        &mut self,
+        value: &Expr,
+        what: &str,
+        origin: &Origin,
+    ) -> Result<f64, Diag> {
         let node = self.lower(value, origin, &mut Scope::new())?;
         let arg = super::Arg {
             node,
@@ -131,7 +177,6 @@ impl Lowerer<'_> {
 
     pub(crate) fn read_keyframes(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
         let items = form.as_list().unwrap_or_default();
-        let usage = "(keyframes name :interp linear (0 0.2) (1 0.9)) or (keyframes name :csv \"motion.csv\" :column \"force\" :frame-rate 24)";
         let Some((name, name_span)) = items
             .get(1)
             .and_then(|e| e.as_symbol().map(|s| (s.to_owned(), e.span)))
@@ -139,20 +184,45 @@ impl Lowerer<'_> {
             return Err(self
                 .diag("timbre::bad-keyframes", "`keyframes` needs a name", origin)
                 .label(form.span, "no name")
-                .help(format!("write {usage}")));
+                .help(format!("write {KEYFRAMES_USAGE}")));
         };
         self.check_new_name(&name, name_span, origin)?;
+        match self.track(&items[2..], form.span, origin)? {
+            Track::Scalar(track) => {
+                self.keyframes.insert(name, track);
+            }
+            Track::Vector(tracks) => {
+                self.vector_keyframes.insert(name, tracks);
+            }
+        }
+        Ok(())
+    }
+
+    /// The keys or CSV options of a `keyframes` form (after its name, if any): one
+    /// track, or one per coordinate when the values are vectors `(x y z)`.
+    pub(crate) fn track(
+        &mut self,
+        rest: &[Expr],
+        form_span: Span,
+        origin: &Origin,
+    ) -> Result<Track, Diag> {
         // Inline keys are lists; everything else is options.
-        let rest = &items[2..];
         let first_key = rest
             .iter()
-            .position(|e| e.as_list().is_some())
+            .position(|e| e.as_list().is_some() && !is_string_list(e))
             .unwrap_or(rest.len());
         let (option_items, keys) = rest.split_at(first_key);
         let options = self.options(
             option_items,
             "keyframes",
-            &["interp", "csv", "column", "frame-rate", "time-column"],
+            &[
+                "interp",
+                "csv",
+                "column",
+                "columns",
+                "frame-rate",
+                "time-column",
+            ],
             origin,
         )?;
         let interpolation = match options.get("interp") {
@@ -170,7 +240,7 @@ impl Lowerer<'_> {
                 })?
             }
         };
-        let track = if let Some(path_expr) = options.get("csv") {
+        if options.get("csv").is_some() {
             if let Some(extra) = keys.first() {
                 return Err(self
                     .diag(
@@ -179,45 +249,60 @@ impl Lowerer<'_> {
                         origin,
                     )
                     .label(extra.span, "listed key")
-                    .help(format!("write {usage}")));
+                    .help(format!("write {KEYFRAMES_USAGE}")));
             }
-            self.csv_track(path_expr, &options, interpolation, form.span, origin)?
-        } else {
-            let mut times = vec![];
-            let mut values = vec![];
-            let mut spans = vec![];
-            for key in keys {
-                let pair = key.as_list().unwrap_or_default();
-                let numbers: Option<Vec<f64>> = pair
-                    .iter()
-                    .map(|e| match e.kind {
-                        ExprKind::Number(x) => Some(x),
-                        _ => None,
-                    })
-                    .collect();
-                match numbers.as_deref() {
-                    Some([time, value]) => {
-                        times.push(*time);
-                        values.push(*value);
-                        spans.push(key.span);
-                    }
-                    _ => {
-                        return Err(self
-                            .diag(
-                                "timbre::bad-keyframes",
-                                "a key is (time value), two numbers",
-                                origin,
-                            )
-                            .label(key.span, "malformed key")
-                            .help("write e.g. (1.5 0.8): 0.8 at 1.5 s"))
-                    }
-                }
+            return self.csv_track(&options, interpolation, form_span, origin);
+        }
+        let mut times = vec![];
+        // One list of values per coordinate.
+        let mut values: Vec<Vec<f64>> = vec![];
+        let mut spans = vec![];
+        for key in keys {
+            let Some((time, value)) = key_parts(key) else {
+                return Err(self
+                    .diag(
+                        "timbre::bad-keyframes",
+                        "a key is (time value) or (time (x y z)), of numbers",
+                        origin,
+                    )
+                    .label(key.span, "malformed key")
+                    .help("write e.g. (1.5 0.8): 0.8 at 1.5 s, or (1.5 (0 10 2)) for a position"));
+            };
+            if values.is_empty() {
+                values = vec![vec![]; value.len()];
+            } else if value.len() != values.len() {
+                return Err(self
+                    .diag(
+                        "timbre::bad-keyframes",
+                        format!(
+                            "this key has {} value{}, the first has {}",
+                            value.len(),
+                            super::plural(value.len()),
+                            values.len()
+                        ),
+                        origin,
+                    )
+                    .label(key.span, format!("{} values", value.len()))
+                    .label(keys[0].span, format!("{} values", values.len()))
+                    .help("every key of a track has the same number of values"));
             }
-            KeyframeTrack::new(times, values, interpolation).map_err(|e| {
+            times.push(time);
+            for (column, x) in values.iter_mut().zip(value) {
+                column.push(x);
+            }
+            spans.push(key.span);
+        }
+        if values.is_empty() {
+            values.push(vec![]);
+        }
+        let vector = values.len() > 1 || keys.first().is_some_and(key_is_vector);
+        let mut tracks = vec![];
+        for column in values {
+            let track = KeyframeTrack::new(times.clone(), column, interpolation).map_err(|e| {
                 let span = match e {
                     KeyframeError::OutOfOrder { index, .. }
                     | KeyframeError::NotFinite { index } => spans[index],
-                    _ => form.span,
+                    _ => form_span,
                 };
                 let message = match e {
                     KeyframeError::OutOfOrder {
@@ -235,32 +320,61 @@ impl Lowerer<'_> {
                 self.diag("timbre::bad-keyframes", message, origin)
                     .label(span, "here")
                     .help("list keys in increasing time, each (time value)")
-            })?
-        };
-        self.keyframes.insert(name, Arc::new(track));
-        Ok(())
+            })?;
+            tracks.push(Arc::new(track));
+        }
+        Ok(if vector {
+            Track::Vector(tracks.into())
+        } else {
+            Track::Scalar(tracks.remove(0))
+        })
     }
 
     fn csv_track(
         &mut self,
-        path_expr: &Expr,
         options: &Options<'_>,
         interpolation: Interpolation,
         form_span: Span,
         origin: &Origin,
-    ) -> Result<KeyframeTrack, Diag> {
+    ) -> Result<Track, Diag> {
+        let path_expr = options.get("csv").expect("a CSV track has :csv");
         let path = self.string_option(path_expr, "the CSV file", origin)?;
-        let Some(column_expr) = options.get("column") else {
-            return Err(self
-                .diag(
-                    "timbre::bad-keyframes",
-                    "a CSV track needs a `:column`",
-                    origin,
-                )
-                .label(form_span, "which column?")
-                .help("add :column \"name\" (the header of the column to read)"));
+        // One column, or one per coordinate of a vector.
+        let (columns_expr, vector) = match (options.get("column"), options.get("columns")) {
+            (Some(column), None) => (column, false),
+            (None, Some(columns)) => (columns, true),
+            _ => {
+                return Err(self
+                    .diag(
+                        "timbre::bad-keyframes",
+                        "a CSV track needs a `:column` (or `:columns` for a vector)",
+                        origin,
+                    )
+                    .label(form_span, "which column?")
+                    .help("add :column \"name\" (the header of the column to read), or :columns (\"x\" \"y\" \"z\")"))
+            }
         };
-        let column = self.string_option(column_expr, "the column", origin)?;
+        let columns = if vector {
+            let items = columns_expr.as_list().unwrap_or_default();
+            let names: Result<Vec<String>, Diag> = items
+                .iter()
+                .map(|e| self.string_option(e, "a column", origin))
+                .collect();
+            let names = names?;
+            if names.is_empty() {
+                return Err(self
+                    .diag(
+                        "timbre::bad-keyframes",
+                        "`:columns` names no column",
+                        origin,
+                    )
+                    .label(columns_expr.span, "empty")
+                    .help("write :columns (\"x\" \"y\" \"z\")"));
+            }
+            names
+        } else {
+            vec![self.string_option(columns_expr, "the column", origin)?]
+        };
         let (resolved, bytes) = self
             .options
             .loader
@@ -318,14 +432,24 @@ impl Lowerer<'_> {
                     .help("add :frame-rate 24 (row k at k/24 s) or :time-column \"time\""))
             }
         };
-        KeyframeTrack::from_csv(&text, &column, time, interpolation).map_err(|e| {
-            let span = match e {
-                KeyframeError::ColumnNotFound { .. } => column_expr.span,
-                _ => path_expr.span,
-            };
-            self.diag("timbre::bad-keyframes", format!("`{path}`: {e}"), origin)
-                .label(span, "here")
-                .help("check the CSV's header and numbers")
+        let mut tracks = vec![];
+        for column in &columns {
+            let track =
+                KeyframeTrack::from_csv(&text, column, time, interpolation).map_err(|e| {
+                    let span = match e {
+                        KeyframeError::ColumnNotFound { .. } => columns_expr.span,
+                        _ => path_expr.span,
+                    };
+                    self.diag("timbre::bad-keyframes", format!("`{path}`: {e}"), origin)
+                        .label(span, "here")
+                        .help("check the CSV's header and numbers")
+                })?;
+            tracks.push(Arc::new(track));
+        }
+        Ok(if vector {
+            Track::Vector(tracks.into())
+        } else {
+            Track::Scalar(tracks.remove(0))
         })
     }
 
@@ -433,10 +557,23 @@ impl Lowerer<'_> {
         let options = self.options(
             &items[3..],
             "instance",
-            &["start", "stop", "gain", "pan", "channel"],
+            &["start", "stop", "gain", "pan", "channel", "source", "at"],
             origin,
         )?;
-        let channel_gains = self.channel_gains(&options, origin)?;
+        let place = self.placement(options.get("source"), options.get("at"), origin)?;
+        if let (Some((_, place_span)), Some(route)) =
+            (&place, options.get("pan").or(options.get("channel")))
+        {
+            return Err(self
+                .diag(
+                    "timbre::bad-instance",
+                    "an instance placed in space is panned by its place",
+                    origin,
+                )
+                .label(route.span, "pan or channel")
+                .label(*place_span, "placed here")
+                .help("remove the :pan or :channel; the receivers decide the channels"));
+        }
         let start = match options.get("start") {
             Some(e) => self.constant_option(e, "the start time", origin)?,
             None => 0.0,
@@ -499,7 +636,7 @@ impl Lowerer<'_> {
         }
         let t = self.graph.add(Op::Time, vec![]);
         let length = stop.map(|(stop, _)| stop - start);
-        let root = self.graph.add(
+        let timed = self.graph.add(
             Op::Timer {
                 length,
                 fade_in: DECLICK_IN,
@@ -507,18 +644,32 @@ impl Lowerer<'_> {
             },
             vec![sound, t],
         );
+        // What the timer lets out is emitted at the instance's place, or sent to the
+        // channels as written.
+        let (root, tail) = match place {
+            Some((path, span)) => self.propagate(timed, path, span, start, origin)?,
+            None => (self.route(timed, &options, start, origin)?, 0.0),
+        };
         Ok(Instance {
             name: name.to_owned(),
             root,
             start,
             stop: stop.map(|(s, _)| s),
-            channel_gains,
+            tail,
         })
     }
 
-    /// Where an instance goes in a scene of several channels: `:pan` (stereo,
-    /// equal power: −1 left, 0 centre, 1 right) or `:channel k` (0-based).
-    fn channel_gains(&mut self, options: &Options<'_>, origin: &Origin) -> Result<Vec<f64>, Diag> {
+    /// Where an unplaced instance goes in a scene of several channels: `:pan`
+    /// (stereo, equal power: −1 left, 0 centre, 1 right; a constant or any
+    /// expression, such as keyframes) or `:channel k` (0-based); with neither, every
+    /// channel. The result is one lane (heard in every channel) or one per channel.
+    fn route(
+        &mut self,
+        sound: NodeId,
+        options: &Options<'_>,
+        start: f64,
+        origin: &Origin,
+    ) -> Result<NodeId, Diag> {
         let channels = self.settings.channels.unwrap_or(1);
         match (options.get("pan"), options.get("channel")) {
             (Some(_), Some(channel)) => Err(self
@@ -530,14 +681,11 @@ impl Lowerer<'_> {
                 .label(channel.span, "and a channel")
                 .help("pan between two channels, or route to one")),
             (Some(pan_expr), None) => {
-                let pan = self.constant_option(pan_expr, "the pan position", origin)?;
-                if channels != 2 || !(-1.0..=1.0).contains(&pan) {
+                if channels != 2 {
                     return Err(self
                         .diag(
                             "timbre::bad-instance",
-                            format!(
-                                "`:pan {pan}` needs a stereo scene and a position from -1 to 1"
-                            ),
+                            "`:pan` needs a stereo scene",
                             origin,
                         )
                         .label(pan_expr.span, "pan")
@@ -545,8 +693,30 @@ impl Lowerer<'_> {
                             "add `:channels 2` to the scene form; -1 is left, 0 centre, 1 right",
                         ));
                 }
-                let angle = (pan + 1.0) * std::f64::consts::FRAC_PI_4;
-                Ok(vec![angle.cos(), angle.sin()])
+                // Keyframes in the position read scene time.
+                self.time_offset = start;
+                let pan = self.lower(pan_expr, origin, &mut Scope::new());
+                self.time_offset = 0.0;
+                let pan = pan?;
+                if let Some(&[value]) = self.graph.const_value(pan) {
+                    if !(-1.0..=1.0).contains(&value) {
+                        return Err(self
+                            .diag(
+                                "timbre::bad-instance",
+                                format!("`:pan {value}` is not a position from -1 to 1"),
+                                origin,
+                            )
+                            .label(pan_expr.span, "pan")
+                            .help("-1 is left, 0 centre, 1 right"));
+                    }
+                }
+                if self.graph.width(pan) != 1 {
+                    return Err(self
+                        .diag("timbre::bad-instance", "`:pan` must be one lane", origin)
+                        .label(pan_expr.span, "several lanes")
+                        .help("pan by one value from -1 to 1"));
+                }
+                Ok(self.pan(sound, pan))
             }
             (None, Some(channel_expr)) => {
                 let channel = self.constant_option(channel_expr, "the channel", origin)?;
@@ -558,11 +728,30 @@ impl Lowerer<'_> {
                 }
                 let mut gains = vec![0.0; channels];
                 gains[channel as usize] = 1.0;
-                Ok(gains)
+                let gains = self.graph.const_vector(gains);
+                Ok(self
+                    .graph
+                    .add(Op::Binary(BinaryOp::Mul), vec![sound, gains]))
             }
             // Neither: the sound plays in every channel.
-            (None, None) => Ok(vec![1.0; channels]),
+            (None, None) => Ok(sound),
         }
+    }
+
+    /// `sound` in two lanes, panned by `pan` (equal power; clamped to [−1, 1]).
+    fn pan(&mut self, sound: NodeId, pan: NodeId) -> NodeId {
+        let g = &mut self.graph;
+        let lo = g.constant(-1.0);
+        let hi = g.constant(1.0);
+        let clamped = g.add(Op::Ternary(TernaryOp::Clamp), vec![pan, lo, hi]);
+        let one = g.constant(1.0);
+        let shifted = g.add(Op::Binary(BinaryOp::Add), vec![clamped, one]);
+        let quarter = g.constant(std::f64::consts::FRAC_PI_4);
+        let angle = g.add(Op::Binary(BinaryOp::Mul), vec![shifted, quarter]);
+        let left = g.add(Op::Unary(UnaryOp::Cos), vec![angle]);
+        let right = g.add(Op::Unary(UnaryOp::Sin), vec![angle]);
+        let gains = g.add(Op::Concat, vec![left, right]);
+        g.add(Op::Binary(BinaryOp::Mul), vec![sound, gains])
     }
 
     /// A new global name must not clash with built-ins, trees or keyframes.
@@ -585,7 +774,10 @@ impl Lowerer<'_> {
                 .label(span, "cannot be redefined")
                 .help("choose another name"));
         }
-        if self.definitions.contains_key(name) || self.keyframes.contains_key(name) {
+        if self.definitions.contains_key(name)
+            || self.keyframes.contains_key(name)
+            || self.vector_keyframes.contains_key(name)
+        {
             return Err(self
                 .diag(
                     "timbre::duplicate-define",
@@ -619,7 +811,7 @@ impl Lowerer<'_> {
                 .help(help)
                 .in_source(&origin.source)
         };
-        let known = ":sample-rate, :duration, :seed, :channels";
+        let known = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance";
         let mut i = 0;
         while i < args.len() {
             let ExprKind::Keyword(key) = &args[i].kind else {
@@ -638,6 +830,22 @@ impl Lowerer<'_> {
                     "write e.g. `:duration 4.0`",
                 ));
             };
+            if key == "distance-law" {
+                let law = value_expr
+                    .as_symbol()
+                    .and_then(crate::space::DistanceLaw::from_name);
+                let Some(law) = law else {
+                    return Err(err(
+                        value_expr.span,
+                        format!("unknown distance law {value_expr}"),
+                        "not a law",
+                        "write :distance-law inverse, inverse-square, linear or none",
+                    ));
+                };
+                self.space.medium.law = law;
+                i += 2;
+                continue;
+            }
             let ExprKind::Number(value) = value_expr.kind else {
                 return Err(err(
                     value_expr.span,
@@ -688,6 +896,35 @@ impl Lowerer<'_> {
                         format!("{value} is not a number of channels"),
                         "expected 1 to 64",
                         "write e.g. `:channels 2`",
+                    ))
+                }
+                "speed-of-sound" if value > 0.0 && value.is_finite() => {
+                    self.space.medium.speed_of_sound = value
+                }
+                "speed-of-sound" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("speed of sound {value} is not positive"),
+                        "expected metres per second > 0",
+                        "write e.g. `:speed-of-sound 343` (air at 20 °C)",
+                    ))
+                }
+                "reference-distance" | "min-distance" | "max-distance"
+                    if value > 0.0 && value.is_finite() =>
+                {
+                    let medium = &mut self.space.medium;
+                    match key.as_str() {
+                        "reference-distance" => medium.reference_distance = value,
+                        "min-distance" => medium.min_distance = value,
+                        _ => medium.max_distance = value,
+                    }
+                }
+                "reference-distance" | "min-distance" | "max-distance" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("distance {value} is not positive"),
+                        "expected metres > 0",
+                        "write e.g. `:reference-distance 1`",
                     ))
                 }
                 "seed" => {

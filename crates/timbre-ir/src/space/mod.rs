@@ -2,3 +2,8 @@
 //! emission (retarded) time, obstacles and rooms.
 
 pub mod geometry;
+pub mod path;
+pub mod propagate;
+
+pub use path::Path;
+pub use propagate::{DistanceLaw, Medium, Propagation, Receiver};

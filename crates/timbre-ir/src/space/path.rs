@@ -1,0 +1,135 @@
+//! Where something is over time: a fixed point or a keyframed 3-vector.
+
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use crate::keyframes::KeyframeTrack;
+use crate::op::Description;
+
+/// Step of the central difference that gives a path's velocity, in seconds.
+const VELOCITY_STEP: f64 = 1e-4;
+
+/// A point moving on the scene's timeline (seconds of scene time).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Path {
+    Fixed(DVec3),
+    /// One track per coordinate (x, y, z), keyed at the same times.
+    Keyed(Arc<[Arc<KeyframeTrack>; 3]>),
+}
+
+impl Path {
+    /// The position at scene time `t`.
+    #[inline]
+    pub fn at(&self, t: f64) -> DVec3 {
+        match self {
+            Path::Fixed(p) => *p,
+            Path::Keyed(tracks) => {
+                DVec3::new(tracks[0].value(t), tracks[1].value(t), tracks[2].value(t))
+            }
+        }
+    }
+
+    /// The velocity at scene time `t` (a central difference; zero for a fixed point).
+    pub fn velocity(&self, t: f64) -> DVec3 {
+        match self {
+            Path::Fixed(_) => DVec3::ZERO,
+            Path::Keyed(_) => {
+                (self.at(t + VELOCITY_STEP) - self.at(t - VELOCITY_STEP)) / (2.0 * VELOCITY_STEP)
+            }
+        }
+    }
+
+    /// The smallest box that holds the whole path: interpolation never leaves the
+    /// range of the keys (smooth keyframes are monotone between keys).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        match self {
+            Path::Fixed(p) => (*p, *p),
+            Path::Keyed(tracks) => {
+                let range = |k: usize| {
+                    let values = tracks[k].values();
+                    let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+                    let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    (lo, hi)
+                };
+                let (x, y, z) = (range(0), range(1), range(2));
+                (DVec3::new(x.0, y.0, z.0), DVec3::new(x.1, y.1, z.1))
+            }
+        }
+    }
+
+    /// Whether it moves.
+    pub fn is_fixed(&self) -> bool {
+        matches!(self, Path::Fixed(_))
+    }
+
+    /// Its identity, by content.
+    pub fn describe(&self, d: &mut Description) {
+        match self {
+            Path::Fixed(p) => {
+                d.str("fixed").f64s(&p.to_array());
+            }
+            Path::Keyed(tracks) => {
+                d.str("keyed").str(tracks[0].interpolation().name());
+                d.f64s(tracks[0].times());
+                for track in tracks.iter() {
+                    d.f64s(track.values());
+                }
+            }
+        }
+    }
+
+    /// A short description for people.
+    pub fn detail(&self) -> String {
+        match self {
+            Path::Fixed(p) => format!("({} {} {})", p.x, p.y, p.z),
+            Path::Keyed(tracks) => format!(
+                "{} keys {}–{} s",
+                tracks[0].times().len(),
+                tracks[0].start(),
+                tracks[0].end()
+            ),
+        }
+    }
+}
+
+/// The largest distance between a point of box `a` and a point of box `b`.
+pub fn max_distance(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> f64 {
+    let far = (a.1 - b.0).abs().max((b.1 - a.0).abs());
+    far.length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::keyframes::Interpolation;
+
+    fn line() -> Path {
+        let track = |a: f64, b: f64| {
+            Arc::new(KeyframeTrack::new(vec![0.0, 6.0], vec![a, b], Interpolation::Linear).unwrap())
+        };
+        Path::Keyed(Arc::new([
+            track(-90.0, 90.0),
+            track(10.0, 10.0),
+            track(0.0, 0.0),
+        ]))
+    }
+
+    #[test]
+    fn a_linear_path_moves_at_constant_velocity() {
+        let path = line();
+        assert_eq!(path.at(3.0), DVec3::new(0.0, 10.0, 0.0));
+        let v = path.velocity(1.0);
+        assert!((v.x - 30.0).abs() < 1e-6 && v.y.abs() < 1e-9, "{v}");
+    }
+
+    #[test]
+    fn bounds_hold_the_path_and_give_the_farthest_distance() {
+        let (lo, hi) = line().bounds();
+        assert_eq!(lo, DVec3::new(-90.0, 10.0, 0.0));
+        assert_eq!(hi, DVec3::new(90.0, 10.0, 0.0));
+        let origin = (DVec3::ZERO, DVec3::ZERO);
+        let far = max_distance((lo, hi), origin);
+        assert!((far - (90f64.powi(2) + 100.0).sqrt()).abs() < 1e-12);
+    }
+}

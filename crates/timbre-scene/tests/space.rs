@@ -1,0 +1,358 @@
+//! Sound in space, measured from rendered output: Doppler shifts from the emission
+//! time, arrival times and distance laws, stereo time and level differences, and
+//! both engines agreeing.
+
+use timbre_ir::{compile_str, CompileOptions, FsLoader, Program, Registry, RenderConfig};
+use timbre_scene::{Engine, SceneRenderer};
+use timbre_testkit::{assert_close, zero_crossing_frequency};
+
+const SR: f64 = 48_000.0;
+const C: f64 = 343.0;
+
+fn scene(text: &str) -> Program {
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &FsLoader);
+    compile_str(text, &options).unwrap_or_else(|e| panic!("{e:?}"))
+}
+
+fn render_with(program: &Program, seconds: f64, engine: Engine, block_size: usize) -> Vec<f64> {
+    let config = RenderConfig {
+        sample_rate: SR,
+        block_size,
+    };
+    let mut renderer = SceneRenderer::new(program, config, engine).unwrap();
+    let frames = (seconds * SR).round() as usize;
+    let mut out = vec![0.0; frames * renderer.channels()];
+    renderer.render(&mut out).unwrap();
+    out
+}
+
+fn render(program: &Program, seconds: f64) -> Vec<f64> {
+    render_with(program, seconds, Engine::Jit, 256)
+}
+
+/// Samples `from..to` seconds.
+fn window(x: &[f64], from: f64, to: f64) -> &[f64] {
+    &x[(from * SR) as usize..(to * SR) as usize]
+}
+
+/// Frequency of a 1 kHz tone emitted by a source moving on `path` (keyframes), heard
+/// by a listener on `listener` (a position), measured over `from..to` s.
+fn heard_frequency(source: &str, listener: &str, from: f64, to: f64) -> f64 {
+    let program = scene(&format!(
+        "(scene :duration 4 :speed-of-sound {C})
+         (define-sound tone (f) (sine (* t f)))
+         (listener :position {listener})
+         (source s :position {source})
+         (instance horn (tone :f 1000) :source s :start 0 :stop 4)"
+    ));
+    let x = render(&program, 4.0);
+    zero_crossing_frequency(window(&x, from, to), SR)
+}
+
+fn assert_within(measured: f64, expected: f64, relative: f64, what: &str) {
+    let error = (measured - expected).abs() / expected;
+    assert!(
+        error <= relative,
+        "{what}: {measured} Hz, expected {expected} Hz (error {:.4} %)",
+        error * 100.0
+    );
+}
+
+#[test]
+fn an_approaching_source_is_heard_at_c_over_c_minus_v() {
+    let v = 30.0;
+    // From 400 m away toward the listener, never reaching it.
+    let f = heard_frequency(
+        "(keyframes :interp linear (0 (-400 0 0)) (4 (-280 0 0)))",
+        "(0 0 0)",
+        2.0,
+        3.5,
+    );
+    let exact = 1000.0 * C / (C - v);
+    assert_within(f, exact, 0.001, "approaching");
+    // The distance now would give 1000·(1 + v/c), 0.8 % lower.
+    assert!((f - 1000.0 * (1.0 + v / C)).abs() > 5.0);
+}
+
+#[test]
+fn a_receding_source_is_heard_at_c_over_c_plus_v() {
+    let v = 30.0;
+    let f = heard_frequency(
+        "(keyframes :interp linear (0 (20 0 0)) (4 (140 0 0)))",
+        "(0 0 0)",
+        1.0,
+        3.5,
+    );
+    assert_within(f, 1000.0 * C / (C + v), 0.001, "receding");
+}
+
+#[test]
+fn a_listener_moving_toward_a_still_source_hears_c_plus_v_over_c() {
+    let v = 25.0;
+    let f = heard_frequency(
+        "(0 0 0)",
+        "(keyframes :interp linear (0 (-300 0 0)) (4 (-200 0 0)))",
+        1.5,
+        3.5,
+    );
+    assert_within(f, 1000.0 * (C + v) / C, 0.001, "moving listener");
+}
+
+/// Instantaneous frequency from each pair of upward zero crossings: (time, Hz).
+fn instantaneous_frequency(x: &[f64]) -> Vec<(f64, f64)> {
+    let mut crossings = vec![];
+    for i in 1..x.len() {
+        if x[i - 1] < 0.0 && x[i] >= 0.0 {
+            crossings.push((i - 1) as f64 + -x[i - 1] / (x[i] - x[i - 1]));
+        }
+    }
+    crossings
+        .windows(2)
+        .map(|w| ((w[0] + w[1]) / 2.0 / SR, SR / (w[1] - w[0])))
+        .collect()
+}
+
+#[test]
+fn the_pitch_passes_1_khz_when_the_sound_of_the_closest_approach_arrives() {
+    let program = scene(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/passing-car.tt"
+        ))
+        .unwrap(),
+    );
+    let x = render(&program, 6.0);
+    let f = instantaneous_frequency(&x);
+    let crossing = f
+        .windows(2)
+        .find(|w| w[0].1 > 1000.0 && w[1].1 <= 1000.0)
+        .map(|w| w[0].0 + (w[1].0 - w[0].0) * (w[0].1 - 1000.0) / (w[0].1 - w[1].1))
+        .expect("the pitch falls through 1 kHz");
+    // The car is closest (10 m) at 3 s; that sound arrives 10/c s later. The distance
+    // now would put the crossing at 3 s itself, 29 ms early.
+    let expected = 3.0 + 10.0 / C;
+    assert!(
+        (crossing - expected).abs() < 0.001,
+        "crossing at {crossing} s, expected {expected} s"
+    );
+    // Approaching at first: 30 m/s, at cos θ = 90/√8200 toward the listener.
+    let cos = 90.0 / (90.0f64 * 90.0 + 100.0).sqrt();
+    let early = f.iter().find(|(t, _)| *t > 0.3).unwrap().1;
+    assert_within(
+        early,
+        1000.0 * C / (C - 30.0 * cos),
+        0.002,
+        "early approach",
+    );
+}
+
+/// A click at the instance's local sample `k` (after the timer's fade-in).
+fn click(k: usize) -> String {
+    format!(
+        "(* (>= t {}) (< t {}))",
+        (k as f64 - 0.5) / SR,
+        (k as f64 + 0.5) / SR
+    )
+}
+
+fn click_scene(law: &str, source: &str, k: usize) -> Program {
+    scene(&format!(
+        "(scene :duration 1 :speed-of-sound {C} :distance-law {law} :max-distance 100)
+         (define-sound clicker () {})
+         (listener :position (0 0 0))
+         (source s :position {source})
+         (instance c (clicker) :source s :start 0.25 :stop 1)",
+        click(k)
+    ))
+}
+
+fn loudest(x: &[f64]) -> (usize, f64) {
+    x.iter().enumerate().fold(
+        (0, 0.0),
+        |(i, m), (j, v)| if v.abs() > m { (j, v.abs()) } else { (i, m) },
+    )
+}
+
+#[test]
+fn a_click_arrives_after_d_over_c_with_the_law_s_gain() {
+    let d = 34.3 * 1.5;
+    for (law, gain) in [
+        ("inverse", 1.0 / d),
+        ("inverse-square", 1.0 / (d * d)),
+        ("linear", 1.0 - (d - 1.0) / 99.0),
+        ("none", 1.0),
+    ] {
+        let program = click_scene(law, &format!("(0 {d} 0)"), 480);
+        let x = render(&program, 1.0);
+        let (at, level) = loudest(&x);
+        let emitted = 0.25 * SR + 480.0;
+        let expected = emitted + d / C * SR;
+        assert!(
+            (at as f64 - expected).abs() <= 1.0,
+            "{law}: arrives at sample {at}, expected {expected}"
+        );
+        let db = 20.0 * (level / gain).log10();
+        assert!(db.abs() < 0.1, "{law}: {level}, expected {gain} ({db} dB)");
+    }
+}
+
+#[test]
+fn a_moving_source_s_click_arrives_from_where_it_was_emitted() {
+    // 20 m/s along x, 30 m in front; the click leaves at local sample 24000 (0.5 s
+    // into the instance, scene time 0.75 s).
+    let program = click_scene(
+        "none",
+        "(keyframes :interp linear (0 (-40 30 0)) (2 (0 30 0)))",
+        24_000,
+    );
+    let x = render(&program, 1.0);
+    let (at, _) = loudest(&x);
+    let emitted = 0.75;
+    let position_then = (-40.0f64 + 20.0 * emitted, 30.0f64);
+    let distance = position_then.0.hypot(position_then.1);
+    let expected = (emitted + distance / C) * SR;
+    assert!(
+        (at as f64 - expected).abs() <= 1.0,
+        "arrives at sample {at}, expected {expected}"
+    );
+    // The distance at the moment of arrival is many samples off.
+    let later = (-40.0 + 20.0 * (at as f64 / SR)).hypot(30.0);
+    let naive = (emitted + later / C) * SR;
+    assert!((naive - expected).abs() > 20.0);
+}
+
+#[test]
+fn a_source_on_the_left_is_louder_and_earlier_in_the_left_channel() {
+    let spacing = 0.5;
+    let program = scene(&format!(
+        "(scene :duration 1 :channels 2 :speed-of-sound {C})
+         (define-sound clicker () {})
+         (listener :position (0 0 0) :pair spaced :spacing {spacing})
+         (source s :position (-5 2 0))
+         (instance c (clicker) :source s :start 0 :stop 1)",
+        click(480)
+    ));
+    let x = render(&program, 1.0);
+    let left: Vec<f64> = x.iter().step_by(2).copied().collect();
+    let right: Vec<f64> = x.iter().skip(1).step_by(2).copied().collect();
+    let (l_at, _) = loudest(&left);
+    let (r_at, _) = loudest(&right);
+    let dl = (-5.0f64 + spacing / 2.0).hypot(2.0);
+    let dr = (-5.0f64 - spacing / 2.0).hypot(2.0);
+    let difference = (dr - dl) / C * SR;
+    assert!(
+        ((r_at as f64 - l_at as f64) - difference).abs() <= 1.0,
+        "left at {l_at}, right at {r_at}: {} samples apart, expected {difference}",
+        r_at - l_at
+    );
+    // Levels measured on a steady tone (a click's peak depends on where it falls
+    // between samples): each channel is 1/d.
+    let program = scene(&format!(
+        "(scene :duration 1 :channels 2 :speed-of-sound {C})
+         (define-sound tone () (sine (* t 300)))
+         (listener :position (0 0 0) :pair spaced :spacing {spacing})
+         (source s :position (-5 2 0))
+         (instance c (tone) :source s :start 0 :stop 1)"
+    ));
+    let x = render(&program, 1.0);
+    let level = |lane: usize| {
+        let v: Vec<f64> = x
+            .iter()
+            .skip(lane)
+            .step_by(2)
+            .skip(24_000)
+            .copied()
+            .collect();
+        timbre_testkit::rms(&v)
+    };
+    let ratio = level(0) / level(1);
+    assert!(
+        (ratio - dr / dl).abs() < 1e-3,
+        "left/right {ratio}, expected {}",
+        dr / dl
+    );
+}
+
+#[test]
+fn an_xy_pair_hears_a_source_on_the_left_in_the_left_channel() {
+    let program = scene(
+        "(scene :duration 1 :channels 2)
+         (define-sound tone () (sine (* t 500)))
+         (listener :position (0 0 0) :pair xy :angle 90)
+         (source s :position (-10 0 0))
+         (instance c (tone) :source s :start 0 :stop 1)",
+    );
+    let x = render(&program, 1.0);
+    let rms = |lane: usize| {
+        let v: Vec<f64> = x
+            .iter()
+            .skip(lane)
+            .step_by(2)
+            .skip(24_000)
+            .copied()
+            .collect();
+        timbre_testkit::rms(&v)
+    };
+    // Cardioids at ±45°: the source at 90° to the left is 45° off the left axis and
+    // 135° off the right one.
+    let expected = (0.5 + 0.5 * 45f64.to_radians().cos()) / (0.5 + 0.5 * 135f64.to_radians().cos());
+    assert!(
+        (rms(0) / rms(1) - expected).abs() < 1e-3 * expected,
+        "left/right {}, expected {expected}",
+        rms(0) / rms(1)
+    );
+}
+
+#[test]
+fn engines_and_block_sizes_agree_on_the_passing_car() {
+    let program = scene(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/passing-car.tt"
+        ))
+        .unwrap(),
+    );
+    let jit = render_with(&program, 2.0, Engine::Jit, 256);
+    let interpreted = render_with(&program, 2.0, Engine::Interpreter, 256);
+    assert_close(&jit, &interpreted, 1e-5, "JIT vs interpreter");
+    for block in [1, 37, 1000] {
+        let other = render_with(&program, 2.0, Engine::Interpreter, block);
+        assert!(
+            other
+                .iter()
+                .zip(&interpreted)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "block size {block} changes the samples"
+        );
+    }
+}
+
+#[test]
+fn a_keyframed_pan_moves_the_sound_from_left_to_right() {
+    let program = scene(
+        "(scene :duration 2 :channels 2)
+         (define-sound tone () (sine (* t 440)))
+         (keyframes sweep :interp linear (0 -1) (2 1))
+         (instance c (tone) :pan sweep :start 0.5 :stop 2)",
+    );
+    let x = render(&program, 2.0);
+    let gain = |lane: usize, at: f64| {
+        let v: Vec<f64> = x.iter().skip(lane).step_by(2).copied().collect();
+        timbre_testkit::rms(window(&v, at - 0.01, at + 0.01)) * 2f64.sqrt()
+    };
+    // The pan reads scene time: at 0.5 s it is −0.5, at 1 s 0, at 1.5 s 0.5.
+    for (at, pan) in [(0.6, -0.4), (1.0, 0.0), (1.5, 0.5f64)] {
+        let angle = (pan + 1.0) * std::f64::consts::FRAC_PI_4;
+        assert!(
+            (gain(0, at) - angle.cos()).abs() < 0.01,
+            "left at {at} s: {}",
+            gain(0, at)
+        );
+        assert!(
+            (gain(1, at) - angle.sin()).abs() < 0.01,
+            "right at {at} s: {}",
+            gain(1, at)
+        );
+    }
+}
