@@ -612,17 +612,15 @@ impl Room {
         let mut n = 0;
         for axis in 0..3 {
             let k = image.index[axis];
-            // Planes from the image side towards cell 0.
-            let planes = if k > 0 {
-                (1..=k).rev().collect_array()
-            } else {
-                (k + 1..=0).collect_array()
-            };
             let denom = target[axis] - image.position[axis];
-            for &m in &planes.0[..planes.1] {
+            // Planes from the image side towards cell 0: k, k−1, …, 1 for a
+            // positive index, k+1, k+2, …, 0 for a negative one.
+            let count = (k.unsigned_abs() as usize).min(MAX_ORDER);
+            for j in 0..count as i32 {
                 if n == MAX_ORDER {
                     return n;
                 }
+                let m = if k > 0 { k - j } else { k + 1 + j };
                 let plane = self.min[axis] + m as f64 * size[axis];
                 let t = if denom == 0.0 {
                     0.0
@@ -713,23 +711,6 @@ fn fold(x: f64, lo: f64, size: f64) -> f64 {
         y = period - y;
     }
     lo + y
-}
-
-/// A fixed-capacity list of lattice plane numbers (no allocation).
-trait CollectArray {
-    fn collect_array(self) -> ([i32; MAX_ORDER], usize);
-}
-
-impl<I: Iterator<Item = i32>> CollectArray for I {
-    fn collect_array(self) -> ([i32; MAX_ORDER], usize) {
-        let mut out = [0; MAX_ORDER];
-        let mut n = 0;
-        for m in self.take(MAX_ORDER) {
-            out[n] = m;
-            n += 1;
-        }
-        (out, n)
-    }
 }
 
 // ---------------------------------------------------------------------------
@@ -1344,5 +1325,97 @@ mod tests {
         let report = classify(s, r, &obstacles, Some(&room), &images);
         assert_eq!(report.first_order_reaching, 0);
         assert_eq!(report.condition, Condition::Occlusion);
+    }
+
+    /// Hostile input never panics: NaN, infinities, huge and tiny values,
+    /// degenerate shapes, tampered images.
+    #[test]
+    fn never_panics() {
+        let specials = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e-300,
+            1e300,
+            f64::MAX,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        struct Lcg(u64, [f64; 10]);
+        impl Lcg {
+            fn next(&mut self) -> f64 {
+                self.0 = self
+                    .0
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                let r = self.0 >> 33;
+                if r.is_multiple_of(4) {
+                    self.1[(r as usize / 4) % self.1.len()]
+                } else {
+                    (r % 2000) as f64 / 100.0 - 5.0
+                }
+            }
+            fn p(&mut self) -> DVec3 {
+                v(self.next(), self.next(), self.next())
+            }
+        }
+        let mut g = Lcg(0x9e37_79b9_7f4a_7c15, specials);
+        for _ in 0..2000 {
+            let (a, b, c, d) = (g.p(), g.p(), g.p(), g.p());
+            let room = Room { min: a, max: b };
+            let wall = Wall::new(c, d, g.p()).with_opening(Opening::new(
+                g.next(),
+                g.next(),
+                g.next(),
+                g.next(),
+            ));
+            let obstacles = [
+                Obstacle::from(AlignedBox::new(g.p(), g.p())),
+                Obstacle::from(wall),
+            ];
+            let (s, r) = (g.p(), g.p());
+            for o in &obstacles {
+                let _ = (o.validate(), o.contains(s), o.segment_blocked(s, r));
+            }
+            let _ = (room.validate(), room.contains(s));
+            let mut images = room.image_sources(s, 3);
+            images.push(ImageSource {
+                position: g.p(),
+                source: s,
+                index: [i32::MAX, i32::MIN, 3],
+                order: usize::MAX,
+                walls: [7; MAX_ORDER],
+            });
+            for image in &images {
+                let _ = (image.walls(), room.reflection_path(image, r));
+            }
+            let _ = classify(s, r, &obstacles, Some(&room), &images);
+        }
+        // Valid rooms with sources and receivers on walls and corners.
+        let room = Room::from_size(v(4.0, 3.0, 2.5));
+        for s in [room.min, room.max, v(0.0, 1.5, 1.0), v(4.0, 3.0, 1.0)] {
+            let images = room.image_sources(s, MAX_ORDER);
+            assert_eq!(
+                images.len(),
+                (1..=MAX_ORDER).map(|k| 4 * k * k + 2).sum::<usize>()
+            );
+            for r in [
+                room.min,
+                v(0.0, 1.5, 1.0),
+                v(2.0, 3.0, 0.0),
+                v(1.0, 1.0, 1.0),
+            ] {
+                for image in &images {
+                    if let Some(path) = room.reflection_path(image, r) {
+                        for (p, &w) in path.points().iter().zip(path.walls()) {
+                            assert!(room.on_wall(w, *p));
+                        }
+                    }
+                }
+                let _ = classify(s, r, &[], Some(&room), &images);
+            }
+        }
     }
 }
