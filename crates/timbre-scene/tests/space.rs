@@ -356,3 +356,126 @@ fn a_keyframed_pan_moves_the_sound_from_left_to_right() {
         );
     }
 }
+
+/// A 5 ms Hann-windowed 2 kHz burst at the instance's start.
+const BURST: &str = "(* (< t 0.005) (- 0.5 (* 0.5 (cos (* 2 pi (/ t 0.005))))) (sine (* t 2000)))";
+
+/// Energy of `x` over `from..to` seconds.
+fn energy(x: &[f64], from: f64, to: f64) -> f64 {
+    window(x, from, to).iter().map(|v| v * v).sum()
+}
+
+/// The lag (samples) at which `b` best matches `a`, with parabolic interpolation.
+fn lag(a: &[f64], b: &[f64], range: std::ops::Range<usize>) -> f64 {
+    let score = |k: usize| -> f64 { a.iter().zip(&b[k..]).map(|(x, y)| x * y).sum() };
+    let best = range
+        .clone()
+        .max_by(|&i, &j| score(i).total_cmp(&score(j)))
+        .unwrap();
+    let (l, c, r) = (score(best - 1), score(best), score(best + 1));
+    best as f64 + 0.5 * (l - r) / (l - 2.0 * c + r)
+}
+
+#[test]
+fn a_wall_reflection_arrives_at_the_image_s_distance_with_the_wall_s_gain() {
+    // A large room: the reflection off the wall y = 0 (24 m) is alone in time.
+    let program = scene(&format!(
+        "(scene :duration 0.2 :speed-of-sound {C})
+         (define-sound burst () {BURST})
+         (room :size (40 40 40) :absorption 0.36 :order 1 :reverb none)
+         (listener :position (20 14 20))
+         (source s :position (20 10 20))
+         (instance b (burst) :source s :start 0 :stop 0.1)"
+    ));
+    let x = render(&program, 0.2);
+    let direct = window(&x, 0.0, 0.03);
+    let lag = lag(direct, &x, 2700..2900);
+    let expected = (24.0 - 4.0) / C * SR;
+    assert!(
+        (lag - expected).abs() < 1.0,
+        "reflection {lag} samples after the direct sound, expected {expected}"
+    );
+    // √(1 − 0.36) = 0.8 of the pressure, and 1/24 instead of 1/4.
+    let ratio = (energy(&x, 0.065, 0.08) / energy(&x, 0.005, 0.025)).sqrt();
+    let gain = 0.8 * 4.0 / 24.0;
+    assert!(
+        (20.0 * (ratio / gain).log10()).abs() < 0.1,
+        "reflection/direct {ratio}, expected {gain}"
+    );
+}
+
+/// |H| of the one-pole low-pass y += a(x − y) with cutoff `fc` at `f`.
+fn one_pole(fc: f64, f: f64) -> f64 {
+    let a = 1.0 - (-2.0 * std::f64::consts::PI * fc / SR).exp();
+    let w = 2.0 * std::f64::consts::PI * f / SR;
+    a / ((1.0 - (1.0 - a) * w.cos()).powi(2) + ((1.0 - a) * w.sin()).powi(2)).sqrt()
+}
+
+fn tone_level(wall: &str, freq: f64) -> f64 {
+    let program = scene(&format!(
+        "(scene :duration 1)
+         (define-sound tone () (sine (* t {freq})))
+         {wall}
+         (listener :position (0 0 0))
+         (source s :position (0 10 0))
+         (instance b (tone) :source s :start 0 :stop 1)"
+    ));
+    let x = render(&program, 1.0);
+    timbre_testkit::rms(window(&x, 0.5, 0.9))
+}
+
+#[test]
+fn a_wall_in_the_way_muffles_by_its_material() {
+    let wall = "(wall w :from (-5 5 -1) :to (5 5 -1) :height 3 :material wood)";
+    for freq in [200.0, 6000.0] {
+        let drop = tone_level(wall, freq) / tone_level("", freq);
+        // Wood: −12 dB and a one-pole low-pass at 1 kHz.
+        let expected = 10f64.powf(-12.0 / 20.0) * one_pole(1000.0, freq);
+        assert!(
+            (20.0 * (drop / expected).log10()).abs() < 0.1,
+            "{freq} Hz: {drop}, expected {expected}"
+        );
+    }
+    // Through an opening, nothing changes.
+    let window_wall = "(wall w :from (-5 5 -1) :to (5 5 -1) :height 3 :openings ((4 0.5 6 1.5)))";
+    let through = tone_level(window_wall, 6000.0) / tone_level("", 6000.0);
+    assert!((through - 1.0).abs() < 1e-9, "{through}");
+}
+
+#[test]
+fn a_box_sliding_across_the_way_crossfades_without_a_jump() {
+    let render_with_box = |obstacle: &str| {
+        let program = scene(&format!(
+            "(scene :duration 2)
+             (define-sound tone () (sine (* t 300)))
+             {obstacle}
+             (listener :position (0 0 0))
+             (source s :position (0 10 0))
+             (instance b (tone) :source s :start 0 :stop 2)"
+        ));
+        render(&program, 2.0)
+    };
+    let free = render_with_box("");
+    let slid = render_with_box(
+        "(box b :size (1 1 1) :position (keyframes :interp linear (0 (-3 5 0)) (2 (3 5 0))))",
+    );
+    let step = |x: &[f64]| {
+        x.windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f64::max)
+    };
+    // The bound: the free sound's own largest step, plus the crossfade's: the
+    // muffled and the clear sound differ by at most twice the peak, and the
+    // crossfade moves 1/(0.05·rate) of the way per sample.
+    let peak = timbre_testkit::peak(&free);
+    let bound = step(&free) + 2.0 * peak / (timbre_ir::space::environment::CROSSFADE * SR);
+    assert!(
+        step(&slid) <= bound,
+        "largest step {}, bound {bound}",
+        step(&slid)
+    );
+    // While it is in the way (about 0.83 to 1.17 s), the sound is muffled.
+    let muffled = timbre_testkit::rms(window(&slid, 0.95, 1.05));
+    let clear = timbre_testkit::rms(window(&free, 0.95, 1.05));
+    assert!(muffled < 0.3 * clear, "{muffled} vs {clear}");
+}

@@ -22,6 +22,9 @@ pub const FORMS: &[&str] = &[
     "listener",
     "microphone",
     "source",
+    "room",
+    "box",
+    "wall",
 ];
 
 impl Lowerer<'_> {
@@ -63,7 +66,9 @@ impl Lowerer<'_> {
             }
             Some("include") => self.read_include(&form, origin),
             Some("scene") if included_at.is_none() => self.read_scene(&form, origin),
-            Some("listener" | "microphone" | "source") if included_at.is_none() => {
+            Some("listener" | "microphone" | "source" | "room" | "box" | "wall")
+                if included_at.is_none() =>
+            {
                 self.space_forms.push((form, origin.clone()));
                 Ok(())
             }

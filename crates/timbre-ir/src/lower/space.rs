@@ -10,11 +10,15 @@ use std::sync::Arc;
 use glam::DVec3;
 use timbre_syntax::{Expr, ExprKind, Span};
 
+use super::scene::Options;
 use super::scene::Track;
 use super::{Lowerer, Origin, MAX_BUFFER_SECONDS};
 use crate::error::Diag;
 use crate::graph::NodeId;
 use crate::op::Op;
+use crate::space::environment::{Acoustics, Environment, Late, Material, PlacedObstacle, Shape};
+use crate::space::environment::{DEFAULT_MATERIAL, MATERIALS};
+use crate::space::geometry::{Opening, Room, Wall, DEFAULT_ORDER, MAX_ORDER};
 use crate::space::path::max_distance;
 use crate::space::{Medium, Path, Propagation, Receiver};
 
@@ -31,8 +35,12 @@ pub(crate) struct Space {
     /// Microphones by output channel.
     microphones: Vec<(usize, Receiver, Span)>,
     sources: Vec<(String, Path, Span)>,
-    /// The receivers, once worked out (when the first instance is placed).
+    obstacles: Vec<(PlacedObstacle, Span)>,
+    room: Option<(Acoustics, Span)>,
+    /// The receivers and the environment, once worked out and checked (when the
+    /// first instance is placed).
     receivers: Option<Arc<[Receiver]>>,
+    environment: Option<Arc<Environment>>,
 }
 
 const LISTENER_OPTIONS: &[&str] = &["position", "facing", "pair", "spacing", "angle", "pattern"];
@@ -63,6 +71,9 @@ impl Lowerer<'_> {
         {
             Some("listener") => self.read_listener(form, origin),
             Some("microphone") => self.read_microphone(form, origin),
+            Some("room") => self.read_room(form, origin),
+            Some("box") => self.read_box(form, origin),
+            Some("wall") => self.read_wall(form, origin),
             _ => self.read_source(form, origin),
         }
     }
@@ -278,6 +289,441 @@ impl Lowerer<'_> {
         };
         let path = self.position(position, "the source's position", origin)?;
         self.space.sources.push((name, path, name_expr.span));
+        Ok(())
+    }
+
+    /// `(room :size (x y z) :absorption a :order 2 :rt60 s :reverb fdn)`: a shoebox.
+    fn read_room(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+        let items = form.as_list().unwrap_or_default();
+        if let Some((_, first)) = &self.space.room {
+            return Err(self
+                .diag("timbre::bad-room", "the scene has two rooms", origin)
+                .label(form.span, "second room")
+                .label(*first, "first room")
+                .help("a scene has one shoebox room"));
+        }
+        let options = self.options(
+            &items[1..],
+            "room",
+            &[
+                "size",
+                "from",
+                "to",
+                "absorption",
+                "walls",
+                "floor",
+                "ceiling",
+                "order",
+                "rt60",
+                "reverb",
+            ],
+            origin,
+        )?;
+        let room = match (options.get("size"), options.get("from"), options.get("to")) {
+            (Some(size), None, None) => {
+                Room::from_size(self.vector(size, "the room's size", origin)?)
+            }
+            (None, Some(from), Some(to)) => Room::new(
+                self.vector(from, "a corner", origin)?,
+                self.vector(to, "a corner", origin)?,
+            ),
+            _ => {
+                return Err(self
+                    .diag(
+                        "timbre::bad-room",
+                        "a room needs its `:size` (or `:from` and `:to` corners)",
+                        origin,
+                    )
+                    .label(form.span, "how big?")
+                    .help("write (room :size (10 8 3)): from (0 0 0) to (10 8 3), in metres"))
+            }
+        };
+        if let Err(reason) = room.validate() {
+            let span = options
+                .get("size")
+                .or(options.get("to"))
+                .map_or(form.span, |e| e.span);
+            return Err(self
+                .diag(
+                    "timbre::bad-room",
+                    format!("the room is degenerate: {reason}"),
+                    origin,
+                )
+                .label(span, "here")
+                .help("a room has a positive length, width and height, in metres"));
+        }
+        let mut absorption = [[0.1; 6]; 6];
+        for (key, walls) in [
+            ("absorption", &[0usize, 1, 2, 3, 4, 5][..]),
+            ("walls", &[0, 1, 2, 3][..]),
+            ("floor", &[4][..]),
+            ("ceiling", &[5][..]),
+        ] {
+            if let Some(e) = options.get(key) {
+                let bands = self.bands(e, "an absorption coefficient", origin)?;
+                if let Some(bad) = bands.iter().find(|a| !(0.0..=1.0).contains(*a)) {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-room",
+                            format!("absorption {bad} is outside [0, 1]"),
+                            origin,
+                        )
+                        .label(e.span, "absorption coefficient")
+                        .help("0 reflects everything, 1 absorbs everything"));
+                }
+                for &w in walls {
+                    absorption[w] = bands;
+                }
+            }
+        }
+        let order = match options.get("order") {
+            Some(e) => {
+                let order = self.constant_option(e, "the order", origin)?;
+                if order.fract() != 0.0 || !(0.0..=MAX_ORDER as f64).contains(&order) {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-room",
+                            format!("order {order} is not 0 to {MAX_ORDER}"),
+                            origin,
+                        )
+                        .label(e.span, "reflections per path")
+                        .help("write e.g. :order 2 (first and second reflections)"));
+                }
+                order as usize
+            }
+            None => DEFAULT_ORDER,
+        };
+        let mut acoustics = Acoustics {
+            room,
+            absorption,
+            order,
+            late: Late::None,
+        };
+        let late = match options.get("reverb") {
+            None => "fdn",
+            Some(e) => match e.as_symbol() {
+                Some(word @ ("fdn" | "none")) => word,
+                _ => {
+                    return Err(self
+                        .diag("timbre::bad-room", format!("unknown reverb {e}"), origin)
+                        .label(e.span, "not a reverb")
+                        .help("write :reverb fdn (a feedback delay network) or :reverb none"))
+                }
+            },
+        };
+        if late == "fdn" {
+            let rt60 = match options.get("rt60") {
+                Some(e) => {
+                    let bands = self.bands(e, "a reverberation time", origin)?;
+                    if let Some(bad) = bands.iter().find(|x| !(**x > 0.0 && **x <= 60.0)) {
+                        return Err(self
+                            .diag("timbre::bad-room", format!("RT60 {bad} s is not from 0 to 60 s"), origin)
+                            .label(e.span, "seconds")
+                            .help("write e.g. :rt60 1.2, or six values for the octave bands 125 Hz to 4 kHz"));
+                    }
+                    bands
+                }
+                None => acoustics.sabine_rt60().map(|t| t.min(60.0)),
+            };
+            acoustics.late = Late::Fdn { rt60 };
+        }
+        self.space.room = Some((acoustics, form.span));
+        Ok(())
+    }
+
+    /// One value for every octave band, or six (125 Hz to 4 kHz).
+    fn bands(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<[f64; 6], Diag> {
+        if let Some(items) = e.as_list() {
+            if items.first().and_then(Expr::as_symbol).is_none() {
+                let values: Option<Vec<f64>> = items
+                    .iter()
+                    .map(|i| match i.kind {
+                        ExprKind::Number(x) => Some(x),
+                        _ => None,
+                    })
+                    .collect();
+                return match values.as_deref() {
+                    Some(&[a, b, c, d, e2, f]) => Ok([a, b, c, d, e2, f]),
+                    _ => Err(self
+                        .diag(
+                            "timbre::bad-room",
+                            format!("{what} per band needs six numbers"),
+                            origin,
+                        )
+                        .label(e.span, format!("{} values", items.len()))
+                        .help(
+                            "one number for every band, or six: 125, 250, 500, 1000, 2000, 4000 Hz",
+                        )),
+                };
+            }
+        }
+        Ok([self.constant_option(e, what, origin)?; 6])
+    }
+
+    /// `(x y z)` of numbers.
+    fn vector(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<DVec3, Diag> {
+        match self.position(e, what, origin)? {
+            Path::Fixed(p) => Ok(p),
+            Path::Keyed(_) => Err(self
+                .diag(
+                    "timbre::bad-position",
+                    format!("{what} cannot move"),
+                    origin,
+                )
+                .label(e.span, "keyframed")
+                .help("write (x y z), in metres")),
+        }
+    }
+
+    /// An obstacle's optional name (its first item, if a symbol) and options.
+    fn obstacle_name(&self, items: &[Expr], kind: &str) -> (String, usize) {
+        match items.get(1).and_then(Expr::as_symbol) {
+            Some(name) => (name.to_owned(), 2),
+            None => (format!("{kind} {}", self.space.obstacles.len() + 1), 1),
+        }
+    }
+
+    fn material(&mut self, options: &Options<'_>, origin: &Origin) -> Result<Material, Diag> {
+        let mut material = match options.get("material") {
+            None => Material::named(DEFAULT_MATERIAL).unwrap_or(Material {
+                transmission_db: -12.0,
+                cutoff: 1000.0,
+            }),
+            Some(e) => e.as_symbol().and_then(Material::named).ok_or_else(|| {
+                let names = MATERIALS.iter().map(|m| m.0).collect::<Vec<_>>().join(", ");
+                self.diag(
+                    "timbre::bad-material",
+                    format!("unknown material {e}"),
+                    origin,
+                )
+                .label(e.span, "not a material")
+                .help(format!(
+                    "materials are {names}; or give :transmission-db and :cutoff"
+                ))
+            })?,
+        };
+        if let Some(e) = options.get("transmission-db") {
+            let db = self.constant_option(e, "the transmission", origin)?;
+            if db > 0.0 || !db.is_finite() {
+                return Err(self
+                    .diag(
+                        "timbre::bad-material",
+                        format!("transmission {db} dB is a gain"),
+                        origin,
+                    )
+                    .label(e.span, "above 0 dB")
+                    .help("an obstacle lets through at most everything: write a level ≤ 0 dB"));
+            }
+            material.transmission_db = db;
+        }
+        if let Some(e) = options.get("cutoff") {
+            material.cutoff = self.positive_option(e, "the cutoff", origin)?;
+        }
+        Ok(material)
+    }
+
+    /// `(box name :size (x y z) :position P :material wood)`: an obstacle.
+    fn read_box(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+        let items = form.as_list().unwrap_or_default();
+        let (name, first) = self.obstacle_name(items, "box");
+        let options = self.options(
+            &items[first..],
+            "box",
+            &["size", "position", "material", "transmission-db", "cutoff"],
+            origin,
+        )?;
+        let Some(size_expr) = options.get("size") else {
+            return Err(self
+                .diag("timbre::bad-obstacle", "a box needs its `:size`", origin)
+                .label(form.span, "how big?")
+                .help("write (box cabinet :size (1 0.5 2) :position (3 4 1)), in metres"));
+        };
+        let size = self.vector(size_expr, "the box's size", origin)?;
+        let centre = match options.get("position") {
+            Some(e) => self.position(e, "the box's position", origin)?,
+            None => Path::Fixed(DVec3::ZERO),
+        };
+        if !(size.min_element() > 0.0 && size.is_finite()) {
+            return Err(self
+                .diag(
+                    "timbre::bad-obstacle",
+                    "a box has a positive size in every direction",
+                    origin,
+                )
+                .label(size_expr.span, "here")
+                .help("write (x y z) in metres, each > 0"));
+        }
+        let material = self.material(&options, origin)?;
+        self.space.obstacles.push((
+            PlacedObstacle {
+                name,
+                shape: Shape::Box {
+                    centre,
+                    half_size: size / 2.0,
+                },
+                material,
+            },
+            form.span,
+        ));
+        Ok(())
+    }
+
+    /// `(wall name :from (x y z) :to (x y z) :height h :openings ((s0 t0 s1 t1) …))`:
+    /// a wall standing on the segment from → to, with rectangular openings given in
+    /// metres along it and up from its foot.
+    fn read_wall(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+        let items = form.as_list().unwrap_or_default();
+        let (name, first) = self.obstacle_name(items, "wall");
+        let options = self.options(
+            &items[first..],
+            "wall",
+            &[
+                "from",
+                "to",
+                "height",
+                "openings",
+                "material",
+                "transmission-db",
+                "cutoff",
+            ],
+            origin,
+        )?;
+        let (Some(from), Some(to), Some(height)) = (
+            options.get("from"),
+            options.get("to"),
+            options.get("height"),
+        ) else {
+            return Err(self
+                .diag(
+                    "timbre::bad-obstacle",
+                    "a wall needs `:from`, `:to` and `:height`",
+                    origin,
+                )
+                .label(form.span, "where?")
+                .help("write (wall divider :from (5 0 0) :to (5 8 0) :height 3)"));
+        };
+        let from = self.vector(from, "the wall's start", origin)?;
+        let to = self.vector(to, "the wall's end", origin)?;
+        let height = self.positive_option(height, "the height", origin)?;
+        let mut wall = Wall::new(from, to - from, DVec3::new(0.0, 0.0, height));
+        if let Some(openings) = options.get("openings") {
+            for opening in openings.as_list().unwrap_or_default() {
+                let numbers: Option<Vec<f64>> = opening
+                    .as_list()
+                    .unwrap_or_default()
+                    .iter()
+                    .map(|i| match i.kind {
+                        ExprKind::Number(x) => Some(x),
+                        _ => None,
+                    })
+                    .collect();
+                let Some(&[s0, t0, s1, t1]) = numbers.as_deref() else {
+                    return Err(self
+                        .diag("timbre::bad-obstacle", "an opening is (along up along up), four numbers", origin)
+                        .label(opening.span, "malformed opening")
+                        .help("write e.g. ((3 1 4.5 2)): from 3 m along and 1 m up to 4.5 m along and 2 m up"));
+                };
+                wall = wall.with_opening(Opening::new(s0, t0, s1, t1));
+            }
+        }
+        if let Err(reason) = wall.validate() {
+            return Err(self
+                .diag(
+                    "timbre::bad-obstacle",
+                    format!("the wall is degenerate: {reason}"),
+                    origin,
+                )
+                .label(form.span, "here")
+                .help("a wall has a length and a height, and its openings lie on it"));
+        }
+        let material = self.material(&options, origin)?;
+        self.space.obstacles.push((
+            PlacedObstacle {
+                name,
+                shape: Shape::Wall(wall),
+                material,
+            },
+            form.span,
+        ));
+        Ok(())
+    }
+
+    /// The scene's obstacles and room, checked against its receivers, once.
+    fn environment(&mut self, at: Span, origin: &Origin) -> Result<Arc<Environment>, Diag> {
+        if let Some(environment) = &self.space.environment {
+            return Ok(environment.clone());
+        }
+        let environment = Arc::new(Environment {
+            obstacles: self
+                .space
+                .obstacles
+                .iter()
+                .map(|(o, _)| o.clone())
+                .collect(),
+            room: self.space.room.as_ref().map(|(r, _)| r.clone()),
+        });
+        let receivers = self.receivers(at, origin)?;
+        if let Some((acoustics, room_span)) = &self.space.room {
+            for receiver in receivers.iter() {
+                for (time, p) in key_positions(&receiver.position) {
+                    if !acoustics.room.contains(p) {
+                        let span = self
+                            .space
+                            .listener
+                            .as_ref()
+                            .map(|l| l.1)
+                            .or(self.space.microphones.first().map(|m| m.2))
+                            .unwrap_or(at);
+                        return Err(self
+                            .diag(
+                                "timbre::outside-room",
+                                format!("the listener is outside the room at {time} s, at ({} {} {})", p.x, p.y, p.z),
+                                origin,
+                            )
+                            .label(span, "this listener")
+                            .label(*room_span, "this room")
+                            .help("put the listener inside the room (its walls go from :from to :to, or from (0 0 0) to :size)"));
+                    }
+                }
+            }
+        }
+        self.space.environment = Some(environment.clone());
+        Ok(environment)
+    }
+
+    /// A source must not start inside an obstacle, nor leave the room.
+    fn check_source(&self, source: &Path, span: Span, origin: &Origin) -> Result<(), Diag> {
+        for (time, p) in key_positions(source) {
+            for (obstacle, obstacle_span) in &self.space.obstacles {
+                if obstacle.at(time).contains(p) {
+                    return Err(self
+                        .diag(
+                            "timbre::source-in-obstacle",
+                            format!("the source is inside `{}` at {time} s", obstacle.name),
+                            origin,
+                        )
+                        .label(span, "this source")
+                        .label(*obstacle_span, "this obstacle")
+                        .help("move the source or the obstacle: sound starts in the air"));
+                }
+            }
+            if let Some((acoustics, room_span)) = &self.space.room {
+                if !acoustics.room.contains(p) {
+                    return Err(self
+                        .diag(
+                            "timbre::outside-room",
+                            format!(
+                                "the source is outside the room at {time} s, at ({} {} {})",
+                                p.x, p.y, p.z
+                            ),
+                            origin,
+                        )
+                        .label(span, "this source")
+                        .label(*room_span, "this room")
+                        .help("keep sources inside the room: its walls reflect"));
+                }
+            }
+        }
         Ok(())
     }
 
@@ -507,7 +953,7 @@ impl Lowerer<'_> {
             .iter()
             .map(|r| max_distance(source.bounds(), r.bounds()))
             .fold(0.0, f64::max);
-        let max_delay = farthest / medium.speed_of_sound;
+        let mut max_delay = farthest / medium.speed_of_sound;
         if max_delay > MAX_BUFFER_SECONDS {
             return Err(self
                 .diag(
@@ -520,15 +966,31 @@ impl Lowerer<'_> {
                 .label(span, format!("up to {farthest:.0} m away"))
                 .help("bring the source and the listener closer (distances are in metres)"));
         }
+        let environment = self.environment(span, origin)?;
+        self.check_source(&source, span, origin)?;
+        if let Some(room) = &environment.room {
+            // Reflections travel farther: up to the order's images of the room.
+            let reach = room.room.size().length() * (room.order as f64 + 1.0);
+            max_delay += reach / medium.speed_of_sound;
+        }
         let kernel = Propagation {
             source,
             receivers,
             medium,
+            environment,
             start,
             max_delay,
         };
         let node = self.graph.add(Op::Stateful(Arc::new(kernel)), vec![sound]);
         Ok((node, max_delay))
+    }
+}
+
+/// Every place a path visits at a key (or its one place).
+fn key_positions(path: &Path) -> Vec<(f64, DVec3)> {
+    match path {
+        Path::Fixed(p) => vec![(0.0, *p)],
+        Path::Keyed(tracks) => tracks[0].times().iter().map(|&t| (t, path.at(t))).collect(),
     }
 }
 

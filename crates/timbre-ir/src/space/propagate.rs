@@ -14,8 +14,11 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use super::environment::{Environment, Material, BANDS, CROSSFADE};
+use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::path::Path;
 use crate::dsp::delay::DelayLine;
+use crate::dsp::filter::OnePole;
 use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
@@ -200,10 +203,78 @@ pub struct Propagation {
     pub source: Path,
     pub receivers: Arc<[Receiver]>,
     pub medium: Medium,
+    /// Obstacles and the room, shared by the scene's instances.
+    pub environment: Arc<Environment>,
     /// Scene time of the instance's first sample, seconds.
     pub start: f64,
     /// The longest delay any path can have, seconds (the delay line's length).
     pub max_delay: f64,
+}
+
+/// A reflection in a shoebox's walls, as a map of positions: p ↦ sign·p + offset.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Mirror {
+    sign: DVec3,
+    offset: DVec3,
+}
+
+impl Mirror {
+    const IDENTITY: Mirror = Mirror {
+        sign: DVec3::ONE,
+        offset: DVec3::ZERO,
+    };
+
+    /// The image of lattice cell `index` of `room`: along an axis of length L,
+    /// n reflections put a point x at n·L + x (n even) or n·L + min + max − x (n odd).
+    fn of(room: &Room, index: [i32; 3]) -> Mirror {
+        let size = room.size();
+        let mut sign = DVec3::ONE;
+        let mut offset = DVec3::ZERO;
+        for axis in 0..3 {
+            let n = index[axis];
+            offset[axis] = n as f64 * size[axis];
+            if n % 2 != 0 {
+                sign[axis] = -1.0;
+                offset[axis] += room.min[axis] + room.max[axis];
+            }
+        }
+        Mirror { sign, offset }
+    }
+
+    fn apply(&self, p: DVec3) -> DVec3 {
+        self.sign * p + self.offset
+    }
+}
+
+/// How many times a path of lattice cell `index` reflects off each wall.
+fn hits(index: [i32; 3]) -> [u32; 6] {
+    let mut hits = [0; 6];
+    for axis in 0..3 {
+        let n = index[axis];
+        let (toward, away) = (n.unsigned_abs().div_ceil(2), n.unsigned_abs() / 2);
+        // Positive cells reflect off the max wall first.
+        let (min, max) = if n > 0 {
+            (away, toward)
+        } else {
+            (toward, away)
+        };
+        hits[2 * axis] = min;
+        hits[2 * axis + 1] = max;
+    }
+    hits
+}
+
+/// One way from the source to one receiver: the direct path or a reflection.
+#[derive(Clone, Debug)]
+struct Way {
+    receiver: usize,
+    mirror: Mirror,
+    /// The image's lattice cell; None for the direct path.
+    image: Option<[i32; 3]>,
+    /// The walls' broadband pressure gain along the way (1 for the direct path).
+    reflectance: f64,
+    /// Coefficient of the one-pole low-pass the walls add (absorbing highs), if any.
+    wall_filter: Option<f64>,
 }
 
 /// The retarded-time solution at one point of the grid.
@@ -214,31 +285,52 @@ struct Solution {
     /// dτ/dt.
     slope: f64,
     gain: f64,
+    /// Where the sound heard then was emitted (the real source, not its image).
+    emitted: DVec3,
+}
+
+/// A way's state while rendering.
+#[derive(Clone, Debug, Default)]
+struct WayState {
+    /// The solutions at the start and the end of the current grid step.
+    now: [Solution; 2],
+    wall: OnePole,
+    /// The low-pass of the obstacle in the way, and how far the way is blocked (0
+    /// clear, 1 blocked), moving toward `target` over [`CROSSFADE`].
+    obstacle: OnePole,
+    blocked: f64,
+    target: f64,
+    material: Option<Material>,
+    /// The one-pole coefficient of the material's cutoff.
+    coefficient: f64,
 }
 
 #[derive(Debug)]
 pub struct PropagationState {
     line: DelayLine,
-    /// Per receiver: the solutions at the start and the end of the current grid step.
-    now: Vec<[Solution; 2]>,
+    ways: Vec<Way>,
+    state: Vec<WayState>,
+    /// The obstacles where they are now.
+    obstacles: Vec<Obstacle>,
     /// Samples since the instance's first (to place the grid).
     position: u64,
 }
 
 impl Propagation {
-    /// Solves c·τ = |p_source(t − τ) − p_receiver(t)| at scene time `t`, from the
-    /// guess `tau` (Newton's method; the function is monotone in τ while the source
-    /// is slower than sound).
-    fn solve(&self, receiver: &Receiver, t: f64, guess: f64) -> Solution {
+    /// Solves c·τ = |m(p_source(t − τ)) − p_receiver(t)| at scene time `t` for the
+    /// source seen through mirror `m`, from the guess `tau` (Newton's method; the
+    /// function is monotone in τ while the source is slower than sound).
+    fn solve(&self, way: &Way, t: f64, guess: f64) -> Solution {
+        let receiver = &self.receivers[way.receiver];
         let c = self.medium.speed_of_sound;
         let r = receiver.at(t);
         let mut tau = guess.max(0.0);
         let mut emitted = self.source.at(t - tau);
         for _ in 0..16 {
-            let diff = emitted - r;
+            let diff = way.mirror.apply(emitted) - r;
             let d = diff.length();
             let f = d - c * tau;
-            let v = self.source.velocity(t - tau);
+            let v = way.mirror.sign * self.source.velocity(t - tau);
             let u = if d > 0.0 { diff / d } else { DVec3::ZERO };
             // d/dτ of |p(t − τ) − r| − cτ.
             let df = -u.dot(v) - c;
@@ -252,10 +344,11 @@ impl Propagation {
                 break;
             }
         }
-        let diff = emitted - r;
+        let image = way.mirror.apply(emitted);
+        let diff = image - r;
         let d = diff.length();
         let u = if d > 0.0 { diff / d } else { DVec3::ZERO };
-        let vs = self.source.velocity(t - tau);
+        let vs = way.mirror.sign * self.source.velocity(t - tau);
         let vr = receiver.velocity(t);
         let denominator = c + u.dot(vs);
         let slope = if denominator.abs() > 1e-9 {
@@ -263,8 +356,13 @@ impl Propagation {
         } else {
             0.0
         };
-        let gain = self.medium.gain(d) * receiver.directivity(t, emitted);
-        Solution { tau, slope, gain }
+        let gain = self.medium.gain(d) * receiver.directivity(t, image) * way.reflectance;
+        Solution {
+            tau,
+            slope,
+            gain,
+            emitted,
+        }
     }
 
     /// Scene time of local sample `n`.
@@ -273,8 +371,114 @@ impl Propagation {
     }
 
     /// The first guess at `t`: the delay of the distance now.
-    fn first_guess(&self, receiver: &Receiver, t: f64) -> f64 {
-        (self.source.at(t) - receiver.at(t)).length() / self.medium.speed_of_sound
+    fn first_guess(&self, way: &Way, t: f64) -> f64 {
+        let r = self.receivers[way.receiver].at(t);
+        (way.mirror.apply(self.source.at(t)) - r).length() / self.medium.speed_of_sound
+    }
+
+    /// The ways from the source to each receiver: direct, then the room's images.
+    fn ways(&self, sample_rate: f64) -> Vec<Way> {
+        let mut ways = vec![];
+        for receiver in 0..self.receivers.len() {
+            ways.push(Way {
+                receiver,
+                mirror: Mirror::IDENTITY,
+                image: None,
+                reflectance: 1.0,
+                wall_filter: None,
+            });
+            let Some(acoustics) = &self.environment.room else {
+                continue;
+            };
+            let room = &acoustics.room;
+            let centre = (room.min + room.max) / 2.0;
+            for image in room.image_sources(centre, acoustics.order) {
+                let hits = hits(image.index);
+                let along = |band: usize| -> f64 {
+                    (0..6)
+                        .map(|w| acoustics.reflectance(w, band).powi(hits[w] as i32))
+                        .product()
+                };
+                // Broadband: the 500 Hz and 1 kHz bands; highs: the 4 kHz band,
+                // matched by a one-pole low-pass where the walls absorb more there.
+                let mid = (along(2) + along(3)) / 2.0;
+                let high = along(5) / mid.max(1e-12);
+                let wall_filter = (high < 0.999).then(|| {
+                    let cutoff = BANDS[5] / (1.0 / (high * high).max(1e-12) - 1.0).sqrt();
+                    OnePole::coefficient(cutoff, sample_rate)
+                });
+                ways.push(Way {
+                    receiver,
+                    mirror: Mirror::of(room, image.index),
+                    image: Some(image.index),
+                    reflectance: mid,
+                    wall_filter,
+                });
+            }
+        }
+        ways
+    }
+
+    /// Whether `way` is blocked at scene time `t` by an obstacle, and by which.
+    fn blocking(
+        &self,
+        way: &Way,
+        solution: &Solution,
+        t: f64,
+        obstacles: &[Obstacle],
+    ) -> Option<usize> {
+        if obstacles.is_empty() {
+            return None;
+        }
+        let r = self.receivers[way.receiver].at(t);
+        let Some(index) = way.image else {
+            return first_blocking(obstacles, solution.emitted, r);
+        };
+        let acoustics = self.environment.room.as_ref()?;
+        let order = index.iter().map(|i| i.unsigned_abs() as usize).sum();
+        let image = ImageSource {
+            position: way.mirror.apply(solution.emitted),
+            source: solution.emitted,
+            index,
+            order,
+            walls: [0; MAX_ORDER],
+        };
+        match acoustics.room.reflection_path(&image, r) {
+            // A way that does not exist now carries nothing: as if blocked by the
+            // first obstacle (there is one).
+            None => Some(0),
+            Some(path) => path
+                .legs()
+                .find_map(|(a, b)| first_blocking(obstacles, a, b)),
+        }
+    }
+
+    /// Solves every way at the end of the grid step that starts at local sample `n`.
+    fn advance(&self, state: &mut PropagationState, n: u64, sr: f64) {
+        let t = self.time(n + GRID as u64, sr);
+        for (obstacle, placed) in state.obstacles.iter_mut().zip(&self.environment.obstacles) {
+            placed.update(obstacle, t);
+        }
+        for (way, s) in state.ways.iter().zip(&mut state.state) {
+            s.now[0] = s.now[1];
+            s.now[1] = self.solve(way, t, s.now[0].tau);
+            self.block(way, s, t, &state.obstacles, sr);
+        }
+    }
+
+    /// Sets whether `way` is to be blocked, and by which material.
+    fn block(&self, way: &Way, s: &mut WayState, t: f64, obstacles: &[Obstacle], sr: f64) {
+        match self.blocking(way, &s.now[1], t, obstacles) {
+            Some(k) => {
+                let material = self.environment.obstacles[k].material;
+                if s.material != Some(material) {
+                    s.material = Some(material);
+                    s.coefficient = OnePole::coefficient(material.cutoff, sr);
+                }
+                s.target = 1.0;
+            }
+            None => s.target = 0.0,
+        }
     }
 }
 
@@ -292,18 +496,26 @@ impl StatefulKernel for Propagation {
             receiver.describe(d);
         }
         self.medium.describe(d);
+        self.environment.describe(d);
         d.f64(self.start).f64(self.max_delay);
     }
 
     fn detail(&self) -> String {
-        format!(
+        let mut detail = format!(
             "from {} to {} receiver{}, c={} m/s, {}",
             self.source.detail(),
             self.receivers.len(),
             if self.receivers.len() == 1 { "" } else { "s" },
             self.medium.speed_of_sound,
             self.medium.law.name()
-        )
+        );
+        if let Some(room) = &self.environment.room {
+            detail += &format!(", room order {}", room.order);
+        }
+        if !self.environment.obstacles.is_empty() {
+            detail += &format!(", {} obstacles", self.environment.obstacles.len());
+        }
+        detail
     }
 
     fn width(&self, _args: &[usize]) -> usize {
@@ -315,18 +527,34 @@ impl StatefulKernel for Propagation {
         let length = (self.max_delay * sr).ceil() as usize + GRID + 8;
         let t0 = self.time(0, sr);
         let t1 = self.time(GRID as u64, sr);
-        let now = self
-            .receivers
+        let ways = self.ways(sr);
+        let mut obstacles: Vec<Obstacle> = self
+            .environment
+            .obstacles
             .iter()
-            .map(|receiver| {
-                let first = self.solve(receiver, t0, self.first_guess(receiver, t0));
-                let next = self.solve(receiver, t1, first.tau);
-                [first, next]
-            })
+            .map(|o| o.at(t0))
             .collect();
+        let mut state = vec![WayState::default(); ways.len()];
+        for (way, s) in ways.iter().zip(&mut state) {
+            let first = self.solve(way, t0, self.first_guess(way, t0));
+            s.now[1] = first;
+            // Blocked from the start: no crossfade.
+            self.block(way, s, t0, &obstacles, sr);
+            s.blocked = s.target;
+            s.now[1] = self.solve(way, t1, first.tau);
+            s.now[0] = first;
+        }
+        for (obstacle, placed) in obstacles.iter_mut().zip(&self.environment.obstacles) {
+            placed.update(obstacle, t1);
+        }
+        for (way, s) in ways.iter().zip(&mut state) {
+            self.block(way, s, t1, &obstacles, sr);
+        }
         PropagationState {
             line: DelayLine::new(length),
-            now,
+            ways,
+            state,
+            obstacles,
             position: 0,
         }
     }
@@ -336,15 +564,11 @@ impl StatefulKernel for Propagation {
         let x = inputs.lane(0, 0);
         let (samples, stride) = out.strided();
         let h = GRID as f64 / sr;
+        let fade_step = 1.0 / (CROSSFADE * sr);
         for (i, &sample) in x.iter().enumerate() {
             let phase = (state.position % GRID as u64) as usize;
             if phase == 0 && state.position > 0 {
-                // A new grid step: solve at its end.
-                let t = self.time(state.position + GRID as u64, sr);
-                for (receiver, now) in self.receivers.iter().zip(&mut state.now) {
-                    now[0] = now[1];
-                    now[1] = self.solve(receiver, t, now[0].tau);
-                }
+                self.advance(state, state.position, sr);
             }
             state.line.push(sample);
             let s = phase as f64 / GRID as f64;
@@ -354,10 +578,23 @@ impl StatefulKernel for Propagation {
             let h10 = s3 - 2.0 * s2 + s;
             let h01 = -2.0 * s3 + 3.0 * s2;
             let h11 = s3 - s2;
-            for (lane, [a, b]) in state.now.iter().enumerate() {
+            for lane in 0..self.receivers.len() {
+                samples[lane * stride + i] = 0.0;
+            }
+            for (way, w) in state.ways.iter().zip(&mut state.state) {
+                let [a, b] = w.now;
                 let tau = h00 * a.tau + h10 * h * a.slope + h01 * b.tau + h11 * h * b.slope;
                 let gain = a.gain + (b.gain - a.gain) * s;
-                samples[lane * stride + i] = gain * state.line.read(tau * sr);
+                let mut y = gain * state.line.read(tau * sr);
+                if let Some(coefficient) = way.wall_filter {
+                    y = w.wall.process(coefficient, y);
+                }
+                if let Some(material) = w.material {
+                    let muffled = material.gain() * w.obstacle.process(w.coefficient, y);
+                    w.blocked += (w.target - w.blocked).clamp(-fade_step, fade_step);
+                    y += (muffled - y) * w.blocked;
+                }
+                samples[way.receiver * stride + i] += y;
             }
             state.position += 1;
         }

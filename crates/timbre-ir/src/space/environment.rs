@@ -1,0 +1,197 @@
+//! What sound meets on its way: obstacles with their materials, and a room with its
+//! walls' absorption and its late reverberation.
+
+use glam::DVec3;
+
+use super::geometry::{AlignedBox, Obstacle, Room, Wall};
+use super::path::Path;
+use crate::op::Description;
+
+/// Octave bands of absorption coefficients and RT60s, Hz.
+pub const BANDS: [f64; 6] = [125.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0];
+
+/// Seconds over which a path's being blocked or clear crossfades when it changes.
+pub const CROSSFADE: f64 = 0.05;
+
+/// What a blocked path passes through (or bends around): a gain and a one-pole
+/// low-pass.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Level of the sound that gets past, dB (≤ 0).
+    pub transmission_db: f64,
+    /// Cutoff of the low-pass, Hz.
+    pub cutoff: f64,
+}
+
+/// The named materials: (name, transmission dB, cutoff Hz).
+pub const MATERIALS: &[(&str, f64, f64)] = &[
+    ("curtain", -6.0, 2500.0),
+    ("glass", -18.0, 2000.0),
+    ("wood", -12.0, 1000.0),
+    ("brick", -24.0, 500.0),
+    ("concrete", -36.0, 300.0),
+];
+
+/// The material of an obstacle that names none.
+pub const DEFAULT_MATERIAL: &str = "wood";
+
+impl Material {
+    pub fn named(name: &str) -> Option<Material> {
+        MATERIALS
+            .iter()
+            .find(|(n, _, _)| *n == name)
+            .map(|&(_, transmission_db, cutoff)| Material {
+                transmission_db,
+                cutoff,
+            })
+    }
+
+    /// The linear gain of the sound that gets past.
+    pub fn gain(&self) -> f64 {
+        10f64.powf(self.transmission_db / 20.0)
+    }
+}
+
+/// An obstacle's shape: a box (which may move) or a wall.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    Box { centre: Path, half_size: DVec3 },
+    Wall(Wall),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlacedObstacle {
+    pub name: String,
+    pub shape: Shape,
+    pub material: Material,
+}
+
+impl PlacedObstacle {
+    /// The obstacle where it is at scene time `t`.
+    pub fn at(&self, t: f64) -> Obstacle {
+        match &self.shape {
+            Shape::Box { centre, half_size } => {
+                Obstacle::Box(AlignedBox::new(centre.at(t), *half_size))
+            }
+            Shape::Wall(wall) => Obstacle::Wall(wall.clone()),
+        }
+    }
+
+    /// Moves `obstacle` (made by [`PlacedObstacle::at`]) to where it is at `t`.
+    pub fn update(&self, obstacle: &mut Obstacle, t: f64) {
+        if let (Shape::Box { centre, .. }, Obstacle::Box(b)) = (&self.shape, obstacle) {
+            if !centre.is_fixed() {
+                b.centre = centre.at(t);
+            }
+        }
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.str(&self.name);
+        match &self.shape {
+            Shape::Box { centre, half_size } => {
+                d.str("box").f64s(&half_size.to_array());
+                centre.describe(d);
+            }
+            Shape::Wall(wall) => {
+                d.str("wall")
+                    .f64s(&wall.origin.to_array())
+                    .f64s(&wall.u.to_array())
+                    .f64s(&wall.v.to_array());
+                for o in &wall.openings {
+                    d.f64s(&[o.s0, o.t0, o.s1, o.t1]);
+                }
+            }
+        }
+        d.f64(self.material.transmission_db)
+            .f64(self.material.cutoff);
+    }
+}
+
+/// How a room's late reverberation is made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Late {
+    None,
+    /// A feedback delay network decaying by 60 dB in `rt60[band]` seconds.
+    Fdn {
+        rt60: [f64; 6],
+    },
+}
+
+/// A shoebox room: its walls reflect (image sources up to `order`) and absorb.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Acoustics {
+    pub room: Room,
+    /// Absorption coefficient of each wall (indexed as [`Room`]'s) in each band.
+    pub absorption: [[f64; 6]; 6],
+    pub order: usize,
+    pub late: Late,
+}
+
+impl Acoustics {
+    /// Sabine's reverberation time per band: 0.161·V / Σ Sᵢ·αᵢ.
+    pub fn sabine_rt60(&self) -> [f64; 6] {
+        let size = self.room.size();
+        let volume = size.x * size.y * size.z;
+        let areas = [
+            size.y * size.z,
+            size.y * size.z,
+            size.x * size.z,
+            size.x * size.z,
+            size.x * size.y,
+            size.x * size.y,
+        ];
+        std::array::from_fn(|band| {
+            let absorption: f64 = (0..6).map(|w| areas[w] * self.absorption[w][band]).sum();
+            0.161 * volume / absorption.max(1e-9)
+        })
+    }
+
+    /// The pressure gain of a reflection off `wall` in `band`: √(1 − α).
+    pub fn reflectance(&self, wall: usize, band: usize) -> f64 {
+        (1.0 - self.absorption[wall][band]).max(0.0).sqrt()
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.f64s(&self.room.min.to_array())
+            .f64s(&self.room.max.to_array());
+        for wall in &self.absorption {
+            d.f64s(wall);
+        }
+        d.u64(self.order as u64);
+        match &self.late {
+            Late::None => {
+                d.str("none");
+            }
+            Late::Fdn { rt60 } => {
+                d.str("fdn").f64s(rt60);
+            }
+        }
+    }
+}
+
+/// Everything in the scene's space besides sources and receivers.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Environment {
+    pub obstacles: Vec<PlacedObstacle>,
+    pub room: Option<Acoustics>,
+}
+
+impl Environment {
+    pub fn is_empty(&self) -> bool {
+        self.obstacles.is_empty() && self.room.is_none()
+    }
+
+    pub fn describe(&self, d: &mut Description) {
+        d.u64(self.obstacles.len() as u64);
+        for o in &self.obstacles {
+            o.describe(d);
+        }
+        match &self.room {
+            Some(room) => room.describe(d),
+            None => {
+                d.str("open");
+            }
+        }
+    }
+}
