@@ -50,12 +50,14 @@ fn compare_root(
     samples: usize,
     tol: f64,
 ) -> Result<(), String> {
-    let mut reference = vec![0.0; samples];
-    Interpreter::new(&program.graph, root, config()).render(&mut reference);
-    let mut compiled = vec![0.0; samples];
+    // Every lane of the root (one per channel for an instance in space), frame by frame.
+    let lanes = program.graph.width(root);
+    let mut reference = vec![0.0; samples * lanes];
+    Interpreter::new(&program.graph, root, config()).render_frames(&mut reference);
+    let mut compiled = vec![0.0; samples * lanes];
     jit.voice(&program.graph, root, config())
         .unwrap()
-        .render(&mut compiled);
+        .render_frames(&mut compiled);
     compare_close(&reference, &compiled, tol)
 }
 
