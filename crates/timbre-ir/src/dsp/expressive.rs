@@ -255,7 +255,7 @@ impl StatefulKernel for Energetic {
 
     fn process(&self, state: &mut Replay, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
         let speed = inputs.lane(0, 0);
-        for k in 0..inputs.n {
+        for (y, s) in out.lane(0).iter_mut().zip(speed) {
             let i = state.whole;
             state.render_to(i + 2, i.saturating_sub(1));
             let i = i as i64;
@@ -266,7 +266,7 @@ impl StatefulKernel for Energetic {
                 state.at(i + 2),
             );
             let t = state.fraction;
-            out.lane(0)[k] = if t == 0.0 {
+            *y = if t == 0.0 {
                 p1
             } else {
                 p1 + 0.5
@@ -275,7 +275,7 @@ impl StatefulKernel for Energetic {
                         + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
                             + t * (3.0 * (p1 - p2) + p3 - p0)))
             };
-            let s = clamp_or(speed[k], MIN_SPEED, MAX_SPEED, MIN_SPEED);
+            let s = clamp_or(*s, MIN_SPEED, MAX_SPEED, MIN_SPEED);
             let next = state.fraction + s;
             let whole = next.floor();
             state.whole += whole as u64;
