@@ -18,6 +18,9 @@ use crate::dsp::blep::{BandLimited, Wave};
 use crate::dsp::control::{Lag, Latch};
 use crate::dsp::delay::{Allpass, Comb, Delay};
 use crate::dsp::envelope::AdsrEnvelope;
+use crate::dsp::expressive::{
+    locked_weights, Energetic, InverseImportance, LockError, Sputter, SweepCurve,
+};
 use crate::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator};
 use crate::dsp::noise::{hash2, MarkovNoise, PinkNoise};
 use crate::error::Diag;
@@ -178,6 +181,7 @@ const FILTERS: &str = "Filters";
 const DELAYS: &str = "Delays";
 const CONTROL: &str = "Control";
 const ENVELOPES: &str = "Envelopes";
+const EXPRESSIVE: &str = "Expressive nodes";
 
 const X: &[Param<'static>] = &[p("x")];
 const AB: &[Param<'static>] = &[p("a"), p("b")];
@@ -716,6 +720,67 @@ pub static NODES: &[NodeSpec] = &[
         "(* (adsr (< (frac (* 2 t)) 0.3) 0.01 0.1 0.5 0.2) (sine (* t 440)))",
     )
     .stateful(),
+    // Expressive nodes (the 2006 schematic paper's aesthetic effects).
+    NodeSpec::new(
+        "gain-db",
+        &[p("db"), p("x")],
+        EXPRESSIVE,
+        Build::Args(gain_db),
+        "(gain-db (* -20 t) (sine (* t 440)))",
+    ),
+    NodeSpec::new(
+        "pan",
+        &[p("position"), p("x")],
+        EXPRESSIVE,
+        Build::Args(pan),
+        "(index (pan (sine (* t 0.5)) (sine (* t 440))) 0)",
+    )
+    .own_width(),
+    NodeSpec::new(
+        "importance",
+        &[p("sounds"), p("weights")],
+        EXPRESSIVE,
+        Build::Args(importance),
+        "(importance (sine (* t (vector 220 330 440))) (vector (+ 1 (sine t)) 0.5 (* 2 t)))",
+    )
+    .own_width(),
+    NodeSpec::new(
+        "importance-locked",
+        &[p("n"), p("percent")],
+        EXPRESSIVE,
+        Build::Args(importance_locked),
+        "(importance (sine (* t (vector 220 330 440 550))) (importance-locked 4 67 20 10))",
+    )
+    .variadic()
+    .constant()
+    .own_width(),
+    NodeSpec::new(
+        "inverse-importance",
+        &[p("sounds"), p("weights"), p("switch"), opt("transition", 0.5)],
+        EXPRESSIVE,
+        Build::Args(inverse_importance),
+        "(inverse-importance (sine (* t (vector 220 330 440))) (vector 6 3 1) (> t 0.3) :transition 0.2)",
+    )
+    .stateful()
+    .own_width(),
+    NodeSpec::new(
+        "energetic",
+        &[p("speed"), p("source")],
+        EXPRESSIVE,
+        Build::Args(energetic),
+        "(energetic (+ 1 (* 0.5 (sine (* t 2)))) (* (sine (* t 220)) (lowpass (white) 800)))",
+    )
+    .stateful()
+    .own_width(),
+    NodeSpec::new(
+        "sputter",
+        &[p("from"), p("to"), p("duration"), opt("curve", 1.0)],
+        EXPRESSIVE,
+        Build::Args(sputter),
+        "(* (sputter 12 1 4) (sine (* t 110)))",
+    )
+    .stateful()
+    .own_width(),
 ];
 
 // ------------------------------------------------------------------ builders
@@ -886,6 +951,177 @@ fn comb(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
 fn allpass(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     let max_seconds = max_delay(l, b, 1, 3)?;
     Ok(l.stateful(Allpass { max_seconds }, b.nodes()[..3].to_vec()))
+}
+
+fn gain_db(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let [db, x] = b.nodes()[..] else {
+        unreachable!("two parameters")
+    };
+    let gain = l.graph.add(Op::Unary(UnaryOp::DbAmp), vec![db]);
+    Ok(l.graph.add(Op::Binary(BinaryOp::Mul), vec![gain, x]))
+}
+
+/// Equal power: left x·cos θ, right x·sin θ, θ = (clamp(p, −1, 1) + 1)·π/4.
+fn pan(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    l.check_one_lane(&b.args[0], "the pan position", b.origin)?;
+    l.check_one_lane(&b.args[1], "the panned sound", b.origin)?;
+    let [position, x] = b.nodes()[..] else {
+        unreachable!("two parameters")
+    };
+    let (lo, hi) = (l.graph.constant(-1.0), l.graph.constant(1.0));
+    let clamped = l
+        .graph
+        .add(Op::Ternary(TernaryOp::Clamp), vec![position, lo, hi]);
+    let shifted = l.graph.add(Op::Binary(BinaryOp::Add), vec![clamped, hi]);
+    let quarter_pi = l.graph.constant(std::f64::consts::FRAC_PI_4);
+    let angle = l
+        .graph
+        .add(Op::Binary(BinaryOp::Mul), vec![shifted, quarter_pi]);
+    let cos = l.graph.add(Op::Unary(UnaryOp::Cos), vec![angle]);
+    let sin = l.graph.add(Op::Unary(UnaryOp::Sin), vec![angle]);
+    let left = l.graph.add(Op::Binary(BinaryOp::Mul), vec![x, cos]);
+    let right = l.graph.add(Op::Binary(BinaryOp::Mul), vec![x, sin]);
+    Ok(l.graph.add(Op::Concat, vec![left, right]))
+}
+
+/// Sounds and weights of the importance nodes: one lane each, or N lanes each.
+fn check_sounds_and_weights(l: &Lowerer<'_>, b: &Bound<'_>) -> Result<usize, Diag> {
+    let (sounds, weights) = (&b.args[0], &b.args[1]);
+    let (n, w) = (l.graph.width(sounds.node), l.graph.width(weights.node));
+    if n == w {
+        return Ok(n);
+    }
+    Err(l
+        .diag(
+            "timbre::width-mismatch",
+            format!("`{}` of {n} sounds with {w} weights", b.call.name),
+            b.origin,
+        )
+        .label(sounds.span, format!("{n} lanes"))
+        .label(weights.span, format!("{w} lanes"))
+        .help("give one weight per sound: (importance (vector a b c) (vector 3 2 1))"))
+}
+
+/// Σ sᵢ·wᵢ/Σwᵢ with negative weights as 0, and the mean when no weight is positive.
+fn importance(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let n = check_sounds_and_weights(l, b)?;
+    let [sounds, weights] = b.nodes()[..] else {
+        unreachable!("two parameters")
+    };
+    let zero = l.graph.constant(0.0);
+    // max(NaN, 0) is 0: a NaN weight counts as 0 too.
+    let positive = l.graph.add(Op::Binary(BinaryOp::Max), vec![weights, zero]);
+    let total = l.graph.add(Op::Combine, vec![positive]);
+    let scaled = l
+        .graph
+        .add(Op::Binary(BinaryOp::Mul), vec![sounds, positive]);
+    let mix = l.graph.add(Op::Combine, vec![scaled]);
+    let weighted = l.graph.add(Op::Binary(BinaryOp::Div), vec![mix, total]);
+    let sum = l.graph.add(Op::Combine, vec![sounds]);
+    let one_nth = l.graph.constant(1.0 / n as f64);
+    let mean = l.graph.add(Op::Binary(BinaryOp::Mul), vec![sum, one_nth]);
+    let any = l.graph.add(Op::Binary(BinaryOp::Gt), vec![total, zero]);
+    Ok(l.graph
+        .add(Op::Ternary(TernaryOp::If), vec![any, weighted, mean]))
+}
+
+fn importance_locked(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let sounds = l.const_count(&b.args[0], "the number of sounds", b.origin)?;
+    let locked = &b.args[1..];
+    let percents = locked
+        .iter()
+        .map(|arg| l.const_number(arg, "a locked percentage", b.origin))
+        .collect::<Result<Vec<f64>, Diag>>()?;
+    let bad = |message: String, span, label: String, help: String| {
+        l.diag("timbre::bad-importance", message, b.origin)
+            .label(span, label)
+            .help(help)
+    };
+    match locked_weights(sounds, &percents) {
+        Ok(weights) => Ok(l.graph.const_vector(weights)),
+        Err(LockError::TooMany { sounds, locked: k }) => Err(bad(
+            format!("{k} locked percentages for {sounds} sounds"),
+            locked[sounds].span,
+            "no sound left for this one".into(),
+            "lock at most one percentage per sound".into(),
+        )),
+        Err(LockError::Invalid { index }) => Err(bad(
+            format!("locked percentage {} is negative", percents[index]),
+            locked[index].span,
+            "below 0 %".into(),
+            "a percentage is 0 to 100".into(),
+        )),
+        Err(LockError::OverFull { index, total }) => {
+            let before: f64 = percents[..index].iter().sum();
+            Err(bad(
+                format!("locked percentages add up to {total} %, over 100 %"),
+                locked[index].span,
+                format!("{} % were left here", 100.0 - before),
+                format!(
+                    "the locked percentages share 100 %: lock at most {} % here",
+                    100.0 - before
+                ),
+            ))
+        }
+        Err(LockError::Remainder { total }) => Err(bad(
+            format!("every sound is locked but they add up to {total} %"),
+            b.call.span,
+            format!("{total} %, not 100 %"),
+            "lock one sound fewer: the next sound takes the remainder".into(),
+        )),
+    }
+}
+
+fn inverse_importance(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    check_sounds_and_weights(l, b)?;
+    l.check_one_lane(&b.args[2], "the switch", b.origin)?;
+    l.check_one_lane(&b.args[3], "the transition time", b.origin)?;
+    Ok(l.stateful(InverseImportance, b.nodes()))
+}
+
+/// The source is copied into a graph of its own, rendered on the node's clock.
+fn energetic(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    l.check_one_lane(&b.args[0], "the speed", b.origin)?;
+    let source = &b.args[1];
+    let w = l.graph.width(source.node);
+    if w != 1 {
+        return Err(l
+            .diag(
+                "timbre::width-mismatch",
+                format!("the replayed sound is {w} lanes wide"),
+                b.origin,
+            )
+            .label(source.span, format!("{w} lanes"))
+            .help("replay one lane: sum the lanes with (combine …), or replay each lane"));
+    }
+    let (graph, root) = l.graph.subgraph(source.node);
+    let kernel = Energetic {
+        source: Arc::new(graph),
+        root,
+    };
+    Ok(l.stateful(kernel, vec![b.args[0].node]))
+}
+
+fn sputter(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let what = ["the start rate", "the end rate", "the sweep's duration"];
+    for (arg, what) in b.args.iter().zip(what) {
+        l.check_one_lane(arg, what, b.origin)?;
+    }
+    let curve = match l.const_number(&b.args[3], "the sweep's curve", b.origin)? {
+        0.0 => SweepCurve::Linear,
+        1.0 => SweepCurve::Exponential,
+        other => {
+            return Err(l
+                .diag(
+                    "timbre::bad-sputter",
+                    format!("`sputter` has no curve {other}"),
+                    b.origin,
+                )
+                .label(b.args[3].span, "not 0 or 1")
+                .help("write :curve 0 for a linear sweep or :curve 1 for an exponential one"))
+        }
+    };
+    Ok(l.stateful(Sputter { curve }, b.nodes()[..3].to_vec()))
 }
 
 /// The longest delay of a delay line, in seconds: the `max` argument (at `max`) if

@@ -20,14 +20,19 @@
 //!   soft-clipped (`tanh`), and so is the sound if it may pass ±1. Elsewhere the tree is
 //!   left as generated.
 //! - **Stateful nodes** (filters, `delay`, `comb`, `allpass`, `conv`, `pink`, `markov`,
-//!   `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`, `triangle-bl`) appear
+//!   `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`, `triangle-bl`,
+//!   `inverse-importance`, `energetic`, `sputter`) appear
 //!   only with [`GenConfig::stateful`]. Filters get constant or slowly varying
 //!   frequencies; `delay` a constant time, or a varying one with a maximum; `comb` and
 //!   `allpass` 1 to 20 ms likewise and a loop gain of at most 0.9; `conv` a small
 //!   impulse-response tree of at most 0.01 s; `latch` a square or pulse trigger (or a
 //!   condition, or without `smooth_only` a sine or noise); `lag` a time constant of 1
 //!   to 50 ms; `saw-bl`, `square-bl` and `triangle-bl` a phase, like their naive
-//!   counterparts.
+//!   counterparts; `energetic` a sub-tree of its own (no outer names) at 0.25 to 4
+//!   times its speed; `sputter` constant rates, shaping a signal. `importance` and
+//!   `inverse-importance` get constant, locked (`importance-locked`) or positive
+//!   weights, `pan` one lane (two lanes out, or one of them, or their sum), `gain-db`
+//!   the gains `dbamp` gets.
 //! - **Every node of the catalogue** but `sample` (which reads a file) has a place;
 //!   `tests/generate.rs` checks that they are all reached.
 //! - **`smooth_only`** keeps the tree free of constructions that turn tiny rounding
@@ -84,7 +89,7 @@ pub struct GenConfig {
     pub smooth_only: bool,
     /// Allow the stateful nodes: filters, `delay`, `comb`, `allpass`, `conv`, `pink`,
     /// `markov`, `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`,
-    /// `triangle-bl`.
+    /// `triangle-bl`, `inverse-importance`, `energetic`, `sputter`.
     pub stateful: bool,
 }
 
@@ -190,6 +195,11 @@ enum Production {
     Conv,
     Env,
     Adsr,
+    Pan,
+    Importance,
+    InverseImportance,
+    Energetic,
+    Sputter,
     Let,
 }
 
@@ -663,6 +673,12 @@ impl<'a, R: Rng> Gen<'a, R> {
                 (1.0, P::Env),
                 (1.0, P::Level),
             ]);
+            if w <= 2 {
+                choices.push((0.5, P::Pan));
+            }
+            if !wide {
+                choices.push((0.5, P::Importance));
+            }
             if st {
                 choices.extend([
                     (0.6, P::Markov),
@@ -674,7 +690,12 @@ impl<'a, R: Rng> Gen<'a, R> {
                     (0.6, P::Lag),
                     (0.6, P::Conv),
                     (0.8, P::Adsr),
+                    (0.5, P::Sputter),
                 ]);
+                if !wide {
+                    choices.push((0.5, P::InverseImportance));
+                    choices.push((0.5, P::Energetic));
+                }
             }
         }
         if st {
@@ -1093,6 +1114,11 @@ impl<'a, R: Rng> Gen<'a, R> {
                 Ex::new(s, a.b * gain, false)
             }
             P::Level => self.level(w, d),
+            P::Pan => self.pan(w, d),
+            P::Importance => self.importance(d, false),
+            P::InverseImportance => self.importance(d, true),
+            P::Energetic => self.energetic(d),
+            P::Sputter => self.sputter(w, d),
             P::Comb => self.comb(w, d),
             P::Allpass => self.allpass(w, d),
             P::Latch => self.latch(w, d, ex),
@@ -1678,6 +1704,10 @@ impl<'a, R: Rng> Gen<'a, R> {
                     return Ex::new(format!("(dbamp {db})"), gain, false);
                 }
                 let a = self.audio(ws[1], depth, false);
+                if self.p(0.4) {
+                    let s = self.call("gain-db", &[("db", Some(db)), ("x", Some(a.s))], "");
+                    return Ex::new(s, a.b * gain, false);
+                }
                 Ex::new(format!("(* (dbamp {db}) {})", a.s), a.b * gain, false)
             }
             2 => {
@@ -1714,6 +1744,129 @@ impl<'a, R: Rng> Gen<'a, R> {
                 Ex::new(s, 1.0, false)
             }
         }
+    }
+
+    /// A `pan` of one lane placed in two: the two lanes for a width of 2, else one of
+    /// them or their sum.
+    fn pan(&mut self, w: usize, depth: usize) -> Ex {
+        let x = self.audio(1, depth, false);
+        let position = if !self.grow(depth) || self.p(0.4) {
+            num(self.uni(-1.5, 1.5))
+        } else {
+            self.slow_audio(1, depth - 1, false).s
+        };
+        let s = self.call("pan", &[("position", Some(position)), ("x", Some(x.s))], "");
+        if w == 2 {
+            return Ex::new(s, x.b, false);
+        }
+        if self.p(0.5) {
+            let lane = self.int(0, 1);
+            Ex::new(format!("(index {s} {lane})"), x.b, false)
+        } else {
+            // cos θ + sin θ is at most √2.
+            Ex::new(format!("(combine {s})"), x.b * 1.5, false)
+        }
+    }
+
+    /// Importance weights for `v` sounds: constants, `importance-locked`, or slow
+    /// signals kept positive (a sum of weights near 0 would switch to the mean).
+    fn weights(&mut self, v: usize, depth: usize) -> String {
+        match self.int(0, 2) {
+            0 => self.const_vec(v, 0.0, 1.0).0,
+            1 if v == 1 => "(importance-locked 1 100)".into(),
+            1 => {
+                let k = self.int(1, v - 1);
+                let mut left = 100.0;
+                let mut percents = vec![];
+                for _ in 0..k {
+                    let p = (self.uni(0.0, left) * 10.0).floor() / 10.0;
+                    left -= p;
+                    percents.push(num(p));
+                }
+                format!("(importance-locked {v} {})", percents.join(" "))
+            }
+            _ => {
+                let m = self.slow_audio(v, depth, false);
+                format!("(+ 0.1 (abs {}))", m.s)
+            }
+        }
+    }
+
+    /// `importance` (or, if `inverse`, `inverse-importance`) of a few sounds: one lane
+    /// within the sounds' bound (the weights are normalised).
+    fn importance(&mut self, depth: usize, inverse: bool) -> Ex {
+        let v = self.lanes();
+        let sounds = self.audio(v, depth, false);
+        let weights = self.weights(v, depth);
+        if !inverse {
+            let s = self.call(
+                "importance",
+                &[("sounds", Some(sounds.s)), ("weights", Some(weights))],
+                "",
+            );
+            return Ex::new(s, sounds.b, false);
+        }
+        let switch = if self.p(0.5) {
+            self.cond(1, depth).s
+        } else {
+            format!("(< t {})", num(self.uni(0.0, 0.05)))
+        };
+        let transition = self.p(0.7).then(|| num(self.uni(0.001, 0.05)));
+        let s = self.call(
+            "inverse-importance",
+            &[
+                ("sounds", Some(sounds.s)),
+                ("weights", Some(weights)),
+                ("switch", Some(switch)),
+                ("transition", transition),
+            ],
+            "",
+        );
+        Ex::new(s, sounds.b, false)
+    }
+
+    /// `energetic`: a small sub-tree replayed at 0.25 to 4 times its speed (constant
+    /// in `smooth_only` mode, so both engines read the sub-tree at the same places).
+    fn energetic(&mut self, depth: usize) -> Ex {
+        let speed = if self.smooth_only || !self.grow(depth) || self.p(0.5) {
+            num(self.logu(0.25, 4.0))
+        } else {
+            let c = self.uni(1.0, 2.0);
+            let m = self.slow_audio(1, depth - 1, false);
+            format!("(+ {} (* {} {}))", num(c), num(0.7 / norm(m.b)), m.s)
+        };
+        // The source is rendered on its own: keep it free of outer names.
+        let scope = std::mem::take(&mut self.scope);
+        let source = self.audio(1, depth.min(3), false);
+        self.scope = scope;
+        let s = self.call(
+            "energetic",
+            &[("speed", Some(speed)), ("source", Some(source.s))],
+            "",
+        );
+        // Cubic interpolation overshoots a little between samples.
+        Ex::new(s, source.b * 1.25, false)
+    }
+
+    /// A `sputter` envelope (constant rates: its ramps jump at each cycle's start)
+    /// shaping a signal of width `w`.
+    fn sputter(&mut self, w: usize, depth: usize) -> Ex {
+        let from = num(self.logu(5.0, 200.0));
+        let to = num(self.logu(1.0, 100.0));
+        let duration = num(self.uni(0.0, 0.1));
+        let curve = self.p(0.5).then(|| num(self.int(0, 1) as f64));
+        let e = self.call(
+            "sputter",
+            &[
+                ("from", Some(from)),
+                ("to", Some(to)),
+                ("duration", Some(duration)),
+                ("curve", curve),
+            ],
+            "",
+        );
+        let a = self.audio(w, depth, false);
+        Ex::new(format!("(* {e} {})", a.s), a.b, false)
     }
 
     /// An `env` of width `w`, alone or shaping a signal.

@@ -13,7 +13,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::op::{BinaryOp, Op, TernaryOp, UnaryOp};
+use crate::op::{BinaryOp, ImpulseResponse, Op, TernaryOp, UnaryOp};
 
 /// Index of a node in its [`Graph`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -311,6 +311,45 @@ impl Graph {
             _ => {}
         }
         None
+    }
+
+    /// A graph of its own holding a copy of what `root` needs (through arguments and
+    /// impulse-response trees), and where `root` is in it: for nodes that render a
+    /// sub-tree on a clock of their own (`energetic`), so that no later pass over this
+    /// graph (optimising, dumping, copying) has to know about the sub-tree.
+    pub fn subgraph(&self, root: NodeId) -> (Graph, NodeId) {
+        let mut needed = vec![false; root.index() + 1];
+        needed[root.index()] = true;
+        // Children have smaller ids: one backwards sweep.
+        for i in (0..=root.index()).rev() {
+            if !needed[i] {
+                continue;
+            }
+            let node = &self.nodes[i];
+            for arg in &node.args {
+                needed[arg.index()] = true;
+            }
+            if let Op::Conv(ImpulseResponse::Tree { root, .. }) = &node.op {
+                needed[root.index()] = true;
+            }
+        }
+        let mut out = Graph::new();
+        let mut map = vec![NodeId(0); root.index() + 1];
+        for i in (0..=root.index()).filter(|i| needed[*i]) {
+            let node = &self.nodes[i];
+            let args = node.args.iter().map(|a| map[a.index()]).collect();
+            let op = match &node.op {
+                Op::Conv(ImpulseResponse::Tree { root, seconds }) => {
+                    Op::Conv(ImpulseResponse::Tree {
+                        root: map[root.index()],
+                        seconds: *seconds,
+                    })
+                }
+                op => op.clone(),
+            };
+            map[i] = out.add(op, args);
+        }
+        (out, map[root.index()])
     }
 
     /// Ids of the nodes the evaluation of `root` needs, in evaluation order. A
