@@ -1,10 +1,14 @@
-//! The examples of sound in space render through the `timbre` binary and sound like
-//! what they claim (measured on the WAV files they write).
+//! The examples of sound in space and of the 2006 schematic paper render through the
+//! `timbre` binary and sound like what they claim (measured on the WAV files they
+//! write).
 
 mod common;
 
 use common::*;
-use timbre_testkit::{onset, rms, spectral_centroid, zero_crossing_frequency, Wav};
+use timbre_testkit::{
+    band_power, onset, rms, spectral_centroid, spectrum, strongest_peak_in,
+    zero_crossing_frequency, Wav,
+};
 
 const C: f64 = 343.0;
 
@@ -102,4 +106,44 @@ fn the_ball_s_bounces_move_from_left_to_right_and_arrive_from_where_it_is() {
         (heard - expected).abs() <= 2.0,
         "heard at {heard}, expected {expected}"
     );
+}
+
+#[test]
+fn the_concert_inverts_its_importance_when_the_applause_starts() {
+    let wav = render_example("concert", 1);
+    let x = &wav.samples;
+    // The share of the noisy highs (the audience) before and after the inversion.
+    let noisy = |from: f64| {
+        let mag = spectrum(seconds(x, from, from + 1.0));
+        let bin = SR / (2.0 * (mag.len() - 1) as f64);
+        band_power(&mag, bin, 5000.0, 15000.0) / band_power(&mag, bin, 20.0, 15000.0)
+    };
+    let (before, after) = (noisy(3.5), noisy(7.0));
+    eprintln!("noisy highs: {before:.4} before, {after:.4} after");
+    assert!(after > 20.0 * before, "{before} → {after}");
+}
+
+#[test]
+fn the_engine_drops_an_octave_then_sputters_ever_slower() {
+    let wav = render_example("sputtering-engine", 1);
+    let x = &wav.samples;
+    let idle = strongest_peak_in(seconds(x, 0.5, 2.5), SR, 20.0, 45.0);
+    let tired = strongest_peak_in(seconds(x, 3.05, 3.95), SR, 10.0, 25.0);
+    assert!((idle - 31.0).abs() < 1.0, "idles at {idle} Hz");
+    assert!((tired - 15.5).abs() < 1.5, "slowed to {tired} Hz");
+    // Sputters: the envelope's phase is φ(τ) = 12·4/ln 12 · (1 − 12^(−τ/4)) cycles at
+    // τ s into the sweep (from 4 s); a burst starts where φ reaches a whole number:
+    // the 16th at τ = 4·ln(1/(1 − 16/φ∞))/ln 12, the 17th likewise. Just before each
+    // the level has died away; just after, it is back.
+    let total = 48.0 / 12f64.ln();
+    for k in [14.0, 16.0, 17.0] {
+        let tau = 4.0 * (1.0 / (1.0 - k / total)).ln() / 12f64.ln();
+        let at = 4.0 + tau;
+        let before = rms(seconds(x, at - 0.06, at - 0.01));
+        let after = rms(seconds(x, at + 0.01, at + 0.06));
+        assert!(
+            after > 3.0 * before,
+            "burst {k} at {at:.3} s: {before} → {after}"
+        );
+    }
 }

@@ -968,20 +968,7 @@ fn pan(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     let [position, x] = b.nodes()[..] else {
         unreachable!("two parameters")
     };
-    let (lo, hi) = (l.graph.constant(-1.0), l.graph.constant(1.0));
-    let clamped = l
-        .graph
-        .add(Op::Ternary(TernaryOp::Clamp), vec![position, lo, hi]);
-    let shifted = l.graph.add(Op::Binary(BinaryOp::Add), vec![clamped, hi]);
-    let quarter_pi = l.graph.constant(std::f64::consts::FRAC_PI_4);
-    let angle = l
-        .graph
-        .add(Op::Binary(BinaryOp::Mul), vec![shifted, quarter_pi]);
-    let cos = l.graph.add(Op::Unary(UnaryOp::Cos), vec![angle]);
-    let sin = l.graph.add(Op::Unary(UnaryOp::Sin), vec![angle]);
-    let left = l.graph.add(Op::Binary(BinaryOp::Mul), vec![x, cos]);
-    let right = l.graph.add(Op::Binary(BinaryOp::Mul), vec![x, sin]);
-    Ok(l.graph.add(Op::Concat, vec![left, right]))
+    Ok(l.pan(x, position))
 }
 
 /// Sounds and weights of the importance nodes: one lane each, or N lanes each.

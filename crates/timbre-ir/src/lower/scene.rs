@@ -738,8 +738,9 @@ impl Lowerer<'_> {
         }
     }
 
-    /// `sound` in two lanes, panned by `pan` (equal power; clamped to [−1, 1]).
-    fn pan(&mut self, sound: NodeId, pan: NodeId) -> NodeId {
+    /// `sound` in two lanes, panned by `pan` (equal power: left cos θ, right sin θ,
+    /// θ = (clamp(p, −1, 1) + 1)·π/4): the `pan` node and an instance's `:pan`.
+    pub(crate) fn pan(&mut self, sound: NodeId, pan: NodeId) -> NodeId {
         let g = &mut self.graph;
         let lo = g.constant(-1.0);
         let hi = g.constant(1.0);
