@@ -479,3 +479,45 @@ fn a_box_sliding_across_the_way_crossfades_without_a_jump() {
     let clear = timbre_testkit::rms(window(&free, 0.95, 1.05));
     assert!(muffled < 0.3 * clear, "{muffled} vs {clear}");
 }
+
+#[test]
+fn a_room_s_measured_rt60_is_its_setting() {
+    for (rt60, absorption) in [(0.8, "0.3"), (1.6, "0.1")] {
+        let program = scene(&format!(
+            "(scene :duration 3 :speed-of-sound {C})
+             (define-sound clicker () {})
+             (room :size (8 6 3) :absorption {absorption} :rt60 {rt60})
+             (listener :position (2 2 1.5))
+             (source s :position (6 4 1.2))
+             (instance c (clicker) :source s :start 0 :stop 0.1)",
+            click(100)
+        ));
+        let x = render(&program, 3.0);
+        let measured = timbre_ir::dsp::analysis::rt60_schroeder(&x, SR).unwrap();
+        assert!(
+            (measured / rt60 - 1.0).abs() < 0.1,
+            "asked {rt60} s, measured {measured} s"
+        );
+    }
+}
+
+#[test]
+fn without_an_rt60_a_room_reverberates_for_sabine_s_time() {
+    // 8 × 6 × 3 m, α = 0.2 everywhere: 0.161·144 / (180·0.2) = 0.644 s.
+    let program = scene(&format!(
+        "(scene :duration 2 :speed-of-sound {C})
+         (define-sound clicker () {})
+         (room :size (8 6 3) :absorption 0.2)
+         (listener :position (2 2 1.5))
+         (source s :position (6 4 1.2))
+         (instance c (clicker) :source s :start 0 :stop 0.1)",
+        click(100)
+    ));
+    let x = render(&program, 2.0);
+    let measured = timbre_ir::dsp::analysis::rt60_schroeder(&x, SR).unwrap();
+    let sabine = 0.161 * 144.0 / (180.0 * 0.2);
+    assert!(
+        (measured / sabine - 1.0).abs() < 0.1,
+        "measured {measured} s, Sabine {sabine} s"
+    );
+}

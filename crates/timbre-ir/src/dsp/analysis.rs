@@ -49,9 +49,67 @@ pub fn dominant_frequency(samples: &[f64], sample_rate: f64) -> Option<f64> {
     Some((best as f64 + offset) * sample_rate / n as f64)
 }
 
+/// Reverberation time of an impulse response by Schroeder's backward integration
+/// (1965): the energy decay curve EDC(t) = Σ_{k ≥ t} h², in dB from its start, is
+/// fitted by least squares between −5 and −35 dB (T30) and the line extrapolated to
+/// −60 dB. None if the response does not decay by 35 dB.
+pub fn rt60_schroeder(ir: &[f64], sample_rate: f64) -> Option<f64> {
+    let mut edc = vec![0.0; ir.len()];
+    let mut sum = 0.0;
+    for (k, x) in ir.iter().enumerate().rev() {
+        sum += x * x;
+        edc[k] = sum;
+    }
+    let total = *edc.first()?;
+    if total <= 0.0 {
+        return None;
+    }
+    let points: Vec<(f64, f64)> = edc
+        .iter()
+        .enumerate()
+        .map(|(k, e)| (k as f64 / sample_rate, 10.0 * (e / total).log10()))
+        .filter(|(_, db)| (-35.0..=-5.0).contains(db))
+        .collect();
+    if points.len() < 2
+        || edc
+            .last()
+            .is_some_and(|e| 10.0 * (e / total).log10() > -35.0)
+    {
+        return None;
+    }
+    let n = points.len() as f64;
+    let (mt, md) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (t, d)| (a + t / n, b + d / n));
+    let (cov, var) = points.iter().fold((0.0, 0.0), |(c, v), (t, d)| {
+        (c + (t - mt) * (d - md), v + (t - mt) * (t - mt))
+    });
+    let slope = cov / var;
+    (slope < 0.0).then(|| -60.0 / slope)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn schroeder_measures_an_exponential_decay() {
+        // Noise decaying by 60 dB in 1.3 s: amplitude e^(−6.91·t/1.3).
+        let sr = 48_000.0;
+        let mut seed = 1u64;
+        let ir: Vec<f64> = (0..(2.0 * sr) as usize)
+            .map(|k| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                noise * (-(60.0 / 20.0) * std::f64::consts::LN_10 * k as f64 / sr / 1.3).exp()
+            })
+            .collect();
+        let rt60 = rt60_schroeder(&ir, sr).unwrap();
+        assert!((rt60 - 1.3).abs() < 0.02, "{rt60}");
+        assert_eq!(rt60_schroeder(&[0.0; 100], sr), None);
+    }
 
     #[test]
     fn measures_a_sine() {

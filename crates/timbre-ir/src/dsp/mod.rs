@@ -13,6 +13,7 @@
 //!   Csound-`reson`-style two-pole resonator.
 //! - [`delay`]: a ring-buffer delay line with fractional (cubic) reads.
 //! - [`conv`]: zero-latency uniformly partitioned FFT convolution.
+//! - [`fdn`]: a feedback delay network with an RT60 per band (late reverberation).
 //! - [`envelope`]: curved segment shapes, a pure attack–hold–decay envelope of
 //!   time and a gate-driven ADSR.
 //! - [`wav`]: WAV decoding to mono `f64`, cubic interpolation and resampling;

@@ -425,7 +425,20 @@ impl Lowerer<'_> {
                 }
                 None => acoustics.sabine_rt60().map(|t| t.min(60.0)),
             };
-            acoustics.late = Late::Fdn { rt60 };
+            // Scaled to the diffuse field's energy (measured on the network at the
+            // scene's rate: the energy hardly depends on it).
+            let sr = self.settings.sample_rate.unwrap_or(48_000.0);
+            let c = self.space.medium.speed_of_sound;
+            let energy = Acoustics::network(&rt60, acoustics.mean_free_time(c), sr)
+                .impulse_energy(rt60.iter().fold(0.0, |m: f64, t| m.max(*t)) * 1.5, sr);
+            let target = acoustics.late_energy(
+                (rt60[2] + rt60[3]) / 2.0,
+                self.space.medium.reference_distance,
+            );
+            acoustics.late = Late::Fdn {
+                rt60,
+                gain: (target / energy.max(1e-30)).sqrt(),
+            };
         }
         self.space.room = Some((acoustics, form.span));
         Ok(())
@@ -937,8 +950,9 @@ impl Lowerer<'_> {
     }
 
     /// `sound` (an instance's tree under its timer, starting at scene time `start`)
-    /// as heard by each receiver from `source`. Returns the node and the longest
-    /// delay, seconds.
+    /// as heard by each receiver from `source`. Returns the node and how long it may
+    /// still be heard after the sound stops, seconds (the longest delay, and the
+    /// room's reverberation time).
     pub(crate) fn propagate(
         &mut self,
         sound: NodeId,
@@ -968,10 +982,15 @@ impl Lowerer<'_> {
         }
         let environment = self.environment(span, origin)?;
         self.check_source(&source, span, origin)?;
+        let mut tail = 0.0;
         if let Some(room) = &environment.room {
-            // Reflections travel farther: up to the order's images of the room.
+            // Reflections travel farther: up to the order's images of the room, and
+            // the late part begins later still.
             let reach = room.room.size().length() * (room.order as f64 + 1.0);
-            max_delay += reach / medium.speed_of_sound;
+            max_delay += reach / medium.speed_of_sound + room.late_onset(medium.speed_of_sound);
+            if let Late::Fdn { rt60, .. } = &room.late {
+                tail = rt60.iter().fold(0.0, |m: f64, t| m.max(*t));
+            }
         }
         let kernel = Propagation {
             source,
@@ -982,7 +1001,7 @@ impl Lowerer<'_> {
             max_delay,
         };
         let node = self.graph.add(Op::Stateful(Arc::new(kernel)), vec![sound]);
-        Ok((node, max_delay))
+        Ok((node, max_delay + tail))
     }
 }
 

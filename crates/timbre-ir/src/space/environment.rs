@@ -3,6 +3,8 @@
 
 use glam::DVec3;
 
+use crate::dsp::fdn::Fdn;
+
 use super::geometry::{AlignedBox, Obstacle, Room, Wall};
 use super::path::Path;
 use crate::op::Description;
@@ -112,9 +114,12 @@ impl PlacedObstacle {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Late {
     None,
-    /// A feedback delay network decaying by 60 dB in `rt60[band]` seconds.
+    /// A feedback delay network decaying by 60 dB in `rt60[band]` seconds (matched
+    /// at the 125–250 Hz and 4 kHz bands), its output scaled by `gain` so that its
+    /// energy is the diffuse field's (see [`Acoustics::late_energy`]).
     Fdn {
         rt60: [f64; 6],
+        gain: f64,
     },
 }
 
@@ -147,6 +152,49 @@ impl Acoustics {
         })
     }
 
+    /// Volume and surface area.
+    fn volume_and_area(&self) -> (f64, f64) {
+        let size = self.room.size();
+        let volume = size.x * size.y * size.z;
+        let area = 2.0 * (size.x * size.y + size.y * size.z + size.x * size.z);
+        (volume, area)
+    }
+
+    /// The mean free path 4V/S, in seconds of travel at speed `c`.
+    pub fn mean_free_time(&self, c: f64) -> f64 {
+        let (volume, area) = self.volume_and_area();
+        4.0 * volume / area / c
+    }
+
+    /// The energy of the diffuse (late) field relative to the direct sound at the
+    /// reference distance r: 16π·r²/R, with R = S·ᾱ/(1 − ᾱ) the room constant and ᾱ
+    /// the mean absorption that gives the mid-band RT60 by Sabine's formula (the
+    /// steady-state level of Hopkins–Stryker: L = L_W + 10·log(1/(4πr²) + 4/R)).
+    pub fn late_energy(&self, rt60_mid: f64, reference_distance: f64) -> f64 {
+        let (volume, area) = self.volume_and_area();
+        let alpha = (0.161 * volume / (rt60_mid.max(1e-3) * area)).clamp(1e-4, 0.99);
+        let room_constant = area * alpha / (1.0 - alpha);
+        16.0 * std::f64::consts::PI * reference_distance.powi(2) / room_constant
+    }
+
+    /// Seconds after the direct sound at which the late part begins: one mean free
+    /// path more than the reflections of the highest order computed.
+    pub fn late_onset(&self, c: f64) -> f64 {
+        (self.order as f64 + 1.0) * self.mean_free_time(c)
+    }
+
+    /// The late part's network (before its gain) at `sample_rate`, for sound at
+    /// speed `c`: its low RT60 is the mean of the 125 and 250 Hz bands', its high one
+    /// the 4 kHz band's.
+    pub fn network(rt60: &[f64; 6], mean_free_time: f64, sample_rate: f64) -> Fdn {
+        Fdn::new(
+            (rt60[0] + rt60[1]) / 2.0,
+            rt60[5],
+            mean_free_time,
+            sample_rate,
+        )
+    }
+
     /// The pressure gain of a reflection off `wall` in `band`: √(1 − α).
     pub fn reflectance(&self, wall: usize, band: usize) -> f64 {
         (1.0 - self.absorption[wall][band]).max(0.0).sqrt()
@@ -163,8 +211,8 @@ impl Acoustics {
             Late::None => {
                 d.str("none");
             }
-            Late::Fdn { rt60 } => {
-                d.str("fdn").f64s(rt60);
+            Late::Fdn { rt60, gain } => {
+                d.str("fdn").f64s(rt60).f64(*gain);
             }
         }
     }

@@ -14,10 +14,11 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::environment::{Environment, Material, BANDS, CROSSFADE};
+use super::environment::{Acoustics, Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::path::Path;
 use crate::dsp::delay::DelayLine;
+use crate::dsp::fdn::Fdn;
 use crate::dsp::filter::OnePole;
 use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
@@ -305,9 +306,23 @@ struct WayState {
     coefficient: f64,
 }
 
+/// The late part's state: the network, and its muffling when the reflections are
+/// blocked (as a way's).
+#[derive(Debug)]
+struct LateState {
+    fdn: Fdn,
+    gain: f64,
+    /// Seconds after the direct sound it is fed.
+    onset: f64,
+    muffle: WayState,
+    /// The network's output for each receiver.
+    outputs: Vec<f64>,
+}
+
 #[derive(Debug)]
 pub struct PropagationState {
     line: DelayLine,
+    late: Option<LateState>,
     ways: Vec<Way>,
     state: Vec<WayState>,
     /// The obstacles where they are now.
@@ -464,6 +479,9 @@ impl Propagation {
             s.now[1] = self.solve(way, t, s.now[0].tau);
             self.block(way, s, t, &state.obstacles, sr);
         }
+        if let Some(late) = &mut state.late {
+            late_blocking(&state.ways, &state.state, &mut late.muffle, sr);
+        }
     }
 
     /// Sets whether `way` is to be blocked, and by which material.
@@ -479,6 +497,34 @@ impl Propagation {
             }
             None => s.target = 0.0,
         }
+    }
+}
+
+/// The late part is muffled when fewer than half of the first receiver's first-order
+/// reflections reach it (Table 1's occlusion and exclusion), by the material of one
+/// that is blocked.
+fn late_blocking(ways: &[Way], states: &[WayState], muffle: &mut WayState, sr: f64) {
+    let first_order = ways.iter().zip(states).filter(|(w, _)| {
+        w.receiver == 0
+            && w.image
+                .is_some_and(|i| i.iter().map(|n| n.abs()).sum::<i32>() == 1)
+    });
+    let (mut total, mut blocked, mut material) = (0, 0, None);
+    for (_, s) in first_order {
+        total += 1;
+        if s.target > 0.5 {
+            blocked += 1;
+            material = s.material;
+        }
+    }
+    if total > 0 && 2 * blocked > total {
+        if muffle.material != material {
+            muffle.material = material;
+            muffle.coefficient = material.map_or(1.0, |m| OnePole::coefficient(m.cutoff, sr));
+        }
+        muffle.target = 1.0;
+    } else {
+        muffle.target = 0.0;
     }
 }
 
@@ -550,8 +596,29 @@ impl StatefulKernel for Propagation {
         for (way, s) in ways.iter().zip(&mut state) {
             self.block(way, s, t1, &obstacles, sr);
         }
+        let late = self
+            .environment
+            .room
+            .as_ref()
+            .and_then(|room| match room.late {
+                Late::None => None,
+                Late::Fdn { rt60, gain } => {
+                    let c = self.medium.speed_of_sound;
+                    let mut muffle = WayState::default();
+                    late_blocking(&ways, &state, &mut muffle, sr);
+                    muffle.blocked = muffle.target;
+                    Some(LateState {
+                        fdn: Acoustics::network(&rt60, room.mean_free_time(c), sr),
+                        gain,
+                        onset: room.late_onset(c),
+                        muffle,
+                        outputs: vec![0.0; self.receivers.len()],
+                    })
+                }
+            });
         PropagationState {
             line: DelayLine::new(length),
+            late,
             ways,
             state,
             obstacles,
@@ -581,9 +648,13 @@ impl StatefulKernel for Propagation {
             for lane in 0..self.receivers.len() {
                 samples[lane * stride + i] = 0.0;
             }
-            for (way, w) in state.ways.iter().zip(&mut state.state) {
+            let mut direct = 0.0;
+            for (k, (way, w)) in state.ways.iter().zip(&mut state.state).enumerate() {
                 let [a, b] = w.now;
                 let tau = h00 * a.tau + h10 * h * a.slope + h01 * b.tau + h11 * h * b.slope;
+                if k == 0 {
+                    direct = tau;
+                }
                 let gain = a.gain + (b.gain - a.gain) * s;
                 let mut y = gain * state.line.read(tau * sr);
                 if let Some(coefficient) = way.wall_filter {
@@ -595,6 +666,22 @@ impl StatefulKernel for Propagation {
                     y += (muffled - y) * w.blocked;
                 }
                 samples[way.receiver * stride + i] += y;
+            }
+            if let Some(late) = &mut state.late {
+                // The diffuse field: the sound heard directly by the first receiver,
+                // `onset` later, through the network, one output per receiver.
+                let x = late.gain * state.line.read((direct + late.onset) * sr);
+                late.fdn.process(x, &mut late.outputs);
+                let m = &mut late.muffle;
+                m.blocked += (m.target - m.blocked).clamp(-fade_step, fade_step);
+                for (lane, y) in late.outputs.iter().enumerate() {
+                    let mut y = *y;
+                    if let Some(material) = m.material {
+                        let muffled = material.gain() * m.obstacle.process(m.coefficient, y);
+                        y += (muffled - y) * m.blocked;
+                    }
+                    samples[lane * stride + i] += y;
+                }
             }
             state.position += 1;
         }
