@@ -89,14 +89,26 @@ fn the_trumpet_is_muffled_behind_the_cabinet_more_behind_the_wall_and_clear_at_t
 fn the_ball_s_bounces_move_from_left_to_right_and_arrive_from_where_it_is() {
     let wav = render_example("bouncing-ball", 2);
     let (left, right) = (channel(&wav, 0), channel(&wav, 1));
-    let balance = |from: f64| {
-        let l = rms(seconds(&left, from, from + 0.1));
-        let r = rms(seconds(&right, from, from + 0.1));
-        20.0 * (l / r).log10()
-    };
-    // The first bounce (x = 1.2) is left of the pair (x = 2), the last (x = 3.3) right.
-    assert!(balance(0.5) > 1.0, "first bounce {} dB left", balance(0.5));
-    assert!(balance(2.3) < -1.0, "last bounce {} dB left", balance(2.3));
+    // The first bounce (x = 1.2) is left of the pair (x = 1.8 and 2.2): it arrives
+    // first on the left, by the difference of its distances to the microphones.
+    let (l_on, r_on) = (onset(&left, 1e-4).unwrap(), onset(&right, 1e-4).unwrap());
+    let expected = (1.688 - 1.487) / C * SR;
+    assert!(
+        ((r_on - l_on) as f64 - expected).abs() <= 2.0,
+        "first bounce: right {} samples later, expected {expected}",
+        r_on - l_on
+    );
+    // The last (x = 3.3) is right of it: louder on the right in the 2 ms after it
+    // arrives (the direct sound and the floor's reflection, before the walls'), by
+    // 20·log10(2.303/2.058) ≈ 1 dB.
+    let arrival = 2.3 + 2.058 / C;
+    let l = rms(seconds(&left, arrival, arrival + 0.002));
+    let r = rms(seconds(&right, arrival, arrival + 0.002));
+    assert!(
+        20.0 * (r / l).log10() > 0.5,
+        "last bounce: right/left {} dB",
+        20.0 * (r / l).log10()
+    );
     // The first bounce leaves (1.2 1.2 0.1) at 0.5 s and reaches the left microphone
     // (1.8 0.4 1.2) after its distance over c.
     let distance = ((0.6f64).powi(2) + 0.8f64.powi(2) + 1.1f64.powi(2)).sqrt();

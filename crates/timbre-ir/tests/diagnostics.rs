@@ -305,6 +305,8 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(source car :position (1 2))", "timbre::bad-position", "the source's position has 2 coordinates, not 3", "(1 2)"),
     ("(scene :speed-of-sound 0)", "timbre::bad-scene", "speed of sound 0 is not positive", "0"),
     ("(scene :distance-law cubic)", "timbre::bad-scene", "unknown distance law cubic", "cubic"),
+    ("(scene :air-absorption yes)", "timbre::bad-scene", "`:air-absorption` is on or off, not yes", "yes"),
+    ("(scene :humidity 120)", "timbre::bad-scene", "humidity 120 is out of range", "120"),
     ("(define-sound a (f) (sine (* t f))) (listener) (source car :position (0 1 0)) (instance x (a :f 1) :source cat)", "timbre::unknown-source", "unknown source cat", "cat"),
     ("(define-sound a (f) (sine (* t f))) (source car :position (0 1 0)) (instance x (a :f 1) :source car)", "timbre::no-listener", "an instance is placed in space, but the scene has no listener", "car"),
     ("(define-sound a (f) (sine (* t f))) (listener :pair spaced)", "timbre::bad-listener", "a microphone pair needs a stereo scene", "spaced"),

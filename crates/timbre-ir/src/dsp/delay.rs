@@ -95,6 +95,44 @@ impl DelayLine {
             * (p2 - p0
                 + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + t * (3.0 * (p1 - p2) + p3 - p0)))
     }
+
+    /// `x[n − d]` by 6-point, 5th-order Lagrange interpolation (Laakso et al. 1996),
+    /// centred on the fractional position: with k = ⌊d⌋ and t = d − k, the taps
+    /// x[n − k + 2] … x[n − k − 3] are weighted by
+    /// wₘ = Π_{i≠m} (2 + t − i)/(m − i), m = 0…5. Exact at whole d. Its worst
+    /// magnitude error over every fractional delay is 0.002 dB up to 0.1·rate,
+    /// 0.44 dB up to a quarter of the rate and 5.3 dB up to 0.4·rate (against 0.031,
+    /// 1.07 and 7.0 dB for the 4-point cubic of [`DelayLine::read`]). Below 2 samples
+    /// the future taps do not exist and the read is [`DelayLine::read`]'s.
+    #[inline]
+    pub fn read_lagrange(&self, delay_samples: f64) -> f64 {
+        let d = clamp_or(delay_samples, 0.0, self.max_delay as f64, 0.0);
+        if d < 2.0 {
+            return self.read(d);
+        }
+        let k = d.floor();
+        let t = d - k;
+        let k = k as usize;
+        if t == 0.0 {
+            return self.at(k);
+        }
+        // Here 2 ≤ k ≤ max − 1, so k + 3 ≤ max + 2 < len.
+        let x = 2.0 + t;
+        let f = [x, x - 1.0, x - 2.0, x - 3.0, x - 4.0, x - 5.0];
+        // wₘ = Π_{i≠m} f[i] / Π_{i≠m} (m − i); the denominators are ±(m!·(5 − m)!).
+        const DENOMINATORS: [f64; 6] = [-120.0, 24.0, -12.0, 12.0, -24.0, 120.0];
+        let mut y = 0.0;
+        for (m, denominator) in DENOMINATORS.iter().enumerate() {
+            let mut w = 1.0 / denominator;
+            for (i, fi) in f.iter().enumerate() {
+                if i != m {
+                    w *= fi;
+                }
+            }
+            y += w * self.at(k + m - 2);
+        }
+        y
+    }
 }
 
 /// Delay lines, one per lane, long enough for `max_seconds` at the render's rate.
@@ -251,6 +289,53 @@ impl StatefulKernel for Allpass {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The worst magnitude error (dB) of `read` over fractional delays 5 + i/32 and
+    /// sines up to `fmax`·rate, measured on the samples it reads.
+    fn worst_error(read: impl Fn(&DelayLine, f64) -> f64, fmax: f64) -> f64 {
+        let mut worst: f64 = 0.0;
+        for step in 1..=20 {
+            let f = fmax * step as f64 / 20.0;
+            let w = std::f64::consts::TAU * f;
+            for i in 0..32 {
+                let d = 5.0 + i as f64 / 32.0;
+                let mut line = DelayLine::new(16);
+                // A complex exponential's real and imaginary parts: the amplitude
+                // of what is read is exact at every sample, with no windowing.
+                let mut imag = DelayLine::new(16);
+                let mut amplitude = 0.0;
+                for n in 0..40 {
+                    line.push((w * n as f64).cos());
+                    imag.push((w * n as f64).sin());
+                    if n >= 20 {
+                        amplitude = read(&line, d).hypot(read(&imag, d));
+                    }
+                }
+                worst = worst.max((20.0 * amplitude.log10()).abs());
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn lagrange_reads_are_flat_to_the_documented_error() {
+        let lagrange = |l: &DelayLine, d: f64| l.read_lagrange(d);
+        let cubic = |l: &DelayLine, d: f64| l.read(d);
+        assert!(worst_error(lagrange, 0.1) < 0.003);
+        assert!(worst_error(lagrange, 0.25) < 0.45);
+        assert!(worst_error(lagrange, 0.4) < 5.4);
+        // …better than the 4-point cubic's.
+        assert!(worst_error(cubic, 0.25) > 1.0);
+        // Whole delays are exact, and short ones fall back to the cubic.
+        let mut line = DelayLine::new(16);
+        for n in 0..10 {
+            line.push(n as f64 * n as f64);
+        }
+        assert_eq!(line.read_lagrange(4.0), 25.0);
+        assert_eq!(line.read_lagrange(1.5), line.read(1.5));
+        // A quadratic is interpolated exactly (a 5th-order polynomial is).
+        assert!((line.read_lagrange(3.25) - (9.0f64 - 3.25).powi(2)).abs() < 1e-9);
+    }
     use std::f64::consts::PI;
 
     #[test]

@@ -11,7 +11,9 @@
 //!   noise and second-order Markov (AR(2)) low-frequency noise.
 //! - [`filter`]: RBJ biquads (low/high/band-pass), one-pole low-pass and a
 //!   Csound-`reson`-style two-pole resonator.
-//! - [`delay`]: a ring-buffer delay line with fractional (cubic) reads.
+//! - [`delay`]: a ring-buffer delay line with fractional reads (4-point cubic and
+//!   6-point Lagrange).
+//! - [`air`]: air absorption after ISO 9613-1, and the low-pass that follows it.
 //! - [`conv`]: zero-latency uniformly partitioned FFT convolution.
 //! - [`fdn`]: a feedback delay network with an RT60 per band (late reverberation).
 //! - [`envelope`]: curved segment shapes, a pure attack–hold–decay envelope of

@@ -812,7 +812,7 @@ impl Lowerer<'_> {
                 .help(help)
                 .in_source(&origin.source)
         };
-        let known = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance";
+        let known = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance, :air-absorption, :temperature, :humidity";
         let mut i = 0;
         while i < args.len() {
             let ExprKind::Keyword(key) = &args[i].kind else {
@@ -831,6 +831,26 @@ impl Lowerer<'_> {
                     "write e.g. `:duration 4.0`",
                 ));
             };
+            if key == "air-absorption" {
+                let on = match value_expr.as_symbol() {
+                    Some("on") => true,
+                    Some("off") => false,
+                    _ => {
+                        return Err(err(
+                            value_expr.span,
+                            format!("`:air-absorption` is on or off, not {value_expr}"),
+                            "on or off",
+                            "write :air-absorption off to hear no air",
+                        ))
+                    }
+                };
+                let medium = &mut self.space.medium;
+                medium.air = on.then(|| {
+                    crate::dsp::air::Air::new(self.space.temperature, self.space.humidity)
+                });
+                i += 2;
+                continue;
+            }
             if key == "distance-law" {
                 let law = value_expr
                     .as_symbol()
@@ -908,6 +928,22 @@ impl Lowerer<'_> {
                         format!("speed of sound {value} is not positive"),
                         "expected metres per second > 0",
                         "write e.g. `:speed-of-sound 343` (air at 20 °C)",
+                    ))
+                }
+                "temperature" if (-60.0..=60.0).contains(&value) => {
+                    self.space.temperature = value;
+                    self.space.refresh_air();
+                }
+                "humidity" if (0.0..=100.0).contains(&value) => {
+                    self.space.humidity = value;
+                    self.space.refresh_air();
+                }
+                "temperature" | "humidity" => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("{key} {value} is out of range"),
+                        "out of range",
+                        "the temperature is in °C, −60 to 60; the humidity in percent, 0 to 100",
                     ))
                 }
                 "reference-distance" | "min-distance" | "max-distance"

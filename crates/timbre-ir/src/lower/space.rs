@@ -13,6 +13,7 @@ use timbre_syntax::{Expr, ExprKind, Span};
 use super::scene::Options;
 use super::scene::Track;
 use super::{Lowerer, Origin, MAX_BUFFER_SECONDS};
+use crate::dsp::air::Air;
 use crate::error::Diag;
 use crate::graph::NodeId;
 use crate::op::Op;
@@ -28,9 +29,11 @@ pub const PAIR_SPACING: f64 = 0.5;
 pub const XY_ANGLE: f64 = 90.0;
 
 /// What a scene places in space, as read so far.
-#[derive(Default)]
 pub(crate) struct Space {
     pub medium: Medium,
+    /// The air's temperature (°C) and relative humidity (%), for its absorption.
+    pub temperature: f64,
+    pub humidity: f64,
     listener: Option<(Vec<Receiver>, Span)>,
     /// Microphones by output channel.
     microphones: Vec<(usize, Receiver, Span)>,
@@ -41,6 +44,32 @@ pub(crate) struct Space {
     /// first instance is placed).
     receivers: Option<Arc<[Receiver]>>,
     environment: Option<Arc<Environment>>,
+}
+
+impl Default for Space {
+    fn default() -> Self {
+        Space {
+            medium: Medium::default(),
+            temperature: 20.0,
+            humidity: 50.0,
+            listener: None,
+            microphones: vec![],
+            sources: vec![],
+            obstacles: vec![],
+            room: None,
+            receivers: None,
+            environment: None,
+        }
+    }
+}
+
+impl Space {
+    /// Recomputes the air's absorption after a change of temperature or humidity.
+    pub fn refresh_air(&mut self) {
+        if self.medium.air.is_some() {
+            self.medium.air = Some(Air::new(self.temperature, self.humidity));
+        }
+    }
 }
 
 const LISTENER_OPTIONS: &[&str] = &["position", "facing", "pair", "spacing", "angle", "pattern"];

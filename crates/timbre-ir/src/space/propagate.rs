@@ -17,6 +17,7 @@ use glam::DVec3;
 use super::environment::{Acoustics, Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::path::Path;
+use crate::dsp::air::{Air, AirFilter};
 use crate::dsp::delay::DelayLine;
 use crate::dsp::fdn::Fdn;
 use crate::dsp::filter::OnePole;
@@ -73,6 +74,8 @@ pub struct Medium {
     pub min_distance: f64,
     /// Where the linear law reaches silence.
     pub max_distance: f64,
+    /// Air absorption (ISO 9613-1), if on.
+    pub air: Option<Air>,
 }
 
 impl Default for Medium {
@@ -83,6 +86,7 @@ impl Default for Medium {
             reference_distance: 1.0,
             min_distance: 0.1,
             max_distance: 100.0,
+            air: Some(Air::new(20.0, 50.0)),
         }
     }
 }
@@ -113,6 +117,10 @@ impl Medium {
             self.min_distance,
             self.max_distance,
         ]);
+        match self.air {
+            Some(air) => d.f64(air.reference_db_per_m),
+            None => d.str("no air"),
+        };
     }
 }
 
@@ -304,6 +312,8 @@ struct WayState {
     material: Option<Material>,
     /// The one-pole coefficient of the material's cutoff.
     coefficient: f64,
+    /// Air absorption over the way's length.
+    air: AirFilter,
 }
 
 /// The late part's state: the network, and its muffling when the reflections are
@@ -478,9 +488,18 @@ impl Propagation {
             s.now[0] = s.now[1];
             s.now[1] = self.solve(way, t, s.now[0].tau);
             self.block(way, s, t, &state.obstacles, sr);
+            self.set_air(s, sr);
         }
         if let Some(late) = &mut state.late {
             late_blocking(&state.ways, &state.state, &mut late.muffle, sr);
+        }
+    }
+
+    /// Air absorption over the way's length at the end of the grid step.
+    fn set_air(&self, s: &mut WayState, sr: f64) {
+        if let Some(air) = &self.medium.air {
+            let distance = s.now[1].tau * self.medium.speed_of_sound;
+            s.air.set_distance(air, distance, sr);
         }
     }
 
@@ -589,6 +608,7 @@ impl StatefulKernel for Propagation {
             s.blocked = s.target;
             s.now[1] = self.solve(way, t1, first.tau);
             s.now[0] = first;
+            self.set_air(s, sr);
         }
         for (obstacle, placed) in obstacles.iter_mut().zip(&self.environment.obstacles) {
             placed.update(obstacle, t1);
@@ -656,7 +676,10 @@ impl StatefulKernel for Propagation {
                     direct = tau;
                 }
                 let gain = a.gain + (b.gain - a.gain) * s;
-                let mut y = gain * state.line.read(tau * sr);
+                let mut y = gain * state.line.read_lagrange(tau * sr);
+                if self.medium.air.is_some() {
+                    y = w.air.process(y);
+                }
                 if let Some(coefficient) = way.wall_filter {
                     y = w.wall.process(coefficient, y);
                 }
@@ -670,7 +693,7 @@ impl StatefulKernel for Propagation {
             if let Some(late) = &mut state.late {
                 // The diffuse field: the sound heard directly by the first receiver,
                 // `onset` later, through the network, one output per receiver.
-                let x = late.gain * state.line.read((direct + late.onset) * sr);
+                let x = late.gain * state.line.read_lagrange((direct + late.onset) * sr);
                 late.fdn.process(x, &mut late.outputs);
                 let m = &mut late.muffle;
                 m.blocked += (m.target - m.blocked).clamp(-fade_step, fade_step);
