@@ -546,3 +546,61 @@ fn air_absorbs_the_highs_over_distance_as_iso_9613_1_says() {
         );
     }
 }
+
+#[test]
+fn a_source_faster_than_sound_stays_finite_and_bounded() {
+    // Mach 2 past the listener at 20 m.
+    let program = scene(&format!(
+        "(scene :duration 3 :speed-of-sound {C})
+         (define-sound tone () (sine (* t 200)))
+         (listener :position (0 0 0))
+         (source jet :position (keyframes :interp linear (0 (-686 20 0)) (2 (686 20 0))))
+         (instance roar (tone) :source jet :start 0 :stop 2)"
+    ));
+    let x = render(&program, 3.0);
+    assert!(x
+        .iter()
+        .all(|v| v.is_finite() && v.abs() <= 1.0 / 20.0 + 1e-9));
+    assert!(timbre_testkit::peak(&x) > 0.01, "nothing heard");
+}
+
+#[test]
+fn a_room_reverberates_by_a_recorded_impulse_response() {
+    // A response decaying by 60 dB in 0.9 s (noise under an exponential).
+    let dir = std::env::temp_dir().join(format!("timbre-space-ir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut seed = 7u64;
+    let response: Vec<f64> = (0..(1.5 * SR) as usize)
+        .map(|k| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let noise = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            noise * (-6.907_755 * k as f64 / SR / 0.9).exp()
+        })
+        .collect();
+    timbre_testkit::write_wav_f32(&dir.join("hall.wav"), 48_000, &response);
+    let text = format!(
+        "(scene :duration 2.5 :speed-of-sound {C})
+         (define-sound clicker () {})
+         (room :size (8 6 3) :absorption 0.2 :reverb \"hall.wav\")
+         (listener :position (2 2 1.5))
+         (source s :position (6 4 1.2))
+         (instance c (clicker) :source s :start 0 :stop 0.1)",
+        click(100)
+    );
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &FsLoader);
+    let program = timbre_ir::compile(
+        timbre_ir::SourceFile::new("room.tt", text),
+        Some(&dir),
+        &options,
+    )
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    let x = render(&program, 2.5);
+    let measured = timbre_ir::dsp::analysis::rt60_schroeder(&x, SR).unwrap();
+    assert!((measured / 0.9 - 1.0).abs() < 0.1, "measured {measured} s");
+    // The instance lasts as long as the response after its stop.
+    assert!(program.instances[0].tail >= 1.5);
+    std::fs::remove_dir_all(&dir).ok();
+}

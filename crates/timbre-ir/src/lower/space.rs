@@ -14,6 +14,7 @@ use super::scene::Options;
 use super::scene::Track;
 use super::{Lowerer, Origin, MAX_BUFFER_SECONDS};
 use crate::dsp::air::Air;
+use crate::dsp::wav::resample;
 use crate::error::Diag;
 use crate::graph::NodeId;
 use crate::op::Op;
@@ -428,15 +429,33 @@ impl Lowerer<'_> {
             order,
             late: Late::None,
         };
+        let sr = self.settings.sample_rate.unwrap_or(48_000.0);
+        let c = self.space.medium.speed_of_sound;
+        let reference = self.space.medium.reference_distance;
         let late = match options.get("reverb") {
             None => "fdn",
+            Some(Expr {
+                kind: ExprKind::Str(path),
+                span,
+            }) => {
+                // A recorded response, scaled to the diffuse field of the room's RT60.
+                let response = self.load_wav(path, *span, origin)?;
+                let energy: f64 = resample(&response, sr).iter().map(|x| x * x).sum();
+                let rt60 = acoustics.sabine_rt60();
+                let target = acoustics.late_energy((rt60[2] + rt60[3]) / 2.0, reference);
+                acoustics.late = Late::Convolution {
+                    response,
+                    gain: (target / energy.max(1e-30)).sqrt(),
+                };
+                "convolution"
+            }
             Some(e) => match e.as_symbol() {
                 Some(word @ ("fdn" | "none")) => word,
                 _ => {
                     return Err(self
                         .diag("timbre::bad-room", format!("unknown reverb {e}"), origin)
                         .label(e.span, "not a reverb")
-                        .help("write :reverb fdn (a feedback delay network) or :reverb none"))
+                        .help("write :reverb fdn (a feedback delay network), :reverb \"response.wav\" (a convolution) or :reverb none"))
                 }
             },
         };
@@ -456,14 +475,9 @@ impl Lowerer<'_> {
             };
             // Scaled to the diffuse field's energy (measured on the network at the
             // scene's rate: the energy hardly depends on it).
-            let sr = self.settings.sample_rate.unwrap_or(48_000.0);
-            let c = self.space.medium.speed_of_sound;
             let energy = Acoustics::network(&rt60, acoustics.mean_free_time(c), sr)
                 .impulse_energy(rt60.iter().fold(0.0, |m: f64, t| m.max(*t)) * 1.5, sr);
-            let target = acoustics.late_energy(
-                (rt60[2] + rt60[3]) / 2.0,
-                self.space.medium.reference_distance,
-            );
+            let target = acoustics.late_energy((rt60[2] + rt60[3]) / 2.0, reference);
             acoustics.late = Late::Fdn {
                 rt60,
                 gain: (target / energy.max(1e-30)).sqrt(),
@@ -1017,9 +1031,13 @@ impl Lowerer<'_> {
             // the late part begins later still.
             let reach = room.room.size().length() * (room.order as f64 + 1.0);
             max_delay += reach / medium.speed_of_sound + room.late_onset(medium.speed_of_sound);
-            if let Late::Fdn { rt60, .. } = &room.late {
-                tail = rt60.iter().fold(0.0, |m: f64, t| m.max(*t));
-            }
+            tail = match &room.late {
+                Late::None => 0.0,
+                Late::Fdn { rt60, .. } => rt60.iter().fold(0.0, |m: f64, t| m.max(*t)),
+                Late::Convolution { response, .. } => {
+                    response.frames.len() as f64 / response.sample_rate
+                }
+            };
         }
         let kernel = Propagation {
             source,

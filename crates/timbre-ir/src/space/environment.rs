@@ -3,7 +3,10 @@
 
 use glam::DVec3;
 
+use std::sync::Arc;
+
 use crate::dsp::fdn::Fdn;
+use crate::dsp::wav::SampleData;
 
 use super::geometry::{AlignedBox, Obstacle, Room, Wall};
 use super::path::Path;
@@ -111,7 +114,7 @@ impl PlacedObstacle {
 }
 
 /// How a room's late reverberation is made.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub enum Late {
     None,
     /// A feedback delay network decaying by 60 dB in `rt60[band]` seconds (matched
@@ -121,10 +124,16 @@ pub enum Late {
         rt60: [f64; 6],
         gain: f64,
     },
+    /// The convolution with a recorded impulse response of the room's reverberation
+    /// (its direct sound left out), scaled by `gain` likewise.
+    Convolution {
+        response: Arc<SampleData>,
+        gain: f64,
+    },
 }
 
 /// A shoebox room: its walls reflect (image sources up to `order`) and absorb.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Acoustics {
     pub room: Room,
     /// Absorption coefficient of each wall (indexed as [`Room`]'s) in each band.
@@ -214,12 +223,15 @@ impl Acoustics {
             Late::Fdn { rt60, gain } => {
                 d.str("fdn").f64s(rt60).f64(*gain);
             }
+            Late::Convolution { response, gain } => {
+                d.str("convolution").u64(response.content_hash).f64(*gain);
+            }
         }
     }
 }
 
 /// Everything in the scene's space besides sources and receivers.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub struct Environment {
     pub obstacles: Vec<PlacedObstacle>,
     pub room: Option<Acoustics>,

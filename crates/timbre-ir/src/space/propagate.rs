@@ -18,9 +18,11 @@ use super::environment::{Acoustics, Environment, Late, Material, BANDS, CROSSFAD
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::path::Path;
 use crate::dsp::air::{Air, AirFilter};
+use crate::dsp::conv::Convolver;
 use crate::dsp::delay::DelayLine;
 use crate::dsp::fdn::Fdn;
 use crate::dsp::filter::OnePole;
+use crate::dsp::wav::resample;
 use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
@@ -316,11 +318,36 @@ struct WayState {
     air: AirFilter,
 }
 
-/// The late part's state: the network, and its muffling when the reflections are
-/// blocked (as a way's).
+/// Partition of the late part's convolution, samples.
+const LATE_PARTITION: usize = 256;
+
+/// What makes the late part.
+#[derive(Debug)]
+enum Reverb {
+    Network(Fdn),
+    Convolution(Box<Convolver>),
+}
+
+impl Reverb {
+    /// One sample in, one out per receiver (the same for every receiver from a
+    /// recorded response, which is mono).
+    fn process(&mut self, x: f64, outputs: &mut [f64]) {
+        match self {
+            Reverb::Network(fdn) => fdn.process(x, outputs),
+            Reverb::Convolution(convolver) => {
+                let mut y = [0.0];
+                convolver.process(&[x], &mut y);
+                outputs.fill(y[0]);
+            }
+        }
+    }
+}
+
+/// The late part's state: its reverberator, and its muffling when the reflections
+/// are blocked (as a way's).
 #[derive(Debug)]
 struct LateState {
-    fdn: Fdn,
+    reverb: Reverb,
     gain: f64,
     /// Seconds after the direct sound it is fed.
     onset: f64,
@@ -616,26 +643,33 @@ impl StatefulKernel for Propagation {
         for (way, s) in ways.iter().zip(&mut state) {
             self.block(way, s, t1, &obstacles, sr);
         }
-        let late = self
-            .environment
-            .room
-            .as_ref()
-            .and_then(|room| match room.late {
-                Late::None => None,
-                Late::Fdn { rt60, gain } => {
-                    let c = self.medium.speed_of_sound;
-                    let mut muffle = WayState::default();
-                    late_blocking(&ways, &state, &mut muffle, sr);
-                    muffle.blocked = muffle.target;
-                    Some(LateState {
-                        fdn: Acoustics::network(&rt60, room.mean_free_time(c), sr),
-                        gain,
-                        onset: room.late_onset(c),
-                        muffle,
-                        outputs: vec![0.0; self.receivers.len()],
-                    })
-                }
-            });
+        let late = self.environment.room.as_ref().and_then(|room| {
+            let c = self.medium.speed_of_sound;
+            let (reverb, gain) = match &room.late {
+                Late::None => return None,
+                Late::Fdn { rt60, gain } => (
+                    Reverb::Network(Acoustics::network(rt60, room.mean_free_time(c), sr)),
+                    *gain,
+                ),
+                Late::Convolution { response, gain } => (
+                    Reverb::Convolution(Box::new(Convolver::new(
+                        &resample(response, sr),
+                        LATE_PARTITION,
+                    ))),
+                    *gain,
+                ),
+            };
+            let mut muffle = WayState::default();
+            late_blocking(&ways, &state, &mut muffle, sr);
+            muffle.blocked = muffle.target;
+            Some(LateState {
+                reverb,
+                gain,
+                onset: room.late_onset(c),
+                muffle,
+                outputs: vec![0.0; self.receivers.len()],
+            })
+        });
         PropagationState {
             line: DelayLine::new(length),
             late,
@@ -694,7 +728,7 @@ impl StatefulKernel for Propagation {
                 // The diffuse field: the sound heard directly by the first receiver,
                 // `onset` later, through the network, one output per receiver.
                 let x = late.gain * state.line.read_lagrange((direct + late.onset) * sr);
-                late.fdn.process(x, &mut late.outputs);
+                late.reverb.process(x, &mut late.outputs);
                 let m = &mut late.muffle;
                 m.blocked += (m.target - m.blocked).clamp(-fade_step, fade_step);
                 for (lane, y) in late.outputs.iter().enumerate() {
