@@ -324,7 +324,7 @@ const LATE_PARTITION: usize = 256;
 /// What makes the late part.
 #[derive(Debug)]
 enum Reverb {
-    Network(Fdn),
+    Network(Box<Fdn>),
     Convolution(Box<Convolver>),
 }
 
@@ -648,7 +648,11 @@ impl StatefulKernel for Propagation {
             let (reverb, gain) = match &room.late {
                 Late::None => return None,
                 Late::Fdn { rt60, gain } => (
-                    Reverb::Network(Acoustics::network(rt60, room.mean_free_time(c), sr)),
+                    Reverb::Network(Box::new(Acoustics::network(
+                        rt60,
+                        room.mean_free_time(c),
+                        sr,
+                    ))),
                     *gain,
                 ),
                 Late::Convolution { response, gain } => (
