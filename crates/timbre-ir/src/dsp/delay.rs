@@ -110,26 +110,34 @@ impl DelayLine {
         if d < 2.0 {
             return self.read(d);
         }
-        let k = d.floor();
-        let t = d - k;
-        let k = k as usize;
+        // d ≥ 2: truncation is the floor.
+        let k = d as usize;
+        let t = d - k as f64;
         if t == 0.0 {
             return self.at(k);
         }
         // Here 2 ≤ k ≤ max − 1, so k + 3 ≤ max + 2 < len.
         let x = 2.0 + t;
         let f = [x, x - 1.0, x - 2.0, x - 3.0, x - 4.0, x - 5.0];
-        // wₘ = Π_{i≠m} f[i] / Π_{i≠m} (m − i); the denominators are ±(m!·(5 − m)!).
-        const DENOMINATORS: [f64; 6] = [-120.0, 24.0, -12.0, 12.0, -24.0, 120.0];
+        // wₘ = Π_{i<m} f[i] · Π_{i>m} f[i] / Π_{i≠m} (m − i), the products built from
+        // both ends; the denominators are ±m!·(5 − m)!.
+        const INVERSE_DENOMINATORS: [f64; 6] = [
+            -1.0 / 120.0,
+            1.0 / 24.0,
+            -1.0 / 12.0,
+            1.0 / 12.0,
+            -1.0 / 24.0,
+            1.0 / 120.0,
+        ];
+        let mut left = [1.0; 6];
+        let mut right = [1.0; 6];
+        for m in 1..6 {
+            left[m] = left[m - 1] * f[m - 1];
+            right[5 - m] = right[6 - m] * f[6 - m];
+        }
         let mut y = 0.0;
-        for (m, denominator) in DENOMINATORS.iter().enumerate() {
-            let mut w = 1.0 / denominator;
-            for (i, fi) in f.iter().enumerate() {
-                if i != m {
-                    w *= fi;
-                }
-            }
-            y += w * self.at(k + m - 2);
+        for m in 0..6 {
+            y += left[m] * right[m] * INVERSE_DENOMINATORS[m] * self.at(k + m - 2);
         }
         y
     }

@@ -3,7 +3,8 @@
 //!
 //! τ is the *emission* (retarded) time, not the distance now: reading a delay line at
 //! d(t)/c would give a source approaching at v the pitch f·(1 + v/c) instead of
-//! f·c/(c − v). The equation is solved exactly by Newton's method every
+//! f·c/(c − v). The equation is solved exactly by Newton's method (the velocity taken
+//! once per solve) every
 //! [`GRID`] samples (counted from the instance's first sample, so the result does not
 //! depend on the block size), warm-started from the previous solution; between
 //! solutions τ follows the cubic Hermite curve through the two solutions and their
@@ -378,11 +379,14 @@ impl Propagation {
         let r = receiver.at(t);
         let mut tau = guess.max(0.0);
         let mut emitted = self.source.at(t - tau);
+        // The source's velocity at the guess serves every step: the steps are then a
+        // chord method, which converges as fast from a warm start, and the root is
+        // the same.
+        let v = way.mirror.sign * self.source.velocity(t - tau);
         for _ in 0..16 {
             let diff = way.mirror.apply(emitted) - r;
             let d = diff.length();
             let f = d - c * tau;
-            let v = way.mirror.sign * self.source.velocity(t - tau);
             let u = if d > 0.0 { diff / d } else { DVec3::ZERO };
             // d/dτ of |p(t − τ) − r| − cτ.
             let df = -u.dot(v) - c;
