@@ -604,3 +604,67 @@ fn a_room_reverberates_by_a_recorded_impulse_response() {
     assert!(program.instances[0].tail >= 1.5);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn positions_from_a_csv_file_and_at_a_track_are_those_of_a_source() {
+    let dir = std::env::temp_dir().join(format!("timbre-space-csv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // 24 frames a second of a path along x, 10 m in front.
+    let mut csv = String::from("frame,x,y,z\n");
+    for k in 0..=48 {
+        csv += &format!("{k},{},10,0\n", -20.0 + k as f64 * 0.5);
+    }
+    std::fs::write(dir.join("motion.csv"), csv).unwrap();
+    let compile_in_dir = |body: &str| {
+        let text = format!(
+            "(scene :duration 2)
+             (define-sound tone () (sine (* t 700)))
+             (listener :position (0 0 0))
+             (keyframes path :csv \"motion.csv\" :columns (\"x\" \"y\" \"z\") :frame-rate 24)
+             {body}"
+        );
+        let registry = Registry::new();
+        let options = CompileOptions::new(&registry, &FsLoader);
+        timbre_ir::compile(timbre_ir::SourceFile::new("s.tt", text), Some(&dir), &options)
+            .unwrap_or_else(|e| panic!("{e:?}"))
+    };
+    let from_csv = render(
+        &compile_in_dir("(source s :position path) (instance a (tone) :source s :stop 2)"),
+        2.0,
+    );
+    let at_track = render(&compile_in_dir("(instance a (tone) :at path :stop 2)"), 2.0);
+    let inline = render(
+        &scene(
+            "(scene :duration 2)
+             (define-sound tone () (sine (* t 700)))
+             (listener :position (0 0 0))
+             (instance a (tone) :at (keyframes (0 (-20 10 0)) (2 (4 10 0))) :stop 2)",
+        ),
+        2.0,
+    );
+    assert!(from_csv.iter().zip(&at_track).all(|(a, b)| a.to_bits() == b.to_bits()));
+    // The CSV's frames lie on the same straight line as the two inline keys.
+    assert_close(&from_csv, &inline, 1e-9, "CSV path vs inline keys");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_listener_turning_round_hears_the_source_move_from_left_to_right() {
+    let program = scene(
+        "(scene :duration 2 :channels 2)
+         (define-sound tone () (sine (* t 500)))
+         (listener :position (0 0 0) :pair xy
+                   :facing (keyframes :interp linear (0 (0.001 1 0)) (2 (0.001 -1 0))))
+         (source s :position (-10 0 0))
+         (instance c (tone) :source s :stop 2)",
+    );
+    let x = render(&program, 2.0);
+    let balance = |at: f64| {
+        let v = |lane: usize| -> Vec<f64> { x.iter().skip(lane).step_by(2).copied().collect() };
+        let (l, r) = (v(0), v(1));
+        20.0 * (timbre_testkit::rms(window(&l, at, at + 0.1)) / timbre_testkit::rms(window(&r, at, at + 0.1))).log10()
+    };
+    // Facing +y the source (−x) is on the left; facing −y, on the right.
+    assert!(balance(0.1) > 6.0, "{}", balance(0.1));
+    assert!(balance(1.85) < -6.0, "{}", balance(1.85));
+}

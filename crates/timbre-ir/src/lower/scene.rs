@@ -75,7 +75,7 @@ pub struct Instance {
     /// Scene time at which it is switched off (after the fade-out), if given.
     pub stop: Option<f64>,
     /// Seconds it may still be heard after its stop: the sound's longest way from
-    /// its source to a receiver.
+    /// its source to a receiver, and its room's reverberation.
     pub tail: f64,
 }
 
