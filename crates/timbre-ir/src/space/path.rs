@@ -58,6 +58,31 @@ impl Path {
         }
     }
 
+    /// An upper bound of its speed, m/s: the fastest secant between keys (three times
+    /// it for smooth keys, whose monotone cubic never has a slope above three times
+    /// its secant); 0 for a fixed point or step keys (which jump, not move).
+    pub fn max_speed(&self) -> f64 {
+        let Path::Keyed(tracks) = self else {
+            return 0.0;
+        };
+        let factor = match tracks[0].interpolation() {
+            crate::keyframes::Interpolation::Step => return 0.0,
+            crate::keyframes::Interpolation::Linear => 1.0,
+            crate::keyframes::Interpolation::Smooth => 3.0,
+        };
+        let times = tracks[0].times();
+        let mut fastest: f64 = 0.0;
+        for i in 1..times.len() {
+            let step = DVec3::new(
+                tracks[0].values()[i] - tracks[0].values()[i - 1],
+                tracks[1].values()[i] - tracks[1].values()[i - 1],
+                tracks[2].values()[i] - tracks[2].values()[i - 1],
+            );
+            fastest = fastest.max(step.length() / (times[i] - times[i - 1]));
+        }
+        factor * fastest
+    }
+
     /// Whether it moves.
     pub fn is_fixed(&self) -> bool {
         matches!(self, Path::Fixed(_))

@@ -11,6 +11,7 @@
 //! exact slopes dτ/dt = u·(v_s − v_r)/(c + u·v_s). The emitted sound is read from a
 //! delay line at τ·rate samples, so Doppler shift emerges from the motion.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -301,11 +302,17 @@ struct Solution {
     emitted: DVec3,
 }
 
+/// Most emission times heard at once along one way (a source faster than sound).
+pub const MAX_BRANCHES: usize = 8;
+
 /// A way's state while rendering.
 #[derive(Clone, Debug, Default)]
 struct WayState {
     /// The solutions at the start and the end of the current grid step.
     now: [Solution; 2],
+    /// Further emission times heard at the same time, when the source outruns its
+    /// sound (each a pair like `now`); empty otherwise.
+    extra: Vec<[Solution; 2]>,
     wall: OnePole,
     /// The low-pass of the obstacle in the way, and how far the way is blocked (0
     /// clear, 1 blocked), moving toward `target` over [`CROSSFADE`].
@@ -360,6 +367,14 @@ struct LateState {
 #[derive(Debug)]
 pub struct PropagationState {
     line: DelayLine,
+    /// Where the source was at each grid point of the last `max_delay` seconds
+    /// (oldest first), when it may outrun its sound; empty otherwise.
+    emissions: VecDeque<DVec3>,
+    /// The grid index (samples / GRID) of `emissions[0]`.
+    first_emission: u64,
+    outruns: bool,
+    /// Scratch for the emission times heard at a grid point.
+    roots: Vec<Solution>,
     late: Option<LateState>,
     ways: Vec<Way>,
     state: Vec<WayState>,
@@ -400,6 +415,14 @@ impl Propagation {
                 break;
             }
         }
+        self.solution(way, t, tau, emitted)
+    }
+
+    /// The solution for the delay `tau` at `t`, the sound emitted at `emitted`.
+    fn solution(&self, way: &Way, t: f64, tau: f64, emitted: DVec3) -> Solution {
+        let receiver = &self.receivers[way.receiver];
+        let c = self.medium.speed_of_sound;
+        let r = receiver.at(t);
         let image = way.mirror.apply(emitted);
         let diff = image - r;
         let d = diff.length();
@@ -418,6 +441,86 @@ impl Propagation {
             slope,
             gain,
             emitted,
+        }
+    }
+
+    /// Every emission time heard at `t` along `way` when the source may outrun its
+    /// sound: the roots of g(te) = c·(t − te) − |m(p(te)) − r(t)| for te from the
+    /// instance's start to t, bracketed between the grid's emission points and
+    /// refined by the secant method on the exact path. Latest emission first, at most
+    /// [`MAX_BRANCHES`].
+    fn roots(&self, way: &Way, t: f64, state: &PropagationState, sr: f64, out: &mut Vec<Solution>) {
+        out.clear();
+        let c = self.medium.speed_of_sound;
+        let r = self.receivers[way.receiver].at(t);
+        let g = |te: f64, p: DVec3| c * (t - te) - (way.mirror.apply(p) - r).length();
+        let te_of = |k: usize| self.time((state.first_emission + k as u64) * GRID as u64, sr);
+        let mut later: Option<(f64, f64)> = None;
+        for k in (0..state.emissions.len()).rev() {
+            let te = te_of(k);
+            let value = g(te, state.emissions[k]);
+            if let Some((te1, g1)) = later {
+                if (value > 0.0) != (g1 > 0.0) || value == 0.0 {
+                    // Secant steps on the exact path, within the bracket.
+                    let (mut a, mut ga, mut b, mut gb) = (te, value, te1, g1);
+                    for _ in 0..8 {
+                        if gb == ga {
+                            break;
+                        }
+                        let m = (b - gb * (b - a) / (gb - ga)).clamp(te.min(te1), te.max(te1));
+                        let gm = g(m, self.source.at(m));
+                        (a, ga, b, gb) = (b, gb, m, gm);
+                        if gm.abs() < 1e-9 {
+                            break;
+                        }
+                    }
+                    let tau = t - b;
+                    out.push(self.solution(way, t, tau, self.source.at(b)));
+                    if out.len() == MAX_BRANCHES {
+                        return;
+                    }
+                }
+            }
+            later = Some((te, value));
+        }
+    }
+
+    /// Brings the record of emission points up to grid index `j` and drops those older
+    /// than the longest delay.
+    fn record_emissions(&self, state: &mut PropagationState, j: u64, sr: f64) {
+        let next = state.first_emission + state.emissions.len() as u64;
+        for k in next..=j {
+            state
+                .emissions
+                .push_back(self.source.at(self.time(k * GRID as u64, sr)));
+        }
+        let keep = (self.max_delay * sr / GRID as f64).ceil() as u64 + 2;
+        while state.emissions.len() as u64 > keep {
+            state.emissions.pop_front();
+            state.first_emission += 1;
+        }
+    }
+
+    /// Moves `s` to the branches heard at the new grid point: branch i continues
+    /// branch i of the last one; when their number changes (a boom), every branch
+    /// starts afresh.
+    fn set_branches(s: &mut WayState, roots: &[Solution]) {
+        let silent = Solution {
+            gain: 0.0,
+            ..s.now[1]
+        };
+        let restart =
+            roots.len().max(1) != 1 + s.extra.len() || (roots.is_empty() != (s.now[1].gain == 0.0));
+        let first = roots.first().copied().unwrap_or(silent);
+        s.now = [if restart { first } else { s.now[1] }, first];
+        let extra: &[Solution] = roots.get(1..).unwrap_or(&[]);
+        if restart {
+            s.extra.clear();
+            s.extra.extend(extra.iter().map(|b| [*b, *b]));
+        } else {
+            for (pair, b) in s.extra.iter_mut().zip(extra) {
+                *pair = [pair[1], *b];
+            }
         }
     }
 
@@ -515,9 +618,21 @@ impl Propagation {
         for (obstacle, placed) in state.obstacles.iter_mut().zip(&self.environment.obstacles) {
             placed.update(obstacle, t);
         }
+        if state.outruns {
+            self.record_emissions(state, n / GRID as u64 + 1, sr);
+            let mut roots = std::mem::take(&mut state.roots);
+            for k in 0..state.ways.len() {
+                self.roots(&state.ways[k], t, state, sr, &mut roots);
+                Self::set_branches(&mut state.state[k], &roots);
+            }
+            state.roots = roots;
+        } else {
+            for (way, s) in state.ways.iter().zip(&mut state.state) {
+                s.now[0] = s.now[1];
+                s.now[1] = self.solve(way, t, s.now[0].tau);
+            }
+        }
         for (way, s) in state.ways.iter().zip(&mut state.state) {
-            s.now[0] = s.now[1];
-            s.now[1] = self.solve(way, t, s.now[0].tau);
             self.block(way, s, t, &state.obstacles, sr);
             self.set_air(s, sr);
         }
@@ -631,6 +746,20 @@ impl StatefulKernel for Propagation {
             .map(|o| o.at(t0))
             .collect();
         let mut state = vec![WayState::default(); ways.len()];
+        // A source that may outrun its sound (or a receiver its): every emission time
+        // heard is found from the record of where the source was.
+        let fastest_receiver = self
+            .receivers
+            .iter()
+            .map(|r| r.position.max_speed())
+            .fold(0.0, f64::max);
+        let outruns = self.source.max_speed() + fastest_receiver >= self.medium.speed_of_sound;
+        let mut emissions = VecDeque::new();
+        if outruns {
+            let keep = (self.max_delay * sr / GRID as f64).ceil() as usize + 2;
+            emissions.reserve(keep + 1);
+            emissions.push_back(self.source.at(t0));
+        }
         for (way, s) in ways.iter().zip(&mut state) {
             let first = self.solve(way, t0, self.first_guess(way, t0));
             s.now[1] = first;
@@ -639,6 +768,11 @@ impl StatefulKernel for Propagation {
             s.blocked = s.target;
             s.now[1] = self.solve(way, t1, first.tau);
             s.now[0] = first;
+            if outruns {
+                // Nothing has arrived at the first sample (the start is emitted then).
+                s.now = [Solution { gain: 0.0, ..first }; 2];
+                s.extra.reserve(MAX_BRANCHES);
+            }
             self.set_air(s, sr);
         }
         for (obstacle, placed) in obstacles.iter_mut().zip(&self.environment.obstacles) {
@@ -678,14 +812,28 @@ impl StatefulKernel for Propagation {
                 outputs: vec![0.0; self.receivers.len()],
             })
         });
-        PropagationState {
+        let mut propagation = PropagationState {
             line: DelayLine::new(length),
+            emissions,
+            first_emission: 0,
+            outruns,
+            roots: Vec::with_capacity(MAX_BRANCHES),
             late,
             ways,
             state,
             obstacles,
             position: 0,
+        };
+        if outruns {
+            self.record_emissions(&mut propagation, 1, sr);
+            let mut roots = std::mem::take(&mut propagation.roots);
+            for k in 0..propagation.ways.len() {
+                self.roots(&propagation.ways[k], t1, &propagation, sr, &mut roots);
+                Self::set_branches(&mut propagation.state[k], &roots);
+            }
+            propagation.roots = roots;
         }
+        propagation
     }
 
     fn process(&self, state: &mut PropagationState, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
@@ -719,6 +867,11 @@ impl StatefulKernel for Propagation {
                 }
                 let gain = a.gain + (b.gain - a.gain) * s;
                 let mut y = gain * state.line.read_lagrange(tau * sr);
+                for [a, b] in &w.extra {
+                    let tau = h00 * a.tau + h10 * h * a.slope + h01 * b.tau + h11 * h * b.slope;
+                    let gain = a.gain + (b.gain - a.gain) * s;
+                    y += gain * state.line.read_lagrange(tau * sr);
+                }
                 if self.medium.air.is_some() {
                     y = w.air.process(y);
                 }
