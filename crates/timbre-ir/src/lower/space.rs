@@ -430,7 +430,6 @@ impl Lowerer<'_> {
             late: Late::None,
         };
         let sr = self.settings.sample_rate.unwrap_or(48_000.0);
-        let c = self.space.medium.speed_of_sound;
         let reference = self.space.medium.reference_distance;
         let late = match options.get("reverb") {
             None => "fdn",
@@ -475,7 +474,8 @@ impl Lowerer<'_> {
             };
             // Scaled to the diffuse field's energy (measured on the network at the
             // scene's rate: the energy hardly depends on it).
-            let energy = Acoustics::network(&rt60, acoustics.mean_free_time(c), sr)
+            let energy = acoustics
+                .network(&rt60, sr)
                 .impulse_energy(rt60.iter().fold(0.0, |m: f64, t| m.max(*t)) * 1.5, sr);
             let target = acoustics.late_energy((rt60[2] + rt60[3]) / 2.0, reference);
             acoustics.late = Late::Fdn {

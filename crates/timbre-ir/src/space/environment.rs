@@ -5,7 +5,7 @@ use glam::DVec3;
 
 use std::sync::Arc;
 
-use crate::dsp::fdn::Fdn;
+use crate::dsp::fdn::{Fdn, FdnParams};
 use crate::dsp::wav::SampleData;
 
 use super::geometry::{AlignedBox, Obstacle, Room, Wall};
@@ -118,7 +118,7 @@ impl PlacedObstacle {
 pub enum Late {
     None,
     /// A feedback delay network decaying by 60 dB in `rt60[band]` seconds (matched
-    /// at the 125–250 Hz and 4 kHz bands), its output scaled by `gain` so that its
+    /// at the 250 Hz, 1 kHz and 4 kHz bands), its output scaled by `gain` so that its
     /// energy is the diffuse field's (see [`Acoustics::late_energy`]).
     Fdn {
         rt60: [f64; 6],
@@ -192,14 +192,13 @@ impl Acoustics {
         (self.order as f64 + 1.0) * self.mean_free_time(c)
     }
 
-    /// The late part's network (before its gain) at `sample_rate`, for sound at
-    /// speed `c`: its low RT60 is the mean of the 125 and 250 Hz bands', its high one
-    /// the 4 kHz band's.
-    pub fn network(rt60: &[f64; 6], mean_free_time: f64, sample_rate: f64) -> Fdn {
+    /// The late part's network (before its gain) at `sample_rate`: decaying in the
+    /// RT60s of the 250 Hz, 1 kHz and 4 kHz bands, its delays set by the room's
+    /// largest dimension.
+    pub fn network(&self, rt60: &[f64; 6], sample_rate: f64) -> Fdn {
+        let size = self.room.size().max_element();
         Fdn::new(
-            (rt60[0] + rt60[1]) / 2.0,
-            rt60[5],
-            mean_free_time,
+            &FdnParams::bands(rt60[1], rt60[3], rt60[5], size),
             sample_rate,
         )
     }

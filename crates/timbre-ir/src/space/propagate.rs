@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::environment::{Acoustics, Environment, Late, Material, BANDS, CROSSFADE};
+use super::environment::{Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::path::Path;
 use crate::dsp::air::{Air, AirFilter};
@@ -341,7 +341,13 @@ impl Reverb {
     /// recorded response, which is mono).
     fn process(&mut self, x: f64, outputs: &mut [f64]) {
         match self {
-            Reverb::Network(fdn) => fdn.process(x, outputs),
+            Reverb::Network(fdn) => {
+                // Two uncorrelated outputs: receivers alternate between them.
+                let pair = fdn.process(x);
+                for (k, o) in outputs.iter_mut().enumerate() {
+                    *o = pair[k % 2];
+                }
+            }
             Reverb::Convolution(convolver) => {
                 let mut y = [0.0];
                 convolver.process(&[x], &mut y);
@@ -785,14 +791,9 @@ impl StatefulKernel for Propagation {
             let c = self.medium.speed_of_sound;
             let (reverb, gain) = match &room.late {
                 Late::None => return None,
-                Late::Fdn { rt60, gain } => (
-                    Reverb::Network(Box::new(Acoustics::network(
-                        rt60,
-                        room.mean_free_time(c),
-                        sr,
-                    ))),
-                    *gain,
-                ),
+                Late::Fdn { rt60, gain } => {
+                    (Reverb::Network(Box::new(room.network(rt60, sr))), *gain)
+                }
                 Late::Convolution { response, gain } => (
                     Reverb::Convolution(Box::new(Convolver::new(
                         &resample(response, sr),
