@@ -859,12 +859,14 @@ impl StatefulKernel for Propagation {
             for lane in 0..self.receivers.len() {
                 samples[lane * stride + i] = 0.0;
             }
-            let mut direct = 0.0;
+            // The first receiver's direct delay, if its sound has arrived at all (a
+            // source outrunning its sound is silent until its boom).
+            let mut direct = None;
             for (k, (way, w)) in state.ways.iter().zip(&mut state.state).enumerate() {
                 let [a, b] = w.now;
                 let tau = h00 * a.tau + h10 * h * a.slope + h01 * b.tau + h11 * h * b.slope;
-                if k == 0 {
-                    direct = tau;
+                if k == 0 && (a.gain != 0.0 || b.gain != 0.0) {
+                    direct = Some(tau);
                 }
                 let gain = a.gain + (b.gain - a.gain) * s;
                 let mut y = gain * state.line.read_lagrange(tau * sr);
@@ -889,7 +891,9 @@ impl StatefulKernel for Propagation {
             if let Some(late) = &mut state.late {
                 // The diffuse field: the sound heard directly by the first receiver,
                 // `onset` later, through the network, one output per receiver.
-                let x = late.gain * state.line.read_lagrange((direct + late.onset) * sr);
+                let x = direct.map_or(0.0, |tau| {
+                    late.gain * state.line.read_lagrange((tau + late.onset) * sr)
+                });
                 late.reverb.process(x, &mut late.outputs);
                 let m = &mut late.muffle;
                 m.blocked += (m.target - m.blocked).clamp(-fade_step, fade_step);
