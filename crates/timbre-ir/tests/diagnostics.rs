@@ -307,6 +307,7 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(scene :distance-law cubic)", "timbre::bad-scene", "unknown distance law cubic", "cubic"),
     ("(scene :air-absorption yes)", "timbre::bad-scene", "`:air-absorption` is on or off, not yes", "yes"),
     ("(scene :humidity 120)", "timbre::bad-scene", "humidity 120 is out of range", "120"),
+    ("(scene :distance-law linear :max-distance 0.5)", "timbre::bad-scene", "the linear law falls to silence at 0.5 m, not beyond its reference distance 1 m", "(scene :distance-law linear :max-distance 0.5)"),
     ("(define-sound a (f) (sine (* t f))) (listener) (source car :position (0 1 0)) (instance x (a :f 1) :source cat)", "timbre::unknown-source", "unknown source cat", "cat"),
     ("(define-sound a (f) (sine (* t f))) (source car :position (0 1 0)) (instance x (a :f 1) :source car)", "timbre::no-listener", "an instance is placed in space, but the scene has no listener", "car"),
     ("(define-sound a (f) (sine (* t f))) (listener :pair spaced)", "timbre::bad-listener", "a microphone pair needs a stereo scene", "spaced"),

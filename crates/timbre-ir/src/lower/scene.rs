@@ -983,6 +983,20 @@ impl Lowerer<'_> {
             }
             i += 2;
         }
+        let medium = &self.space.medium;
+        if medium.law == crate::space::DistanceLaw::Linear
+            && medium.max_distance <= medium.reference_distance
+        {
+            return Err(err(
+                form.span,
+                format!(
+                    "the linear law falls to silence at {} m, not beyond its reference distance {} m",
+                    medium.max_distance, medium.reference_distance
+                ),
+                "linear distance law",
+                "give a :max-distance larger than the :reference-distance",
+            ));
+        }
         Ok(())
     }
 }
