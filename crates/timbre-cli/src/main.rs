@@ -141,7 +141,8 @@ struct RenderArgs {
     #[arg(long, short = 'o', value_name = "FILE.wav")]
     output: PathBuf,
 
-    /// Seconds to render (default: the file's `(scene :duration …)`, else 1).
+    /// Seconds to render (default: the file's `(scene :duration …)`; else a scene
+    /// lasts until its last instance has ended, at most 600 s, and a sound 1 s).
     #[arg(long, short = 'd', value_parser = parse_positive)]
     duration: Option<f64>,
 
@@ -350,6 +351,9 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The longest render of a scene without a duration, seconds.
+const OPEN_SCENE_LIMIT: f64 = 600.0;
+
 fn render(args: RenderArgs) -> Result<(), Failure> {
     let program = compile_source(&args.source)?;
     if program.root.is_none() && program.instances.is_empty() {
@@ -362,8 +366,20 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         .sample_rate
         .or(program.settings.sample_rate)
         .unwrap_or(48_000.0);
-    let duration = args.duration.or(program.settings.duration).unwrap_or(1.0);
+    // A scene without a duration lasts until its last instance has ended (as a
+    // Csound score does), up to OPEN_SCENE_LIMIT; a file's one sound, 1 s.
+    let duration = args.duration.or(program.settings.duration);
+    let open_ended = duration.is_none() && program.root.is_none();
+    let duration = duration.unwrap_or(if open_ended { OPEN_SCENE_LIMIT } else { 1.0 });
     let frames = (duration * sample_rate).round() as u64;
+    if !open_ended && !args.quiet {
+        for late in program.instances.iter().filter(|i| i.start >= duration) {
+            eprintln!(
+                "warning: instance `{}` starts at {} s, after the render's end at {duration} s; it is not heard (lengthen :duration, or leave it out to render until the last instance ends)",
+                late.name, late.start
+            );
+        }
+    }
     let bytes_per_sample = match args.format {
         Format::F32 => 4,
         Format::S16 => 2,
@@ -413,17 +429,26 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     let mut progress = Progress::new(frames, sample_rate, args.quiet);
     let channels = scene.channels();
     let render = |out: &mut [f64]| {
+        let first = scene.position();
         scene
             .render(out)
             .map_err(|e| format!("{e}; use --engine interp"))?;
         progress.advance((out.len() / channels) as u64);
-        Ok(())
+        // An open-ended scene is over once its last instance has ended.
+        Ok((open_ended && scene.finished())
+            .then(|| scene.ended_at().saturating_sub(first) as usize))
     };
     let summary = write_wav_atomically(&job, render).map_err(|e| match e {
         wav_out::WriteError::Interrupted => Failure::Interrupted,
         other => Failure::Message(other.to_string()),
     })?;
+    let frames = summary.frames;
     if !args.quiet {
+        if open_ended && frames == (OPEN_SCENE_LIMIT * sample_rate).round() as u64 {
+            eprintln!(
+                "warning: the scene had not ended after {OPEN_SCENE_LIMIT} s (an instance without :stop that never decays?); the render stops there: give the scene a :duration, or its instances a :stop"
+            );
+        }
         if summary.non_finite > 0 {
             eprintln!(
                 "warning: {} samples were not finite (inf or NaN) and were written as silence; \

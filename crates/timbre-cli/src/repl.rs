@@ -147,7 +147,7 @@ impl Session {
         write_wav_atomically(&job, |out: &mut [f64]| {
             out.copy_from_slice(&self.last_samples[written..written + out.len()]);
             written += out.len();
-            Ok(())
+            Ok(None)
         })
         .map(|_| ())
         .map_err(|e| e.to_string())

@@ -27,6 +27,7 @@ pub struct WavJob<'a> {
     pub channels: u16,
     pub format: SampleFormat,
     pub gain: f64,
+    /// Frames to write; the render may end sooner (see [`write_wav_atomically`]).
     pub frames: u64,
     pub interrupted: &'a AtomicBool,
 }
@@ -39,6 +40,8 @@ pub struct Summary {
     pub clipped: u64,
     /// Samples that were inf or NaN, written as 0.
     pub non_finite: u64,
+    /// Frames written.
+    pub frames: u64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -56,12 +59,13 @@ pub enum WriteError {
     Render(String),
 }
 
-/// Renders `job.frames` mono frames with `render` (called with successive chunks) and
-/// writes them to `job.path`. On any failure or interruption the temporary file is
+/// Renders up to `job.frames` frames with `render` (called with successive chunks of
+/// interleaved frames; it returns `Some(k)` when the sound is over after the chunk's
+/// first `k` frames) and writes them to `job.path`. On any failure or interruption the temporary file is
 /// removed and `job.path` is left as it was.
 pub fn write_wav_atomically(
     job: &WavJob<'_>,
-    mut render: impl FnMut(&mut [f64]) -> Result<(), String>,
+    mut render: impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
 ) -> Result<Summary, WriteError> {
     let temp = temp_path(job.path);
     let result = write_to(&temp, job, &mut render).and_then(|summary| {
@@ -80,7 +84,7 @@ pub fn write_wav_atomically(
 fn write_to(
     temp: &Path,
     job: &WavJob<'_>,
-    render: &mut impl FnMut(&mut [f64]) -> Result<(), String>,
+    render: &mut impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
 ) -> Result<Summary, WriteError> {
     let io_error = |source| WriteError::Io {
         path: job.path.to_path_buf(),
@@ -112,8 +116,10 @@ fn write_to(
             return Err(WriteError::Interrupted);
         }
         let n = remaining.min(CHUNK_FRAMES as u64) as usize;
+        // The render says when the sound is over: its last frame in this chunk.
+        let last = render(&mut buffer[..n * channels]).map_err(WriteError::Render)?;
+        let n = last.map_or(n, |k| k.min(n));
         let chunk = &mut buffer[..n * channels];
-        render(chunk).map_err(WriteError::Render)?;
         for x in chunk.iter() {
             let y = if x.is_finite() {
                 x * job.gain
@@ -134,6 +140,10 @@ fn write_to(
             .map_err(wav_error)?;
         }
         remaining -= n as u64;
+        summary.frames += n as u64;
+        if last.is_some() {
+            break;
+        }
     }
     writer.finalize().map_err(wav_error)?;
     Ok(summary)

@@ -155,6 +155,8 @@ pub struct SceneRenderer {
     pending: Vec<Pending>,
     active: Vec<Active>,
     position: u64,
+    /// The sample after the last one any ended instance produced.
+    ended_at: u64,
     scratch: Vec<f64>,
     fade_samples: u64,
     next_id: u64,
@@ -181,6 +183,7 @@ impl SceneRenderer {
             pending: vec![],
             active: vec![],
             position: 0,
+            ended_at: 0,
             scratch: vec![0.0; config.block_size.max(1)],
             fade_samples: (DECLICK_OUT * sr).round().max(1.0) as u64,
             next_id: 0,
@@ -239,6 +242,17 @@ impl SceneRenderer {
     /// Samples rendered so far.
     pub fn position(&self) -> u64 {
         self.position
+    }
+
+    /// Whether every instance has ended (stopped, or decayed) and none is to come:
+    /// the scene is over at [`SceneRenderer::ended_at`].
+    pub fn finished(&self) -> bool {
+        self.pending.is_empty() && self.active.is_empty()
+    }
+
+    /// The sample after the last one that any instance that has ended produced.
+    pub fn ended_at(&self) -> u64 {
+        self.ended_at
     }
 
     /// Instances playing now.
@@ -394,6 +408,11 @@ impl SceneRenderer {
                 }
             }
             active.next = next;
+        }
+        for a in &self.active {
+            if a.end.is_some_and(|e| a.next >= e) {
+                self.ended_at = self.ended_at.max(a.next);
+            }
         }
         self.active.retain(|a| a.end.is_none_or(|e| a.next < e));
         self.position = end;

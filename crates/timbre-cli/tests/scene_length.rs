@@ -1,0 +1,59 @@
+//! A scene without `:duration` lasts until its last instance has ended, as a Csound
+//! score does; an instance after an explicit duration is a warning.
+
+mod common;
+
+use common::*;
+use timbre_testkit::read_wav;
+
+fn write(dir: &std::path::Path, text: &str) -> std::path::PathBuf {
+    let path = dir.join("scene.tt");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+const SCENE: &str = "
+(define-sound tone (f) (* 0.3 (sine (* t f))))
+(define-sound ping (f) (* 0.5 (sine (* t f)) (damp (* t 30))))
+(instance a (tone :f 440) :start 0 :stop 1.5)
+";
+
+#[test]
+fn a_scene_without_duration_ends_with_its_last_stopped_instance() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), SCENE);
+    let wav = render_wav([path.as_os_str()]);
+    // Stopped at 1.5 s, faded out over 5 ms: 72 240 samples.
+    let expected = ((1.5 + timbre_ir::DECLICK_OUT) * SR).round() as usize;
+    assert_eq!(wav.samples.len(), expected);
+}
+
+#[test]
+fn a_scene_without_duration_ends_when_its_last_instance_has_decayed() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = format!("{SCENE}(instance b (ping :f 880) :start 2)");
+    let path = write(dir.path(), &text);
+    let wav = render_wav([path.as_os_str()]);
+    // 0.5·e^(−30 t) falls below −120 dBFS after 0.437 s; the instance ends at the end
+    // of the first 0.1 s window after that (see scenes.md): 0.6 s after its start.
+    assert_eq!(wav.samples.len(), (2.6 * SR).round() as usize);
+    let tail = &wav.samples[wav.samples.len() - 4800..];
+    assert!(tail.iter().all(|x| x.abs() < 1e-6));
+}
+
+#[test]
+fn an_instance_after_the_duration_is_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = format!("(scene :duration 1){SCENE}(instance b (ping :f 880) :start 2)");
+    let path = write(dir.path(), &text);
+    let out = dir.path().join("out.wav");
+    let run = run([
+        "render".as_ref(),
+        path.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    run.assert_success();
+    run.assert_stderr_has("warning: instance `b` starts at 2 s, after the render's end at 1 s");
+    assert_eq!(read_wav(&out).samples.len(), 48_000);
+}
