@@ -57,3 +57,69 @@ fn an_instance_after_the_duration_is_a_warning() {
     run.assert_stderr_has("warning: instance `b` starts at 2 s, after the render's end at 1 s");
     assert_eq!(read_wav(&out).samples.len(), 48_000);
 }
+
+#[test]
+fn a_table_of_collisions_makes_one_instance_per_row() {
+    let path = example("bouncing-balls");
+    let run = run(["check".as_ref(), path.as_os_str()]);
+    run.assert_success();
+    assert!(
+        run.stdout.contains("a scene of 200 instances"),
+        "{}",
+        run.stdout
+    );
+    let wav = render_wav([path.as_os_str()]);
+    let table =
+        std::fs::read_to_string(workspace_root().join("examples/data/bouncing-balls.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = table
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .enumerate()
+                .filter(|(i, _)| *i != 1)
+                .map(|(_, c)| c.parse().unwrap())
+                .collect()
+        })
+        .collect();
+    // Each hit starts on its row's sample (the timer's first sample is 0).
+    let first = timbre_testkit::onset(&wav.samples, 0.0).unwrap();
+    let start = (rows[0][0] * SR).round() as usize;
+    assert!(
+        first == start || first == start + 1,
+        "first hit at {first}, row says {start}"
+    );
+    // Louder for a faster impact: the first two hits' peaks follow their speeds.
+    let peak = |k: usize| {
+        let s = (rows[k][0] * SR).round() as usize;
+        timbre_testkit::peak(&wav.samples[s..s + 480])
+    };
+    let ratio = peak(0) / peak(1);
+    let speeds = rows[0][1] / rows[1][1];
+    assert!(
+        ratio > speeds * 0.8 && ratio < speeds * 1.25,
+        "peaks {ratio}, speeds {speeds}"
+    );
+    // The scene lasts until the last hit has decayed.
+    let last = rows.iter().map(|r| r[0]).fold(0.0, f64::max);
+    let length = wav.samples.len() as f64 / SR;
+    assert!(
+        length > last && length < last + 1.0,
+        "{length} s, last hit at {last} s"
+    );
+}
+
+#[test]
+fn a_table_s_missing_column_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("hits.csv"), "time,force\n0.1,1\n").unwrap();
+    let path = write(
+        dir.path(),
+        "(define-sound hit (amp) (* amp (sine (* t 440))))
+         (instances :csv \"hits.csv\" :class hit :start-column \"time\" :bind (:amp \"forse\"))",
+    );
+    let run = run(["check".as_ref(), path.as_os_str()]);
+    run.assert_code(1);
+    run.assert_stderr_has("the table has no column `forse`");
+    run.assert_stderr_has("its columns are time, force");
+}

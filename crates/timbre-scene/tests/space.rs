@@ -732,3 +732,18 @@ fn faster_than_sound_the_boom_comes_first_and_the_approach_is_heard_backwards() 
         "heard from {heard} s, the boom at {boom} s"
     );
 }
+
+#[test]
+fn an_instance_s_gain_follows_keyframes_on_the_scene_s_timeline() {
+    let program = scene(
+        "(scene :duration 2)
+         (define-sound tone () (sine (* t 440)))
+         (keyframes swell :interp linear (0 0) (2 1))
+         (instance c (tone) :gain swell :start 0.5 :stop 2)",
+    );
+    let x = render(&program, 2.0);
+    for at in [0.75, 1.25, 1.75] {
+        let level = timbre_testkit::rms(window(&x, at - 0.01, at + 0.01)) * 2f64.sqrt();
+        assert!((level - at / 2.0).abs() < 0.01, "gain at {at} s: {level}");
+    }
+}

@@ -19,6 +19,7 @@ pub const FORMS: &[&str] = &[
     "scene",
     "keyframes",
     "instance",
+    "instances",
     "listener",
     "microphone",
     "source",
@@ -60,7 +61,7 @@ impl Lowerer<'_> {
             Some("define") => self.read_define(&form, origin, false),
             Some("define-sound") => self.read_define(&form, origin, true),
             Some("keyframes") => self.read_keyframes(&form, origin),
-            Some("instance") if included_at.is_none() => {
+            Some("instance" | "instances") if included_at.is_none() => {
                 self.instance_forms.push((form, origin.clone()));
                 Ok(())
             }

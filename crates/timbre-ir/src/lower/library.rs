@@ -98,7 +98,12 @@ impl Library {
     ) -> Result<Library, Diagnostics> {
         let mut lowerer = Lowerer::new(options);
         lowerer.read_file(source, base_dir.map(Path::to_path_buf), None);
-        for (form, origin) in lowerer.sounds.iter().chain(&lowerer.instance_forms) {
+        for (form, origin) in lowerer
+            .sounds
+            .iter()
+            .chain(&lowerer.instance_forms)
+            .chain(&lowerer.space_forms)
+        {
             let diag = Diag::new(
                 "timbre::library-not-definitions",
                 "a library of sound classes may hold only definitions",

@@ -13,6 +13,7 @@
 //! the file-backed nodes; `library.rs` classes kept for hosts.
 
 mod args;
+mod events;
 mod expr;
 mod files;
 mod forms;
@@ -260,9 +261,18 @@ impl<'a> Lowerer<'a> {
         }
         let instance_forms = std::mem::take(&mut self.instance_forms);
         for (form, origin) in &instance_forms {
-            match self.lower_instance(form, origin) {
-                Ok(instance) => self.instances.push(instance),
-                Err(diag) => self.errors.push(diag),
+            let head = form
+                .as_list()
+                .and_then(|l| l.first())
+                .and_then(Expr::as_symbol);
+            let lowered = match head {
+                Some("instances") => self.lower_instances(form, origin),
+                _ => self
+                    .lower_instance(form, origin)
+                    .map(|instance| self.instances.push(instance)),
+            };
+            if let Err(diag) = lowered {
+                self.errors.push(diag);
             }
         }
         if let (Some((_, span, origin)), Some((form, _))) = (roots.first(), instance_forms.first())
