@@ -380,6 +380,11 @@ fn suggestions_name_the_closest_node_or_parameter() {
         help("(listener :position carr) (keyframes car (0 (0 0 0)))"),
         "did you mean `car`?"
     );
+    assert!(help("(scene :samplerate 44100)").starts_with("did you mean `:sample-rate`?"));
+    assert!(
+        help("(define-sound a () (sine t)) (instance x (a) :strat 1)")
+            .starts_with("did you mean `:start`?")
+    );
 }
 
 #[test]

@@ -128,7 +128,10 @@ impl Lowerer<'_> {
                         origin,
                     )
                     .label(items[i].span, "unknown option")
-                    .help(format!("its options are {list}")));
+                    .help(match super::did_you_mean(key, known.iter().copied()) {
+                        Some(close) => format!("did you mean `:{close}`? its options are {list}"),
+                        None => format!("its options are {list}"),
+                    }));
             }
             let Some(value) = items.get(i + 1) else {
                 return Err(self
@@ -973,11 +976,16 @@ impl Lowerer<'_> {
                     ))
                 }
                 _ => {
+                    let names = known.split(", ").map(|k| k.trim_start_matches(':'));
+                    let help = match super::did_you_mean(key, names) {
+                        Some(close) => format!("did you mean `:{close}`? settings are {known}"),
+                        None => format!("settings are {known}"),
+                    };
                     return Err(err(
                         args[i].span,
                         format!("unknown scene setting `:{key}`"),
                         "not a setting",
-                        &format!("settings are {known}"),
+                        &help,
                     ));
                 }
             }
