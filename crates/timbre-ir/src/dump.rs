@@ -24,7 +24,7 @@ const MAX_LANES_SHOWN: usize = 32;
 /// The nodes reachable from `roots`, one line each in id order (see the module
 /// documentation for the format). Roots are marked `; root`.
 pub fn dump(graph: &Graph, roots: &[NodeId]) -> String {
-    let reachable = reachable(graph, roots);
+    let reachable = graph.reachable(roots);
     let mut out = String::new();
     for (id, node) in graph.nodes() {
         if !reachable[id.index()] {
@@ -42,24 +42,6 @@ pub fn dump(graph: &Graph, roots: &[NodeId]) -> String {
         out.push('\n');
     }
     out
-}
-
-/// Marks what `roots` need, with an explicit stack: graphs can be chains of millions
-/// of nodes, too deep for recursion.
-fn reachable(graph: &Graph, roots: &[NodeId]) -> Vec<bool> {
-    let mut seen = vec![false; graph.len()];
-    let mut stack: Vec<NodeId> = roots.to_vec();
-    while let Some(id) = stack.pop() {
-        if std::mem::replace(&mut seen[id.index()], true) {
-            continue;
-        }
-        let node = graph.node(id);
-        stack.extend(node.args.iter().filter(|a| !seen[a.index()]));
-        if let Op::Conv(ImpulseResponse::Tree { root, .. }) = &node.op {
-            stack.push(*root);
-        }
-    }
-    seen
 }
 
 /// The op of one line: its name and whatever distinguishes it from another op of

@@ -318,10 +318,26 @@ impl Graph {
     /// sub-tree on a clock of their own (`energetic`), so that no later pass over this
     /// graph (optimising, dumping, copying) has to know about the sub-tree.
     pub fn subgraph(&self, root: NodeId) -> (Graph, NodeId) {
-        let mut needed = vec![false; root.index() + 1];
-        needed[root.index()] = true;
-        // Children have smaller ids: one backwards sweep.
-        for i in (0..=root.index()).rev() {
+        let needed = self.reachable(&[root]);
+        let mut out = Graph::new();
+        let mut map = vec![NodeId(0); root.index() + 1];
+        for i in (0..=root.index()).filter(|i| needed[*i]) {
+            map[i] = out.copy_node(&self.nodes[i], &map);
+        }
+        (out, map[root.index()])
+    }
+
+    /// Which nodes `roots` depend on, through arguments and impulse-response trees.
+    pub(crate) fn reachable(&self, roots: &[NodeId]) -> Vec<bool> {
+        let mut needed = vec![false; self.nodes.len()];
+        for root in roots {
+            needed[root.index()] = true;
+        }
+        // Children have smaller ids: one backwards sweep from the last root.
+        let Some(last) = roots.iter().map(|r| r.index()).max() else {
+            return needed;
+        };
+        for i in (0..=last).rev() {
             if !needed[i] {
                 continue;
             }
@@ -333,23 +349,21 @@ impl Graph {
                 needed[root.index()] = true;
             }
         }
-        let mut out = Graph::new();
-        let mut map = vec![NodeId(0); root.index() + 1];
-        for i in (0..=root.index()).filter(|i| needed[*i]) {
-            let node = &self.nodes[i];
-            let args = node.args.iter().map(|a| map[a.index()]).collect();
-            let op = match &node.op {
-                Op::Conv(ImpulseResponse::Tree { root, seconds }) => {
-                    Op::Conv(ImpulseResponse::Tree {
-                        root: map[root.index()],
-                        seconds: *seconds,
-                    })
-                }
-                op => op.clone(),
-            };
-            map[i] = out.add(op, args);
-        }
-        (out, map[root.index()])
+        needed
+    }
+
+    /// Adds a copy of `node` (of another graph), its arguments and impulse-response
+    /// root renamed by `map` (old id → id here).
+    pub(crate) fn copy_node(&mut self, node: &Node, map: &[NodeId]) -> NodeId {
+        let args = node.args.iter().map(|a| map[a.index()]).collect();
+        let op = match &node.op {
+            Op::Conv(ImpulseResponse::Tree { root, seconds }) => Op::Conv(ImpulseResponse::Tree {
+                root: map[root.index()],
+                seconds: *seconds,
+            }),
+            op => op.clone(),
+        };
+        self.add(op, args)
     }
 
     /// Ids of the nodes the evaluation of `root` needs, in evaluation order. A

@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 use crate::dsp::rotator::DampedSine;
 use crate::graph::{Graph, NodeId};
-use crate::op::{BinaryOp, ImpulseResponse, Op, UnaryOp};
+use crate::op::{BinaryOp, Op, UnaryOp};
 
 /// Products with more factors than this (counting a shared factor each time it occurs)
 /// are not rewritten: flattening them would copy the shared parts.
@@ -32,7 +32,7 @@ pub const MAX_FACTORS: usize = 64;
 
 /// An optimised copy of what `root` needs of `graph`, and where `root` is in it.
 pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
-    let needed = reachable(graph, root);
+    let needed = graph.reachable(&[root]);
     let facts = Facts::new(graph, &needed);
     let mut out = Graph::new();
     let mut map: Vec<NodeId> = vec![NodeId(0); graph.len()];
@@ -43,43 +43,11 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
         }
         let new = match facts.damped_sine(graph, &mut out, &map, id, &mut parts) {
             Some(rewritten) => rewritten,
-            None => {
-                let args = node.args.iter().map(|a| map[a.index()]).collect();
-                let op = match &node.op {
-                    Op::Conv(ImpulseResponse::Tree { root, seconds }) => {
-                        Op::Conv(ImpulseResponse::Tree {
-                            root: map[root.index()],
-                            seconds: *seconds,
-                        })
-                    }
-                    op => op.clone(),
-                };
-                out.add(op, args)
-            }
+            None => out.copy_node(node, &map),
         };
         map[id.index()] = new;
     }
     (out, map[root.index()])
-}
-
-/// The nodes `root` depends on, through arguments and impulse-response trees.
-fn reachable(graph: &Graph, root: NodeId) -> Vec<bool> {
-    let mut needed = vec![false; graph.len()];
-    needed[root.index()] = true;
-    // Children have smaller ids: one backwards sweep.
-    for i in (0..=root.index()).rev() {
-        if !needed[i] {
-            continue;
-        }
-        let node = graph.node(NodeId(i as u32));
-        for arg in &node.args {
-            needed[arg.index()] = true;
-        }
-        if let Op::Conv(ImpulseResponse::Tree { root, .. }) = &node.op {
-            needed[root.index()] = true;
-        }
-    }
-    needed
 }
 
 /// What the rewrites need to know of each needed node, computed in one pass in id

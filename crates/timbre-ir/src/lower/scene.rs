@@ -33,6 +33,17 @@ pub(crate) enum Track {
     Vector(Arc<[Arc<KeyframeTrack>]>),
 }
 
+impl Track {
+    /// One track per coordinate if `vector`, else the one track.
+    fn of(mut tracks: Vec<Arc<KeyframeTrack>>, vector: bool) -> Track {
+        if vector {
+            Track::Vector(tracks.into())
+        } else {
+            Track::Scalar(tracks.remove(0))
+        }
+    }
+}
+
 /// `(time value)` or `(time (x y …))`: the time and the value(s).
 fn key_parts(key: &Expr) -> Option<(f64, Vec<f64>)> {
     let number = |e: &Expr| match e.kind {
@@ -326,11 +337,7 @@ impl Lowerer<'_> {
             })?;
             tracks.push(Arc::new(track));
         }
-        Ok(if vector {
-            Track::Vector(tracks.into())
-        } else {
-            Track::Scalar(tracks.remove(0))
-        })
+        Ok(Track::of(tracks, vector))
     }
 
     fn csv_track(
@@ -449,11 +456,7 @@ impl Lowerer<'_> {
                 })?;
             tracks.push(Arc::new(track));
         }
-        Ok(if vector {
-            Track::Vector(tracks.into())
-        } else {
-            Track::Scalar(tracks.remove(0))
-        })
+        Ok(Track::of(tracks, vector))
     }
 
     /// A keyframed variable read on the scene's timeline: in an instance, scene time

@@ -8,7 +8,7 @@ use crate::keyframes::KeyframeTrack;
 use crate::op::Description;
 
 /// Step of the central difference that gives a path's velocity, in seconds.
-const VELOCITY_STEP: f64 = 1e-4;
+pub(crate) const VELOCITY_STEP: f64 = 1e-4;
 
 /// A point moving on the scene's timeline (seconds of scene time).
 #[derive(Clone, Debug, PartialEq)]

@@ -18,7 +18,7 @@ use glam::DVec3;
 
 use super::environment::{Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
-use super::path::Path;
+use super::path::{Path, VELOCITY_STEP};
 use crate::dsp::air::{Air, AirFilter};
 use crate::dsp::conv::Convolver;
 use crate::dsp::delay::DelayLine;
@@ -178,7 +178,7 @@ impl Receiver {
         if self.offset == DVec3::ZERO || self.facing.is_fixed() {
             return self.position.velocity(t);
         }
-        let h = 1e-4;
+        let h = VELOCITY_STEP;
         (self.at(t + h) - self.at(t - h)) / (2.0 * h)
     }
 
@@ -314,16 +314,49 @@ struct WayState {
     /// sound (each a pair like `now`); empty otherwise.
     extra: Vec<[Solution; 2]>,
     wall: OnePole,
-    /// The low-pass of the obstacle in the way, and how far the way is blocked (0
-    /// clear, 1 blocked), moving toward `target` over [`CROSSFADE`].
-    obstacle: OnePole,
-    blocked: f64,
-    target: f64,
-    material: Option<Material>,
-    /// The one-pole coefficient of the material's cutoff.
-    coefficient: f64,
+    /// The obstacle in the way, if any.
+    muffle: Muffle,
     /// Air absorption over the way's length.
     air: AirFilter,
+}
+
+/// What an obstacle does to a sound: its material's gain and low-pass, crossfaded
+/// in and out over [`CROSSFADE`] as the sound becomes blocked or clear.
+#[derive(Clone, Debug, Default)]
+struct Muffle {
+    filter: OnePole,
+    /// How far the sound is blocked (0 clear, 1 blocked), moving toward `target`.
+    blocked: f64,
+    target: f64,
+    /// The last material that blocked it, and its one-pole coefficient.
+    material: Option<Material>,
+    coefficient: f64,
+}
+
+impl Muffle {
+    /// Blocked by `material` from now on, or clear (None).
+    fn set(&mut self, material: Option<Material>, sr: f64) {
+        let Some(material) = material else {
+            self.target = 0.0;
+            return;
+        };
+        if self.material != Some(material) {
+            self.material = Some(material);
+            self.coefficient = OnePole::coefficient(material.cutoff, sr);
+        }
+        self.target = 1.0;
+    }
+
+    /// One sample through it, `fade_step` the crossfade's move per sample.
+    #[inline]
+    fn process(&mut self, y: f64, fade_step: f64) -> f64 {
+        let Some(material) = self.material else {
+            return y;
+        };
+        let muffled = material.gain() * self.filter.process(self.coefficient, y);
+        self.blocked += (self.target - self.blocked).clamp(-fade_step, fade_step);
+        y + (muffled - y) * self.blocked
+    }
 }
 
 /// Partition of the late part's convolution, samples.
@@ -365,7 +398,8 @@ struct LateState {
     gain: f64,
     /// Seconds after the direct sound it is fed.
     onset: f64,
-    muffle: WayState,
+    /// One per receiver.
+    muffles: Vec<Muffle>,
     /// The network's output for each receiver.
     outputs: Vec<f64>,
 }
@@ -643,7 +677,7 @@ impl Propagation {
             self.set_air(s, sr);
         }
         if let Some(late) = &mut state.late {
-            late_blocking(&state.ways, &state.state, &mut late.muffle, sr);
+            late_blocking(&state.ways, &state.state, &mut late.muffles, sr);
         }
     }
 
@@ -657,24 +691,16 @@ impl Propagation {
 
     /// Sets whether `way` is to be blocked, and by which material.
     fn block(&self, way: &Way, s: &mut WayState, t: f64, obstacles: &[Obstacle], sr: f64) {
-        match self.blocking(way, &s.now[1], t, obstacles) {
-            Some(k) => {
-                let material = self.environment.obstacles[k].material;
-                if s.material != Some(material) {
-                    s.material = Some(material);
-                    s.coefficient = OnePole::coefficient(material.cutoff, sr);
-                }
-                s.target = 1.0;
-            }
-            None => s.target = 0.0,
-        }
+        let blocking = self.blocking(way, &s.now[1], t, obstacles);
+        let material = blocking.map(|k| self.environment.obstacles[k].material);
+        s.muffle.set(material, sr);
     }
 }
 
 /// The late part is muffled when fewer than half of the first receiver's first-order
 /// reflections reach it (Table 1's occlusion and exclusion), by the material of one
 /// that is blocked.
-fn late_blocking(ways: &[Way], states: &[WayState], muffle: &mut WayState, sr: f64) {
+fn late_blocking(ways: &[Way], states: &[WayState], muffles: &mut [Muffle], sr: f64) {
     let first_order = ways.iter().zip(states).filter(|(w, _)| {
         w.receiver == 0
             && w.image
@@ -683,19 +709,14 @@ fn late_blocking(ways: &[Way], states: &[WayState], muffle: &mut WayState, sr: f
     let (mut total, mut blocked, mut material) = (0, 0, None);
     for (_, s) in first_order {
         total += 1;
-        if s.target > 0.5 {
+        if s.muffle.target > 0.5 {
             blocked += 1;
-            material = s.material;
+            material = s.muffle.material;
         }
     }
-    if total > 0 && 2 * blocked > total {
-        if muffle.material != material {
-            muffle.material = material;
-            muffle.coefficient = material.map_or(1.0, |m| OnePole::coefficient(m.cutoff, sr));
-        }
-        muffle.target = 1.0;
-    } else {
-        muffle.target = 0.0;
+    let material = material.filter(|_| total > 0 && 2 * blocked > total);
+    for muffle in muffles {
+        muffle.set(material, sr);
     }
 }
 
@@ -771,7 +792,7 @@ impl StatefulKernel for Propagation {
             s.now[1] = first;
             // Blocked from the start: no crossfade.
             self.block(way, s, t0, &obstacles, sr);
-            s.blocked = s.target;
+            s.muffle.blocked = s.muffle.target;
             s.now[1] = self.solve(way, t1, first.tau);
             s.now[0] = first;
             if outruns {
@@ -802,14 +823,16 @@ impl StatefulKernel for Propagation {
                     *gain,
                 ),
             };
-            let mut muffle = WayState::default();
-            late_blocking(&ways, &state, &mut muffle, sr);
-            muffle.blocked = muffle.target;
+            let mut muffles = vec![Muffle::default(); self.receivers.len()];
+            late_blocking(&ways, &state, &mut muffles, sr);
+            for muffle in &mut muffles {
+                muffle.blocked = muffle.target;
+            }
             Some(LateState {
                 reverb,
                 gain,
                 onset: room.late_onset(c),
-                muffle,
+                muffles,
                 outputs: vec![0.0; self.receivers.len()],
             })
         });
@@ -843,6 +866,9 @@ impl StatefulKernel for Propagation {
         let (samples, stride) = out.strided();
         let h = GRID as f64 / sr;
         let fade_step = 1.0 / (CROSSFADE * sr);
+        for lane in 0..self.receivers.len() {
+            samples[lane * stride..lane * stride + x.len()].fill(0.0);
+        }
         for (i, &sample) in x.iter().enumerate() {
             let phase = (state.position % GRID as u64) as usize;
             if phase == 0 && state.position > 0 {
@@ -856,9 +882,6 @@ impl StatefulKernel for Propagation {
             let h10 = s3 - 2.0 * s2 + s;
             let h01 = -2.0 * s3 + 3.0 * s2;
             let h11 = s3 - s2;
-            for lane in 0..self.receivers.len() {
-                samples[lane * stride + i] = 0.0;
-            }
             // The first receiver's direct delay, if its sound has arrived at all (a
             // source outrunning its sound is silent until its boom).
             let mut direct = None;
@@ -881,12 +904,7 @@ impl StatefulKernel for Propagation {
                 if let Some(coefficient) = way.wall_filter {
                     y = w.wall.process(coefficient, y);
                 }
-                if let Some(material) = w.material {
-                    let muffled = material.gain() * w.obstacle.process(w.coefficient, y);
-                    w.blocked += (w.target - w.blocked).clamp(-fade_step, fade_step);
-                    y += (muffled - y) * w.blocked;
-                }
-                samples[way.receiver * stride + i] += y;
+                samples[way.receiver * stride + i] += w.muffle.process(y, fade_step);
             }
             if let Some(late) = &mut state.late {
                 // The diffuse field: the sound heard directly by the first receiver,
@@ -895,15 +913,8 @@ impl StatefulKernel for Propagation {
                     late.gain * state.line.read_lagrange((tau + late.onset) * sr)
                 });
                 late.reverb.process(x, &mut late.outputs);
-                let m = &mut late.muffle;
-                m.blocked += (m.target - m.blocked).clamp(-fade_step, fade_step);
-                for (lane, y) in late.outputs.iter().enumerate() {
-                    let mut y = *y;
-                    if let Some(material) = m.material {
-                        let muffled = material.gain() * m.obstacle.process(m.coefficient, y);
-                        y += (muffled - y) * m.blocked;
-                    }
-                    samples[lane * stride + i] += y;
+                for (lane, (y, muffle)) in late.outputs.iter().zip(&mut late.muffles).enumerate() {
+                    samples[lane * stride + i] += muffle.process(*y, fade_step);
                 }
             }
             state.position += 1;
