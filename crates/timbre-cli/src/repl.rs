@@ -348,8 +348,9 @@ fn summary(session: &Session) -> String {
 
 /// Plays the last render where possible, else writes it to the audition WAV.
 fn audition(session: &Session) {
-    match crate::playback::play(&session.last_samples, session.sample_rate) {
-        Ok(()) => println!("{}", summary(session)),
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    match crate::playback::play(&session.last_samples, 1, session.sample_rate, &cancel) {
+        Ok(_) => println!("{}", summary(session)),
         Err(why) => match session.write_wav(&session.audition_path) {
             Ok(()) => println!(
                 "{} -> {} ({why})",
