@@ -1,28 +1,37 @@
 //! `timbre repl`: type a timbre tree and hear it at once.
 //!
-//! An expression is rendered and auditioned (played where the `playback` feature and a
-//! sound device exist, else written to a WAV) with a one-line summary. Definitions
-//! typed in the session are kept in a virtual file, `<session>`, that every input
-//! includes, so each input is compiled on its own and its diagnostics point into
-//! exactly what was typed. Input continues over lines until its parentheses balance.
+//! An expression is rendered and auditioned (played where a sound device or a system
+//! player exists, else written to a WAV) with a one-line summary. The session keeps
+//! one entry per name typed (`define`, `define-sound`, `keyframes`), so typing a
+//! definition again replaces it, and the files given to `:load`, which are read again
+//! at every evaluation. Each input is compiled after the session's definitions (read
+//! as a library), so its diagnostics point into exactly what was typed. Ctrl-C during
+//! an audition stops it and keeps the session.
 
-use std::collections::BTreeMap;
+use std::collections::BTreeSet;
 use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use rustyline::completion::{Completer, Pair};
+use rustyline::completion::{Completer, FilenameCompleter, Pair};
 use rustyline::highlight::Highlighter;
 use rustyline::hint::Hinter;
 use rustyline::history::DefaultHistory;
-use rustyline::validate::{ValidationContext, ValidationResult, Validator};
+use rustyline::validate::Validator;
 use rustyline::{Context, Editor, Helper};
 use timbre_ir::dsp::analysis;
 use timbre_ir::{
-    compile, CompileOptions, FsLoader, Loader, Program, Registry, RenderConfig, SourceFile,
+    compile, compile_after, CompileOptions, FsLoader, Loader, Program, Registry, RenderConfig,
+    SourceFile,
 };
+use timbre_syntax::{Expr, ExprKind};
 
 use crate::wav_out::{write_wav_atomically, SampleFormat, WavJob};
+
+const PROMPT: &str = "timbre> ";
+/// Shown while an input's parentheses are still open.
+const CONTINUATION: &str = "   ...> ";
 
 const COMMANDS: &[(&str, &str)] = &[
     (":set", ":set NAME VALUE   give a free parameter a value"),
@@ -32,13 +41,18 @@ const COMMANDS: &[(&str, &str)] = &[
     (":save", ":save FILE.wav    write the last render"),
     (
         ":load",
-        ":load FILE.tt     make a file's definitions available",
+        ":load FILE.tt     a library's definitions (read again at every evaluation); a sound or scene is also auditioned",
     ),
     (":defs", ":defs             list the definitions"),
+    (":undef", ":undef NAME       forget a definition"),
+    (
+        ":reset",
+        ":reset            forget all definitions, files and settings",
+    ),
     (":tree", ":tree             draw the last expression's tree"),
     (
         ":plot",
-        ":plot wave|spectrogram|log-spectrogram [FILE.png]   picture the last render",
+        ":plot KIND [FILE.png]   picture the last render (:plot lists the kinds)",
     ),
     (
         ":graph",
@@ -52,95 +66,289 @@ const COMMANDS: &[(&str, &str)] = &[
     (":quit", ":quit             leave (or Ctrl-D)"),
 ];
 
+const PLOT_KINDS: &[(&str, &str)] = &[
+    ("wave", "the waveform, amplitude over time"),
+    (
+        "spectrogram",
+        "level by frequency and time, linear frequency axis",
+    ),
+    (
+        "log-spectrogram",
+        "the same with a log frequency axis (pitched sounds)",
+    ),
+];
+
+/// Keywords offered by Tab after `:` inside an expression, besides every node's
+/// parameter names: the options of the scene forms.
+const FORM_KEYWORDS: &[&str] = &[
+    "sample-rate",
+    "duration",
+    "seed",
+    "channels",
+    "start",
+    "stop",
+    "gain",
+    "pan",
+    "source",
+    "at",
+    "interp",
+    "csv",
+    "column",
+    "columns",
+    "class",
+    "start-column",
+    "stop-column",
+    "name-column",
+    "bind",
+    "position",
+    "facing",
+    "speed-of-sound",
+    "distance-law",
+    "air-absorption",
+];
+
+/// The longest audition of a scene without a duration, seconds.
+const OPEN_SCENE_LIMIT: f64 = 600.0;
+
+/// Frames rendered between two looks at Ctrl-C.
+const CHUNK_FRAMES: usize = 8192;
+
+/// Set by Ctrl-C while no line is being read; cleared before each audition.
+static CANCEL: AtomicBool = AtomicBool::new(false);
+
+/// One entry of the session's definitions.
+#[derive(Clone, Debug)]
+enum Entry {
+    /// A form typed at the prompt that defines `name`.
+    Typed { name: String, text: String },
+    /// A file given to `:load`: only its definitions, includes and keyframes count,
+    /// and `hidden` names have been redefined at the prompt since.
+    File {
+        path: PathBuf,
+        names: Vec<String>,
+        hidden: BTreeSet<String>,
+    },
+}
+
 /// The session: settings, definitions, and the last thing rendered.
 struct Session {
-    bindings: BTreeMap<String, f64>,
+    bindings: std::collections::BTreeMap<String, f64>,
     duration: f64,
     sample_rate: f64,
     seed: u64,
-    /// Text of the session's definitions (and `include`s of loaded files).
-    definitions: String,
-    /// Names defined so far, for completion.
-    names: Vec<String>,
+    channels: usize,
+    entries: Vec<Entry>,
     last_source: Option<String>,
     last_samples: Vec<f64>,
+    last_channels: usize,
+    last_rate: f64,
     audition_path: PathBuf,
 }
 
-/// Serves the session's definitions as `<session>`, and files from disk.
+impl Default for Session {
+    fn default() -> Self {
+        Session {
+            bindings: Default::default(),
+            duration: 1.0,
+            sample_rate: 48_000.0,
+            seed: 0,
+            channels: 1,
+            entries: vec![],
+            last_source: None,
+            last_samples: vec![],
+            last_channels: 1,
+            last_rate: 48_000.0,
+            audition_path: PathBuf::new(),
+        }
+    }
+}
+
+/// Serves the session's loaded files as `<load:N>`, keeping only their definitions.
 struct SessionLoader<'a> {
-    definitions: &'a str,
+    entries: &'a [Entry],
+    /// Names about to be redefined: left out of every file.
+    exclude: &'a BTreeSet<String>,
 }
 
 impl Loader for SessionLoader<'_> {
     fn load(&self, path: &str, base: Option<&Path>) -> io::Result<(PathBuf, Vec<u8>)> {
-        if path == "<session>" {
-            return Ok((
-                PathBuf::from("<session>"),
-                self.definitions.as_bytes().to_vec(),
-            ));
-        }
-        FsLoader.load(path, base)
+        let index = path
+            .strip_prefix("<load:")
+            .and_then(|rest| rest.strip_suffix('>'))
+            .and_then(|n| n.parse::<usize>().ok());
+        let Some(Entry::File { path, hidden, .. }) = index.and_then(|i| self.entries.get(i)) else {
+            return FsLoader.load(path, base);
+        };
+        let text = std::fs::read_to_string(path)?;
+        let left_out = |name: &str| hidden.contains(name) || self.exclude.contains(name);
+        // The file's real path, so that its own includes resolve next to it and
+        // diagnostics name it; the text keeps its offsets (forms are blanked, not cut).
+        Ok((path.clone(), definitions_only(&text, left_out).into_bytes()))
     }
 }
 
+/// `text` with every top-level form blanked (spaces, newlines kept) except
+/// definitions, includes and keyframes, and except definitions `left_out` names.
+fn definitions_only(text: &str, left_out: impl Fn(&str) -> bool) -> String {
+    let mut bytes = text.as_bytes().to_vec();
+    for form in timbre_syntax::parse(text).exprs {
+        let keep = match head_and_name(&form) {
+            (Some("define" | "define-sound"), Some(name)) => !left_out(name),
+            (Some("include" | "keyframes"), _) => true,
+            _ => false,
+        };
+        if !keep {
+            for b in &mut bytes[form.span.start..form.span.end] {
+                if *b != b'\n' {
+                    *b = b' ';
+                }
+            }
+        }
+    }
+    // Blanking whole forms replaces whole characters, so the text stays UTF-8.
+    String::from_utf8(bytes).unwrap_or_default()
+}
+
+/// A top-level form's head symbol and, for forms that name something, its name.
+fn head_and_name(form: &Expr) -> (Option<&str>, Option<&str>) {
+    let items = form.as_list().unwrap_or_default();
+    let head = items.first().and_then(Expr::as_symbol);
+    let name = match head {
+        Some("define" | "define-sound" | "keyframes") => items.get(1).and_then(Expr::as_symbol),
+        _ => None,
+    };
+    (head, name)
+}
+
+/// What an input does besides possibly making a sound.
+struct Reading {
+    /// Each naming form: the name and the form's text.
+    defines: Vec<(String, String)>,
+    /// The text of each `include` form.
+    includes: Vec<String>,
+    /// The keywords given in `(scene …)` forms.
+    scene_keys: BTreeSet<String>,
+}
+
+fn read_input(input: &str) -> Reading {
+    let mut reading = Reading {
+        defines: vec![],
+        includes: vec![],
+        scene_keys: BTreeSet::new(),
+    };
+    for form in timbre_syntax::parse(input).exprs {
+        match head_and_name(&form) {
+            (_, Some(name)) => reading.defines.push((
+                name.to_owned(),
+                input[form.span.start..form.span.end].to_owned(),
+            )),
+            (Some("include"), _) => reading
+                .includes
+                .push(input[form.span.start..form.span.end].to_owned()),
+            (Some("scene"), _) => {
+                for item in form.as_list().unwrap_or_default() {
+                    if let ExprKind::Keyword(key) = &item.kind {
+                        reading.scene_keys.insert(key.clone());
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    reading
+}
+
 impl Session {
-    fn compile(&self, input: &str) -> Result<Program, timbre_ir::Diagnostics> {
+    /// Names the session defines (typed, and from loaded files).
+    fn names(&self) -> Vec<String> {
+        let mut names = vec![];
+        for entry in &self.entries {
+            match entry {
+                // An include typed at the prompt is keyed by its text.
+                Entry::Typed { name, .. } if name.starts_with('(') => {}
+                Entry::Typed { name, .. } => names.push(name.clone()),
+                Entry::File {
+                    names: n, hidden, ..
+                } => names.extend(n.iter().filter(|x| !hidden.contains(*x)).cloned()),
+            }
+        }
+        names
+    }
+
+    /// The session as a library text, leaving out typed definitions of `exclude`.
+    fn prelude(&self, exclude: &BTreeSet<String>) -> String {
+        let mut text = String::new();
+        for (i, entry) in self.entries.iter().enumerate() {
+            match entry {
+                Entry::Typed { name, .. } if exclude.contains(name) => {}
+                Entry::Typed { text: t, .. } => text.push_str(t),
+                Entry::File { .. } => text.push_str(&format!("(include \"<load:{i}>\")")),
+            }
+            text.push('\n');
+        }
+        text
+    }
+
+    /// Compiles `input` after the session's definitions, except those of `exclude`
+    /// (which the input redefines). The file's own seed wins when `own_seed`.
+    fn compile(
+        &self,
+        input: &str,
+        exclude: &BTreeSet<String>,
+        own_seed: bool,
+    ) -> Result<Program, timbre_ir::Diagnostics> {
         let registry = Registry::new();
         let loader = SessionLoader {
-            definitions: &self.definitions,
+            entries: &self.entries,
+            exclude,
         };
         let mut options = CompileOptions::new(&registry, &loader);
         options.bindings = self.bindings.clone();
-        options.seed = Some(self.seed);
-        // The input comes first so its diagnostics show its own lines.
-        let source = format!("{input}\n(include \"<session>\")");
-        compile(
-            SourceFile::new("<input>", source),
+        options.seed = (!own_seed).then_some(self.seed);
+        compile_after(
+            SourceFile::new("<session>", self.prelude(exclude)),
+            SourceFile::new("<input>", input),
             Some(Path::new(".")),
             &options,
         )
     }
 
-    /// Adds `text` (definitions that compiled as `program`) to the session; returns
-    /// the names it defines for the first time.
-    fn define(&mut self, text: &str, program: Program) -> Vec<String> {
-        self.definitions.push_str(text);
-        self.definitions.push('\n');
-        let new: Vec<String> = program
-            .definitions
-            .into_iter()
-            .filter(|d| !self.names.contains(d))
-            .collect();
-        self.names.extend(new.iter().cloned());
-        new
+    /// Puts `name`'s new text in place of its old definition; true if it had one.
+    fn redefine(&mut self, name: &str, text: String) -> bool {
+        let existed = self.forget(name);
+        self.entries.push(Entry::Typed {
+            name: name.to_owned(),
+            text,
+        });
+        existed
     }
 
-    fn config(&self) -> RenderConfig {
-        RenderConfig {
-            sample_rate: self.sample_rate,
-            block_size: 256,
+    /// Forgets `name` (typed, or hides it in the loaded files); true if it was defined.
+    fn forget(&mut self, name: &str) -> bool {
+        let before = self.entries.len();
+        self.entries
+            .retain(|e| !matches!(e, Entry::Typed { name: n, .. } if n == name));
+        let mut found = self.entries.len() != before;
+        for entry in &mut self.entries {
+            if let Entry::File { names, hidden, .. } = entry {
+                if names.iter().any(|n| n == name) && hidden.insert(name.to_owned()) {
+                    found = true;
+                }
+            }
         }
-    }
-
-    fn render(&self, program: &Program, engine: timbre_scene::Engine) -> Result<Vec<f64>, String> {
-        let mut scene = timbre_scene::SceneRenderer::new(program, self.config(), engine)
-            .map_err(|e| e.to_string())?;
-        let frames = (self.duration * self.sample_rate).round() as usize;
-        let mut out = vec![0.0; frames * scene.channels()];
-        scene.render(&mut out).map_err(|e| e.to_string())?;
-        Ok(out)
+        found
     }
 
     fn write_wav(&self, path: &Path) -> Result<(), String> {
-        let interrupted = std::sync::atomic::AtomicBool::new(false);
+        let interrupted = AtomicBool::new(false);
+        let channels = self.last_channels.max(1);
         let job = WavJob {
             path,
-            sample_rate: self.sample_rate as u32,
-            channels: 1,
+            sample_rate: self.last_rate as u32,
+            channels: channels as u16,
             format: SampleFormat::F32,
             gain: 1.0,
-            frames: self.last_samples.len() as u64,
+            frames: (self.last_samples.len() / channels) as u64,
             interrupted: &interrupted,
         };
         let mut written = 0;
@@ -154,10 +362,102 @@ impl Session {
     }
 }
 
-/// Completion of node names, definitions and commands; input continues while its
-/// parentheses are open.
+/// How long to render, and at what rate and width.
+struct Take {
+    sample_rate: f64,
+    channels: usize,
+    /// Frames to render at most.
+    frames: usize,
+    /// Stop early once every instance has ended (a scene without a duration).
+    until_ended: bool,
+}
+
+/// Renders `take` of `program`, a chunk at a time so that Ctrl-C can stop it; `None`
+/// when cancelled. A progress line appears when it takes over a second.
+fn render(
+    program: &Program,
+    take: &Take,
+    engine: timbre_scene::Engine,
+) -> Result<Option<Vec<f64>>, String> {
+    let mut program = program.clone();
+    program.settings.channels = Some(take.channels);
+    let config = RenderConfig {
+        sample_rate: take.sample_rate,
+        block_size: 256,
+    };
+    let mut scene =
+        timbre_scene::SceneRenderer::new(&program, config, engine).map_err(|e| e.to_string())?;
+    let channels = scene.channels();
+    let mut out = vec![0.0; take.frames * channels];
+    let progress = Progress::new(take.frames, take.sample_rate);
+    let mut done = 0;
+    while done < take.frames {
+        if CANCEL.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let n = CHUNK_FRAMES.min(take.frames - done);
+        let first = scene.position();
+        scene
+            .render(&mut out[done * channels..(done + n) * channels])
+            .map_err(|e| e.to_string())?;
+        if take.until_ended && scene.finished() {
+            done += (scene.ended_at().saturating_sub(first) as usize).min(n);
+            break;
+        }
+        done += n;
+        progress.advance(done);
+    }
+    out.truncate(done * channels);
+    Ok(Some(out))
+}
+
+/// A one-line progress bar on stderr for renders over a second.
+struct Progress {
+    bar: indicatif::ProgressBar,
+    started: Instant,
+    sample_rate: f64,
+}
+
+impl Progress {
+    fn new(frames: usize, sample_rate: f64) -> Self {
+        let bar = indicatif::ProgressBar::with_draw_target(
+            Some(frames as u64),
+            indicatif::ProgressDrawTarget::hidden(),
+        );
+        let style = indicatif::ProgressStyle::with_template(
+            "rendering {bar:30} {percent:>3}%  {msg}  (Ctrl-C stops)",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+        bar.set_style(style);
+        Progress {
+            bar,
+            started: Instant::now(),
+            sample_rate,
+        }
+    }
+
+    fn advance(&self, done: usize) {
+        if self.bar.is_hidden() && self.started.elapsed().as_secs_f64() >= 1.0 {
+            self.bar
+                .set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        }
+        self.bar
+            .set_message(format!("{:.1} s", done as f64 / self.sample_rate));
+        self.bar.set_position(done as u64);
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// Completion of node names, definitions, keywords, commands, and file names after
+/// `:load` and `:save`.
 struct ReplHelper {
     names: Vec<String>,
+    files: FilenameCompleter,
 }
 
 impl Completer for ReplHelper {
@@ -167,8 +467,11 @@ impl Completer for ReplHelper {
         &self,
         line: &str,
         pos: usize,
-        _: &Context<'_>,
+        ctx: &Context<'_>,
     ) -> rustyline::Result<(usize, Vec<Pair>)> {
+        if line.starts_with(":load ") || line.starts_with(":save ") {
+            return self.files.complete(line, pos, ctx);
+        }
         let start = line[..pos]
             .rfind(|c: char| c.is_whitespace() || c == '(' || c == ')')
             .map_or(0, |i| i + 1);
@@ -176,14 +479,15 @@ impl Completer for ReplHelper {
         if word.is_empty() {
             return Ok((pos, vec![]));
         }
-        let mut candidates: Vec<&str> = if word.starts_with(':') && start == 0 {
-            COMMANDS.iter().map(|(c, _)| *c).collect()
+        let mut candidates: Vec<String> = if word.starts_with(':') && start == 0 {
+            COMMANDS.iter().map(|(c, _)| c.to_string()).collect()
+        } else if word.starts_with(':') {
+            keywords().map(|k| format!(":{k}")).collect()
         } else {
-            let builtins = timbre_ir::catalogue::names()
+            timbre_ir::catalogue::names()
                 .chain(timbre_ir::catalogue::FORMS.iter().copied())
-                .map(|n| -> &str { n });
-            builtins
-                .chain(self.names.iter().map(String::as_str))
+                .map(str::to_owned)
+                .chain(self.names.iter().cloned())
                 .collect()
         };
         candidates.retain(|c| c.starts_with(word));
@@ -192,12 +496,20 @@ impl Completer for ReplHelper {
         let pairs = candidates
             .into_iter()
             .map(|c| Pair {
-                display: c.to_owned(),
-                replacement: c.to_owned(),
+                display: c.clone(),
+                replacement: c,
             })
             .collect();
         Ok((start, pairs))
     }
+}
+
+/// Every keyword: the nodes' parameter names and the forms' options.
+fn keywords() -> impl Iterator<Item = &'static str> {
+    timbre_ir::catalogue::names()
+        .filter_map(timbre_ir::catalogue::lookup)
+        .flat_map(|spec| spec.params.iter().map(|p| p.name))
+        .chain(FORM_KEYWORDS.iter().copied())
 }
 
 impl Hinter for ReplHelper {
@@ -206,15 +518,7 @@ impl Hinter for ReplHelper {
 
 impl Highlighter for ReplHelper {}
 
-impl Validator for ReplHelper {
-    fn validate(&self, ctx: &mut ValidationContext<'_>) -> rustyline::Result<ValidationResult> {
-        Ok(if open_parens(ctx.input()) > 0 {
-            ValidationResult::Incomplete
-        } else {
-            ValidationResult::Valid(None)
-        })
-    }
-}
+impl Validator for ReplHelper {}
 
 impl Helper for ReplHelper {}
 
@@ -243,42 +547,71 @@ fn history_path() -> Option<PathBuf> {
     std::env::var_os("HOME").map(|home| PathBuf::from(home).join(".timbre_history"))
 }
 
+/// Reads one input: a line, continued while its parentheses are open. `None` at the
+/// end of input; an empty string when Ctrl-C dropped what was typed.
+fn read_input_lines(
+    editor: &mut Editor<ReplHelper, DefaultHistory>,
+) -> Result<Option<String>, String> {
+    use rustyline::error::ReadlineError;
+    let mut input = String::new();
+    loop {
+        let prompt = if input.is_empty() {
+            PROMPT
+        } else {
+            CONTINUATION
+        };
+        match editor.readline(prompt) {
+            Ok(line) => {
+                if !input.is_empty() {
+                    input.push('\n');
+                }
+                input.push_str(&line);
+                if open_parens(&input) <= 0 {
+                    return Ok(Some(input));
+                }
+            }
+            Err(ReadlineError::Interrupted) => return Ok(Some(String::new())),
+            Err(ReadlineError::Eof) if input.is_empty() => return Ok(None),
+            Err(ReadlineError::Eof) => return Ok(Some(input)),
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+}
+
 /// Runs the REPL until Ctrl-D or `:quit`.
 pub fn run(audition_path: PathBuf) -> Result<(), String> {
     let mut editor: Editor<ReplHelper, DefaultHistory> =
         Editor::new().map_err(|e| e.to_string())?;
-    editor.set_helper(Some(ReplHelper { names: vec![] }));
-    if let Some(path) = history_path() {
-        let _ = editor.load_history(&path);
-    }
-    let mut session = Session {
-        bindings: BTreeMap::new(),
-        duration: 1.0,
-        sample_rate: 48_000.0,
-        seed: 0,
-        definitions: String::new(),
+    editor.set_helper(Some(ReplHelper {
         names: vec![],
-        last_source: None,
-        last_samples: vec![],
+        files: FilenameCompleter::new(),
+    }));
+    let history = history_path();
+    if let Some(path) = &history {
+        let _ = editor.load_history(path);
+    }
+    // Ctrl-C outside line editing (during a render or a play) stops that audition.
+    let _ = ctrlc::set_handler(|| CANCEL.store(true, Ordering::SeqCst));
+    let mut session = Session {
         audition_path,
+        ..Default::default()
     };
-    // Diagnostics show the offending line only (not the session's include after it).
+    // A diagnostic shows the lines typed around its place, whole.
     let _ = miette::set_hook(Box::new(|_| {
-        Box::new(miette::MietteHandlerOpts::new().context_lines(0).build())
+        Box::new(miette::MietteHandlerOpts::new().context_lines(2).build())
     }));
     println!("timbre repl: type a tree, e.g. (sine (* t 440)); :help for commands");
-    loop {
-        let line = match editor.readline("timbre> ") {
-            Ok(line) => line,
-            Err(rustyline::error::ReadlineError::Interrupted) => continue,
-            Err(rustyline::error::ReadlineError::Eof) => break,
-            Err(e) => return Err(e.to_string()),
-        };
-        let input = line.trim();
+    while let Some(input) = read_input_lines(&mut editor)? {
+        let input = input.trim();
         if input.is_empty() {
             continue;
         }
         let _ = editor.add_history_entry(input);
+        // Saved as it grows, so a killed session loses nothing.
+        if let Some(path) = &history {
+            let _ = editor.save_history(path);
+        }
+        CANCEL.store(false, Ordering::SeqCst);
         let keep_going = if input.starts_with(':') {
             command(&mut session, input)
         } else {
@@ -286,14 +619,11 @@ pub fn run(audition_path: PathBuf) -> Result<(), String> {
             true
         };
         if let Some(helper) = editor.helper_mut() {
-            helper.names = session.names.clone();
+            helper.names = session.names();
         }
         if !keep_going {
             break;
         }
-    }
-    if let Some(path) = history_path() {
-        let _ = editor.save_history(&path);
     }
     Ok(())
 }
@@ -304,29 +634,106 @@ fn report(diagnostics: timbre_ir::Diagnostics) {
     }
 }
 
-/// Compiles an input: definitions join the session; a sound is rendered and auditioned.
+/// Compiles an input: its definitions join the session (replacing earlier ones of
+/// the same name), a `(scene …)` sets the session's settings, and a sound is
+/// rendered and auditioned.
 fn evaluate(session: &mut Session, input: &str) {
-    let program = match session.compile(input) {
+    let reading = read_input(input);
+    let exclude: BTreeSet<String> = reading.defines.iter().map(|(n, _)| n.clone()).collect();
+    let program = match session.compile(input, &exclude, reading.scene_keys.contains("seed")) {
         Ok(program) => program,
         Err(diagnostics) => return report(diagnostics),
     };
+    for (name, text) in reading.defines {
+        let verb = if session.redefine(&name, text) {
+            "redefined"
+        } else {
+            "defined"
+        };
+        println!("{verb} {name}");
+    }
+    for text in reading.includes {
+        // Keyed by its text: the same include twice is one entry.
+        session.redefine(&text, text.clone());
+        println!("included {text}");
+    }
+    if !reading.scene_keys.is_empty() {
+        adopt_settings(session, &program.settings, &reading.scene_keys);
+    }
     if program.root.is_none() && program.instances.is_empty() {
-        // Only definitions: they join the session.
-        let new = session.define(input, program);
-        println!("defined {}", new.join(", "));
         return;
     }
-    let samples = match session.render(&program, timbre_scene::Engine::Jit) {
-        Ok(samples) => samples,
-        Err(e) => return eprintln!("error: {e}"),
+    let take = Take {
+        sample_rate: session.sample_rate,
+        channels: session.channels,
+        frames: (session.duration * session.sample_rate).round() as usize,
+        until_ended: false,
     };
-    session.last_source = Some(input.to_owned());
-    session.last_samples = samples;
-    audition(session);
+    if let Some(samples) = render_or_report(&program, &take) {
+        session.last_source = Some(input.to_owned());
+        keep_render(session, samples, &take);
+        audition(session);
+    }
 }
 
+/// Renders with the JIT, reporting errors and cancellation.
+fn render_or_report(program: &Program, take: &Take) -> Option<Vec<f64>> {
+    match render(program, take, timbre_scene::Engine::Jit) {
+        Ok(Some(samples)) => Some(samples),
+        Ok(None) => {
+            println!("cancelled");
+            None
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            None
+        }
+    }
+}
+
+fn keep_render(session: &mut Session, samples: Vec<f64>, take: &Take) {
+    session.last_samples = samples;
+    session.last_channels = take.channels;
+    session.last_rate = take.sample_rate;
+}
+
+/// Takes the settings a typed `(scene …)` gave, and says what they are now.
+fn adopt_settings(session: &mut Session, settings: &timbre_ir::Settings, keys: &BTreeSet<String>) {
+    let mut said = vec![];
+    if keys.contains("sample-rate") {
+        if let Some(rate) = settings.sample_rate {
+            session.sample_rate = rate;
+            said.push(format!("sample rate = {rate} Hz"));
+        }
+    }
+    if keys.contains("duration") {
+        if let Some(duration) = settings.duration {
+            session.duration = duration;
+            said.push(format!("duration = {duration} s"));
+        }
+    }
+    if keys.contains("seed") {
+        session.seed = settings.seed;
+        said.push(format!("seed = {}", settings.seed));
+    }
+    if keys.contains("channels") {
+        session.channels = settings.channels.unwrap_or(1);
+        said.push(format!("channels = {}", session.channels));
+    }
+    if !said.is_empty() {
+        println!("{}", said.join(", "));
+    }
+}
+
+/// A one-line description of the last render: length, levels and pitch (of the
+/// channels' mean).
 fn summary(session: &Session) -> String {
-    let x = &session.last_samples;
+    let channels = session.last_channels.max(1);
+    let mono: Vec<f64> = session
+        .last_samples
+        .chunks_exact(channels)
+        .map(|frame| frame.iter().sum::<f64>() / channels as f64)
+        .collect();
     let db = |v: f64| {
         if v > 0.0 {
             format!("{:.1} dBFS", 20.0 * v.log10())
@@ -334,23 +741,34 @@ fn summary(session: &Session) -> String {
             "silent".into()
         }
     };
-    let dominant = analysis::dominant_frequency(x, session.sample_rate)
+    let dominant = analysis::dominant_frequency(&mono, session.last_rate)
         .map_or("no dominant frequency".into(), |f| {
             format!("dominant {f:.1} Hz")
         });
+    let width = if channels > 1 {
+        format!(", {channels} channels")
+    } else {
+        String::new()
+    };
     format!(
-        "{:.3} s, peak {}, RMS {}, {dominant}",
-        x.len() as f64 / session.sample_rate,
-        db(analysis::peak(x)),
-        db(analysis::rms(x))
+        "{:.3} s{width}, peak {}, RMS {}, {dominant}",
+        mono.len() as f64 / session.last_rate,
+        db(analysis::peak(&session.last_samples)),
+        db(analysis::rms(&mono))
     )
 }
 
 /// Plays the last render where possible, else writes it to the audition WAV.
 fn audition(session: &Session) {
-    let cancel = std::sync::atomic::AtomicBool::new(false);
-    match crate::playback::play(&session.last_samples, 1, session.sample_rate, &cancel) {
-        Ok(_) => println!("{}", summary(session)),
+    let played = crate::playback::play(
+        &session.last_samples,
+        session.last_channels,
+        session.last_rate,
+        &CANCEL,
+    );
+    match played {
+        Ok(crate::playback::Played::Whole) => println!("{}", summary(session)),
+        Ok(crate::playback::Played::Cancelled) => println!("cancelled"),
         Err(why) => match session.write_wav(&session.audition_path) {
             Ok(()) => println!(
                 "{} -> {} ({why})",
@@ -386,17 +804,26 @@ fn command(session: &mut Session, input: &str) -> bool {
             None => eprintln!("error: `{value}` is not a number"),
         },
         (":dur", [_]) => match number(args.first()).filter(|d| *d > 0.0 && *d <= 3600.0) {
-            Some(d) => session.duration = d,
+            Some(d) => {
+                session.duration = d;
+                println!("duration = {d} s");
+            }
             None => eprintln!("error: give a duration in seconds, from 0 to 3600"),
         },
         (":sr", [_]) => match number(args.first())
             .filter(|r| (1000.0..=1_536_000.0).contains(r) && r.fract() == 0.0)
         {
-            Some(r) => session.sample_rate = r,
+            Some(r) => {
+                session.sample_rate = r;
+                println!("sample rate = {r} Hz");
+            }
             None => eprintln!("error: give a whole sample rate in Hz, e.g. 48000"),
         },
         (":seed", [_]) => match number(args.first()).filter(|s| *s >= 0.0 && s.fract() == 0.0) {
-            Some(s) => session.seed = s as u64,
+            Some(s) => {
+                session.seed = s as u64;
+                println!("seed = {}", session.seed);
+            }
             None => eprintln!("error: give a whole seed ≥ 0"),
         },
         (":save", [path]) if !session.last_samples.is_empty() => {
@@ -407,13 +834,25 @@ fn command(session: &mut Session, input: &str) -> bool {
         }
         (":save", [_]) => eprintln!("error: nothing rendered yet"),
         (":load", [path]) => load(session, path),
-        (":defs", []) => {
-            if session.names.is_empty() {
-                println!("no definitions yet");
+        (":defs", []) => defs(session),
+        (":undef", [name]) => {
+            if session.forget(name) {
+                println!("forgot {name}");
+            } else {
+                let names = session.names();
+                let hint = timbre_ir::did_you_mean(name, names.iter().map(String::as_str))
+                    .map(|n| format!("; did you mean `{n}`?"))
+                    .unwrap_or_default();
+                eprintln!("error: `{name}` is not defined in this session{hint}");
             }
-            for name in &session.names {
-                println!("  {name}");
-            }
+        }
+        (":reset", []) => {
+            let audition_path = std::mem::take(&mut session.audition_path);
+            *session = Session {
+                audition_path,
+                ..Default::default()
+            };
+            println!("reset: no definitions, no loaded files, no --set values; 1 s at 48000 Hz, seed 0, 1 channel");
         }
         (":tree", []) => match last_program(session) {
             Some(program) => print!("{}", tree_text(&program)),
@@ -434,6 +873,12 @@ fn command(session: &mut Session, input: &str) -> bool {
             None => eprintln!("error: nothing rendered yet"),
         },
         (":time", []) => time(session),
+        (":plot", []) => {
+            println!("kinds of picture (:plot KIND [FILE.png]):");
+            for (kind, what) in PLOT_KINDS {
+                println!("  {kind:<16} {what}");
+            }
+        }
         (":plot", [kind, rest @ ..]) if rest.len() <= 1 => {
             plot(session, kind, rest.first().copied())
         }
@@ -442,30 +887,145 @@ fn command(session: &mut Session, input: &str) -> bool {
     true
 }
 
-fn last_program(session: &Session) -> Option<Program> {
-    session.compile(session.last_source.as_deref()?).ok()
+fn defs(session: &Session) {
+    if session.entries.is_empty() {
+        println!("no definitions yet");
+    }
+    for entry in &session.entries {
+        match entry {
+            Entry::Typed { name, .. } => println!("  {name}"),
+            Entry::File {
+                path,
+                names,
+                hidden,
+            } => {
+                let shown: Vec<&str> = names
+                    .iter()
+                    .filter(|n| !hidden.contains(*n))
+                    .map(String::as_str)
+                    .collect();
+                println!("  from {}: {}", path.display(), shown.join(", "));
+            }
+        }
+    }
 }
 
-/// Makes a file's definitions available by including it (by absolute path).
+fn last_program(session: &Session) -> Option<Program> {
+    let source = session.last_source.as_deref()?;
+    let reading = read_input(source);
+    let exclude = reading.defines.iter().map(|(n, _)| n.clone()).collect();
+    session
+        .compile(source, &exclude, reading.scene_keys.contains("seed"))
+        .ok()
+}
+
+/// Loads a file: its definitions join the session (read again at every
+/// evaluation); a file with a sound or a scene is also auditioned, with its own
+/// settings.
 fn load(session: &mut Session, path: &str) {
     let absolute = match std::fs::canonicalize(path) {
         Ok(p) => p,
         Err(e) => return eprintln!("error: cannot read `{path}`: {e}"),
     };
-    let line = format!("(include {:?})", absolute.display().to_string());
-    match session.compile(&line) {
-        Ok(program) => {
-            let new = session.define(&line, program);
-            println!(
-                "loaded {path}: {}",
-                if new.is_empty() {
-                    "no new definitions".into()
-                } else {
-                    new.join(", ")
-                }
-            );
+    let text = match std::fs::read_to_string(&absolute) {
+        Ok(text) => text,
+        Err(e) => return eprintln!("error: cannot read `{path}`: {e}"),
+    };
+    let registry = Registry::new();
+    let mut options = CompileOptions::new(&registry, &FsLoader);
+    options.bindings = session.bindings.clone();
+    let program = match compile(SourceFile::new(path, text), absolute.parent(), &options) {
+        Ok(program) => program,
+        Err(diagnostics) => return report(diagnostics),
+    };
+    // The file's definitions replace the session's of the same names.
+    let previous = session.entries.clone();
+    let mut replaced = vec![];
+    for name in &program.definitions {
+        let typed = session
+            .entries
+            .iter()
+            .any(|e| matches!(e, Entry::Typed { name: n, .. } if n == name));
+        if typed && session.forget(name) {
+            replaced.push(name.clone());
         }
-        Err(diagnostics) => report(diagnostics),
+    }
+    for entry in &mut session.entries {
+        if let Entry::File {
+            path: p,
+            hidden,
+            names,
+        } = entry
+        {
+            if *p != absolute {
+                for name in &program.definitions {
+                    if names.contains(name) && hidden.insert(name.clone()) {
+                        replaced.push(name.clone());
+                    }
+                }
+            }
+        }
+    }
+    let entry = Entry::File {
+        path: absolute.clone(),
+        names: program.definitions.clone(),
+        hidden: BTreeSet::new(),
+    };
+    match session
+        .entries
+        .iter()
+        .position(|e| matches!(e, Entry::File { path: p, .. } if *p == absolute))
+    {
+        Some(i) => session.entries[i] = entry,
+        None => session.entries.push(entry),
+    }
+    // The session must still compile with the file in it.
+    if let Err(diagnostics) = session.compile("", &BTreeSet::new(), false) {
+        session.entries = previous;
+        return report(diagnostics);
+    }
+    let names = if program.definitions.is_empty() {
+        "no definitions".to_owned()
+    } else {
+        program.definitions.join(", ")
+    };
+    let kind = if !program.instances.is_empty() {
+        format!("a scene of {} instances", program.instances.len())
+    } else if program.root.is_some() {
+        "a sound".to_owned()
+    } else {
+        "a library".to_owned()
+    };
+    println!("loaded {path}: {kind}; defines {names}");
+    if !replaced.is_empty() {
+        replaced.sort();
+        replaced.dedup();
+        println!("redefined {}", replaced.join(", "));
+    }
+    if program.root.is_none() && program.instances.is_empty() {
+        return;
+    }
+    // A scene without a duration plays until its last instance has ended; a file's
+    // sound without one for the session's duration.
+    let sample_rate = program.settings.sample_rate.unwrap_or(session.sample_rate);
+    let scene = !program.instances.is_empty();
+    let duration = program.settings.duration;
+    let take = Take {
+        sample_rate,
+        channels: program.settings.channels.unwrap_or(1),
+        frames: (duration.unwrap_or(if scene {
+            OPEN_SCENE_LIMIT
+        } else {
+            session.duration
+        }) * sample_rate)
+            .round() as usize,
+        until_ended: scene && duration.is_none(),
+    };
+    if let Some(samples) = render_or_report(&program, &take) {
+        // The last expression is the file's own text, for :tree and :graph.
+        session.last_source = None;
+        keep_render(session, samples, &take);
+        audition(session);
     }
 }
 
@@ -477,7 +1037,13 @@ fn plot(session: &Session, kind: &str, path: Option<&str>) {
     let title = session.last_source.clone().unwrap_or_default();
     let default = format!("timbre-{kind}.png");
     let path = Path::new(path.unwrap_or(&default));
-    let (x, sr) = (&session.last_samples, session.sample_rate);
+    let channels = session.last_channels.max(1);
+    let mono: Vec<f64> = session
+        .last_samples
+        .chunks_exact(channels)
+        .map(|frame| frame.iter().sum::<f64>() / channels as f64)
+        .collect();
+    let (x, sr) = (&mono, session.last_rate);
     let result = match kind {
         "wave" => crate::plot::wave_png(x, sr, &crate::plot::WaveOptions { title }, path),
         "spectrogram" | "log-spectrogram" => {
@@ -489,7 +1055,12 @@ fn plot(session: &Session, kind: &str, path: Option<&str>) {
             crate::plot::spectrogram_png(x, sr, &options, path)
         }
         _ => Err(format!(
-            "no plot called `{kind}`: wave, spectrogram or log-spectrogram"
+            "no plot called `{kind}`: {}",
+            PLOT_KINDS
+                .iter()
+                .map(|(k, _)| *k)
+                .collect::<Vec<_>>()
+                .join(", ")
         )),
     };
     match result {
@@ -503,21 +1074,29 @@ fn time(session: &Session) {
     let Some(program) = last_program(session) else {
         return eprintln!("error: nothing rendered yet");
     };
+    let take = Take {
+        sample_rate: session.sample_rate,
+        channels: session.channels,
+        frames: (session.duration * session.sample_rate).round() as usize,
+        until_ended: false,
+    };
     for (name, engine) in [
         ("interpreter", timbre_scene::Engine::Interpreter),
         ("jit", timbre_scene::Engine::Jit),
     ] {
         let start = Instant::now();
-        match session.render(&program, engine) {
-            Ok(samples) => {
+        match render(&program, &take, engine) {
+            Ok(Some(samples)) => {
                 let seconds = start.elapsed().as_secs_f64();
-                let audio = samples.len() as f64 / session.sample_rate;
+                let frames = samples.len() / take.channels.max(1);
+                let audio = frames as f64 / take.sample_rate;
                 println!(
                     "  {name:<12} {:>10.0} samples/s  {:>8.1}× real time",
-                    samples.len() as f64 / seconds,
+                    frames as f64 / seconds,
                     audio / seconds
                 );
             }
+            Ok(None) => return println!("cancelled"),
             Err(e) => eprintln!("error: {e}"),
         }
     }
@@ -552,4 +1131,41 @@ fn tree_text(program: &Program) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loaded_files_keep_only_definitions_at_their_offsets() {
+        let text = "(scene :duration 2)\n(define a 1)\n(define b 2)\n(sine (* t a))\n";
+        let kept = definitions_only(text, |name| name == "b");
+        assert_eq!(kept.len(), text.len());
+        assert_eq!(
+            kept.lines().collect::<Vec<_>>(),
+            vec![
+                " ".repeat(19).as_str(),
+                "(define a 1)",
+                " ".repeat(12).as_str(),
+                " ".repeat(14).as_str()
+            ]
+        );
+    }
+
+    #[test]
+    fn redefining_replaces_and_forgetting_hides_loaded_names() {
+        let mut session = Session::default();
+        assert!(!session.redefine("a", "(define a 1)".into()));
+        assert!(session.redefine("a", "(define a 2)".into()));
+        assert_eq!(session.prelude(&BTreeSet::new()), "(define a 2)\n");
+        session.entries.push(Entry::File {
+            path: "lib.tt".into(),
+            names: vec!["b".into()],
+            hidden: BTreeSet::new(),
+        });
+        assert!(session.forget("b"));
+        assert!(!session.forget("b"));
+        assert_eq!(session.names(), vec!["a".to_owned()]);
+    }
 }

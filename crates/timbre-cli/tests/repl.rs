@@ -84,3 +84,141 @@ fn a_session_in_a_pseudo_terminal() {
     let history = std::fs::read_to_string(dir.path().join(".timbre_history")).unwrap();
     assert!(history.contains(":set pitch 523.25"));
 }
+
+/// The sound designer's loop: redefine, set the scene, stop a long audition with
+/// Ctrl-C, load a scene, forget and reset.
+#[test]
+fn a_tweak_loop_in_a_pseudo_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let audition = dir.path().join("audition.wav");
+    std::fs::write(
+        dir.path().join("bells.tt"),
+        "(scene :duration 1.5)\n\
+         (define-sound ding (f) (* 0.5 (sine (* t f)) (damp (* t 3))))\n\
+         (instance a (ding :f 600) :start 0)\n",
+    )
+    .unwrap();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    command
+        .arg("repl")
+        .arg("--audition")
+        .arg(&audition)
+        .current_dir(dir.path())
+        .env("HOME", dir.path())
+        .env("TIMBRE_PLAYER", "none")
+        .env("NO_COLOR", "1");
+    let mut repl = spawn_command(command, Some(30_000)).unwrap();
+    let prompt = |repl: &mut rexpect::session::PtySession| {
+        repl.exp_string("timbre> ").unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(150));
+    };
+    let history = dir.path().join(".timbre_history");
+
+    // Define, hear, redefine: the new body is heard.
+    prompt(&mut repl);
+    repl.send_line("(define tone (f) (* 0.5 (sine (* t f))))")
+        .unwrap();
+    repl.exp_string("defined tone").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(tone 440)").unwrap();
+    repl.exp_regex(r"dominant 440\.\d Hz").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(define tone (f) (* 0.5 (sine (* t 2 f))))")
+        .unwrap();
+    repl.exp_string("redefined tone").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(tone 440)").unwrap();
+    repl.exp_regex(r"dominant 880\.\d Hz").unwrap();
+
+    // A scene typed at the prompt sets the session: the next audition lasts 2 s.
+    prompt(&mut repl);
+    repl.send_line("(scene :duration 2)").unwrap();
+    repl.exp_string("duration = 2 s").unwrap();
+    // History is on disk before the session ends.
+    let saved = std::fs::read_to_string(&history).unwrap();
+    assert!(saved.contains("(scene :duration 2)"), "history: {saved}");
+    // A continuation prompt while a list is open.
+    prompt(&mut repl);
+    repl.send_line("(tone").unwrap();
+    repl.exp_string("...> ").unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(150));
+    repl.send_line("  300)").unwrap();
+    repl.exp_string("2.000 s").unwrap();
+    let wav = read_wav(&audition);
+    assert_eq!(wav.samples.len(), 96_000);
+    let freq = strongest_peak_in(&wav.samples, wav.rate(), 100.0, 2000.0);
+    assert!((freq - 600.0).abs() < 1.0, "audition at {freq} Hz");
+
+    // An error shows the whole line typed, not only the misspelt name.
+    prompt(&mut repl);
+    repl.send_line("(* 0.5 (sinee (* t 440)))").unwrap();
+    // (rexpect reads bytes as Latin-1, so the box-drawing bar is matched loosely.)
+    repl.exp_regex(r" 1 \S+ \(\* 0\.5 \(sinee \(\* t 440\)\)\)")
+        .unwrap();
+
+    // Ctrl-C stops a long audition; the session and its definitions remain.
+    prompt(&mut repl);
+    repl.send_line(":dur 100").unwrap();
+    repl.exp_string("duration = 100 s").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(* 0.001 (combine (sine (* t (rvector 3000 100 5000)))))")
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    repl.send_control('c').unwrap();
+    repl.exp_string("cancelled").unwrap();
+    prompt(&mut repl);
+    repl.send_line(":dur 1").unwrap();
+    repl.exp_string("duration = 1 s").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(tone 220)").unwrap();
+    repl.exp_regex(r"1\.000 s, peak [^,]+, RMS [^,]+, dominant 440\.\d Hz")
+        .unwrap();
+
+    // Loading a scene auditions it (its own 1.5 s) and makes its class callable.
+    prompt(&mut repl);
+    repl.send_line(":load bells.tt").unwrap();
+    repl.exp_string("a scene of 1 instances; defines ding")
+        .unwrap();
+    repl.exp_regex(r"1\.500 s, peak [^,]+, RMS [^,]+, dominant 600\.\d Hz")
+        .unwrap();
+    prompt(&mut repl);
+    repl.send_line("(ding 700)").unwrap();
+    repl.exp_regex(r"dominant 700\.\d Hz").unwrap();
+
+    // :plot alone lists the kinds.
+    prompt(&mut repl);
+    repl.send_line(":plot").unwrap();
+    repl.exp_string("log-spectrogram").unwrap();
+
+    // Forget one name, then everything.
+    prompt(&mut repl);
+    repl.send_line(":undef ding").unwrap();
+    repl.exp_string("forgot ding").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(ding 700)").unwrap();
+    repl.exp_string("unknown function `ding`").unwrap();
+    prompt(&mut repl);
+    repl.send_line(":reset").unwrap();
+    repl.exp_string("reset:").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(tone 220)").unwrap();
+    repl.exp_string("unknown function `tone`").unwrap();
+
+    // Tab completes a file name after :load, and a keyword after `:`.
+    prompt(&mut repl);
+    repl.send(":load bel\t").unwrap();
+    repl.flush().unwrap();
+    repl.exp_string("bells.tt").unwrap();
+    repl.send_line("").unwrap();
+    repl.exp_string("loaded bells.tt").unwrap();
+    prompt(&mut repl);
+    repl.send("(scene :dur\t").unwrap();
+    repl.flush().unwrap();
+    repl.exp_string(":duration").unwrap();
+    repl.send_line(" 3)").unwrap();
+    repl.exp_string("duration = 3 s").unwrap();
+
+    prompt(&mut repl);
+    repl.send_line(":quit").unwrap();
+    repl.exp_eof().unwrap();
+}

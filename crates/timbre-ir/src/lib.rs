@@ -41,8 +41,8 @@ pub use graph::{Graph, Node, NodeId, StableHasher};
 pub use interp::{Interpreter, RenderConfig, Step};
 pub use loader::{FsLoader, Loader, NoFiles};
 pub use lower::{
-    compile, did_you_mean, CompileOptions, Instance, Instantiated, Library, ParamValue, Program,
-    Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
+    compile, compile_after, did_you_mean, CompileOptions, Instance, Instantiated, Library,
+    ParamValue, Program, Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
 };
 
 impl<'a> CompileOptions<'a> {

@@ -130,6 +130,23 @@ pub fn compile(
     lowerer.finish()
 }
 
+/// Like [`compile`], with `prelude` read first as a library (definitions, includes and
+/// keyframes only): an interactive session's earlier definitions. Diagnostics in
+/// `source` then point into it alone.
+pub fn compile_after(
+    prelude: Arc<SourceFile>,
+    source: Arc<SourceFile>,
+    base_dir: Option<&Path>,
+    options: &CompileOptions<'_>,
+) -> Result<Program, Diagnostics> {
+    let mut lowerer = Lowerer::new(options);
+    let dir = base_dir.map(Path::to_path_buf);
+    let name = prelude.name.clone();
+    lowerer.read_file(prelude, dir.clone(), Some(&name));
+    lowerer.read_file(source, dir, None);
+    lowerer.finish()
+}
+
 /// A named tree: `(define name (params…) body)`.
 #[derive(Clone, Debug)]
 pub(crate) struct Definition {
