@@ -5,12 +5,12 @@
 //! success, 1 when a script or the file system refused, 2 on bad command-line usage,
 //! 130 when interrupted.
 
+mod audio_out;
 mod bench;
 mod graph;
 mod playback;
 mod plot;
 mod repl;
-mod wav_out;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -21,7 +21,7 @@ use std::sync::Arc;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use timbre_ir::{compile, CompileOptions, Diagnostics, FsLoader, Program, Registry, SourceFile};
 
-use crate::wav_out::{write_wav_atomically, SampleFormat, WavJob};
+use crate::audio_out::{write_audio, Container, Destination, OutputJob, SampleFormat};
 
 /// Sound from timbre trees: functional compositions synchronised to motion.
 #[derive(Parser, Debug)]
@@ -32,6 +32,7 @@ use crate::wav_out::{write_wav_atomically, SampleFormat, WavJob};
     after_help = "Examples:
   timbre render examples/bell.tt -o bell.wav
   timbre render --expr '(sine (* t 440))' --duration 2 -o a440.wav
+  timbre play examples/bee.tt
   timbre check examples/wind.tt
 
 The language: lang-spec/README.md. A first session: docs/getting-started.md."
@@ -51,6 +52,18 @@ enum Command {
     ///   timbre render examples/bee.tt --set nominal-freq=180 -o bee.wav
     #[command(verbatim_doc_comment)]
     Render(RenderArgs),
+    /// Render a file's sound (or one expression) and play it.
+    ///
+    /// Plays through the sound device when built with the `playback` feature, else
+    /// through a system player (pw-play, paplay, aplay, afplay or ffplay; the
+    /// TIMBRE_PLAYER variable names another, or `none`); with neither, writes a WAV
+    /// file (-o, default timbre-play.wav) and says why. Ctrl-C stops playing.
+    ///
+    /// Examples:
+    ///   timbre play examples/bell.tt
+    ///   timbre play --expr '(sine (* t 440))' --duration 2
+    #[command(verbatim_doc_comment)]
+    Play(PlayArgs),
     /// Parse and check a file (or one expression) without rendering it.
     ///
     /// With --ir, print the graph its sounds are rendered from instead: one line per
@@ -104,7 +117,7 @@ enum Command {
 
 #[derive(Args, Debug)]
 struct SourceArgs {
-    /// The .tt file to read.
+    /// The .tt file to read; `-` reads standard input.
     #[arg(required_unless_present = "expr", conflicts_with = "expr")]
     file: Option<PathBuf>,
 
@@ -137,10 +150,49 @@ struct RenderArgs {
     #[command(flatten)]
     source: SourceArgs,
 
-    /// Output WAV file; written to a temporary file and renamed when complete.
-    #[arg(long, short = 'o', value_name = "FILE.wav")]
+    /// Output file: .wav or .flac, or `-` for a WAV stream on standard output. A file
+    /// is written to a temporary name and renamed when complete; it may not be a
+    /// file the render reads.
+    #[arg(long, short = 'o', value_name = "FILE")]
     output: PathBuf,
 
+    #[command(flatten)]
+    sound: SoundArgs,
+
+    /// Sample format: f32 (WAV only), s16 or s24 (default: f32 for WAV, s24 for FLAC).
+    #[arg(long, value_enum)]
+    format: Option<Format>,
+
+    /// Play the file once it is written (as `timbre play` does).
+    #[arg(long)]
+    play: bool,
+
+    /// Pictures of the rendered sound, drawn from the WAV file once it is written.
+    #[command(flatten)]
+    pictures: plot::PictureArgs,
+}
+
+#[derive(Args, Debug)]
+struct PlayArgs {
+    #[command(flatten)]
+    source: SourceArgs,
+
+    #[command(flatten)]
+    sound: SoundArgs,
+
+    /// Where to write the sound when it cannot be played.
+    #[arg(
+        long,
+        short = 'o',
+        value_name = "FILE.wav",
+        default_value = "timbre-play.wav"
+    )]
+    output: PathBuf,
+}
+
+/// How a sound is rendered, whatever it is written to.
+#[derive(Args, Debug)]
+struct SoundArgs {
     /// Seconds to render (default: the file's `(scene :duration …)`; else a scene
     /// lasts until its last instance has ended, at most 600 s, and a sound 1 s).
     #[arg(long, short = 'd', value_parser = parse_positive)]
@@ -150,13 +202,24 @@ struct RenderArgs {
     #[arg(long, short = 'r', value_parser = parse_sample_rate)]
     sample_rate: Option<f64>,
 
-    /// Sample format of the WAV file.
-    #[arg(long, value_enum, default_value_t = Format::F32)]
-    format: Format,
+    /// Output channels: a mono sound is copied to each; a sound of several channels
+    /// may be mixed down to 1 (their mean), and no other count.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    channels: Option<u16>,
 
     /// Linear gain applied to the output.
     #[arg(long, default_value_t = 1.0, value_parser = parse_finite)]
     gain: f64,
+
+    /// Scale the output so that its peak is DBFS (default −1 dBFS). The sound is
+    /// rendered twice: once to measure it, once to write it.
+    #[arg(long, value_name = "DBFS", num_args = 0..=1, default_missing_value = "-1",
+          allow_negative_numbers = true, value_parser = parse_finite)]
+    normalize: Option<f64>,
+
+    /// Fade the last SECONDS of the render out (raised cosine).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_positive)]
+    fade_out: Option<f64>,
 
     /// Samples per block of the interpreter (output does not depend on it).
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
@@ -169,10 +232,6 @@ struct RenderArgs {
     /// Print nothing but errors.
     #[arg(long, short = 'q')]
     quiet: bool,
-
-    /// Pictures of the rendered sound, drawn from the WAV file once it is written.
-    #[command(flatten)]
-    pictures: plot::PictureArgs,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -183,7 +242,7 @@ enum Engine {
     Interp,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Format {
     /// 32-bit float.
     F32,
@@ -231,6 +290,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Play(args) => play(args),
         Command::Check(args) => check(args),
         Command::Graph(args) => draw_graph(args),
         Command::Plot(args) => plot::plot(args).map_err(Failure::Message),
@@ -268,20 +328,47 @@ impl From<Diagnostics> for Failure {
     }
 }
 
-fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
+/// Reads files through the file system and remembers each one (canonical paths), so
+/// that an output never overwrites something the render reads.
+#[derive(Default)]
+struct RecordingLoader {
+    read: std::cell::RefCell<Vec<PathBuf>>,
+}
+
+impl timbre_ir::Loader for RecordingLoader {
+    fn load(&self, path: &str, base: Option<&Path>) -> std::io::Result<(PathBuf, Vec<u8>)> {
+        let (resolved, bytes) = FsLoader.load(path, base)?;
+        self.read.borrow_mut().push(resolved.clone());
+        Ok((resolved, bytes))
+    }
+}
+
+/// Compiles the file, standard input (`-`) or expression; also returns every file
+/// read (the source and what it includes, samples, tables).
+fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure> {
     let registry = Registry::new();
     let bindings: BTreeMap<String, f64> = args.bindings.iter().cloned().collect();
+    let loader = RecordingLoader::default();
     let options = CompileOptions {
         bindings,
         seed: args.seed,
         registry: &registry,
-        loader: &FsLoader,
+        loader: &loader,
     };
     let (source, dir) = match (&args.file, &args.expr) {
         (_, Some(expr)) => (SourceFile::new("<expr>", expr.as_str()), None),
+        (Some(path), None) if path.as_os_str() == "-" => {
+            let mut text = String::new();
+            std::io::Read::read_to_string(&mut std::io::stdin(), &mut text)
+                .map_err(|e| Failure::Message(format!("cannot read standard input: {e}")))?;
+            (SourceFile::new("<stdin>", text), Some(PathBuf::from(".")))
+        }
         (Some(path), None) => {
             let text = std::fs::read_to_string(path)
                 .map_err(|e| Failure::Message(format!("cannot read `{}`: {e}", path.display())))?;
+            if let Ok(canonical) = std::fs::canonicalize(path) {
+                loader.read.borrow_mut().push(canonical);
+            }
             let dir = path.parent().map(Path::to_path_buf);
             (SourceFile::new(path.display().to_string(), text), dir)
         }
@@ -291,7 +378,7 @@ fn compile_source(args: &SourceArgs) -> Result<Program, Failure> {
     for name in &program.unused_bindings {
         eprintln!("warning: `--set {name}=…` is not used by any expression");
     }
-    Ok(program)
+    Ok((program, loader.read.into_inner()))
 }
 
 #[derive(Args, Debug)]
@@ -312,7 +399,7 @@ struct GraphArgs {
 }
 
 fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
-    let program = compile_source(&args.source)?;
+    let (program, _) = compile_source(&args.source)?;
     let title = match (&args.source.file, &args.source.expr) {
         (Some(path), _) => path.display().to_string(),
         (None, Some(expr)) => expr.clone(),
@@ -327,7 +414,7 @@ fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
 }
 
 fn check(args: CheckArgs) -> Result<(), Failure> {
-    let program = compile_source(&args.source)?;
+    let (program, _) = compile_source(&args.source)?;
     if args.ir {
         let roots: Vec<_> = program.sound_roots().collect();
         print!("{}", timbre_ir::dump(&program.graph, &roots));
@@ -354,8 +441,26 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
 /// The longest render of a scene without a duration, seconds.
 const OPEN_SCENE_LIMIT: f64 = 600.0;
 
-fn render(args: RenderArgs) -> Result<(), Failure> {
-    let program = compile_source(&args.source)?;
+/// What a render makes, worked out before anything is rendered.
+struct Plan<'p> {
+    program: &'p Program,
+    sample_rate: f64,
+    /// Frames to render at most (exact unless `open_ended`).
+    frames: u64,
+    /// A scene without a duration: it ends with its last instance.
+    open_ended: bool,
+    /// Channels rendered and written.
+    rendered_channels: usize,
+    channels: usize,
+    gain: f64,
+    /// Frames of the fade at the end, if any.
+    fade_frames: u64,
+    config: timbre_ir::RenderConfig,
+    engine: timbre_scene::Engine,
+    quiet: bool,
+}
+
+fn plan<'p>(program: &'p Program, args: &SoundArgs) -> Result<Plan<'p>, Failure> {
     if program.root.is_none() && program.instances.is_empty() {
         return Err(Failure::Message(
             "nothing to render: the file defines trees but has no sound expression or instance (add one, or use --expr)"
@@ -371,7 +476,6 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     let duration = args.duration.or(program.settings.duration);
     let open_ended = duration.is_none() && program.root.is_none();
     let duration = duration.unwrap_or(if open_ended { OPEN_SCENE_LIMIT } else { 1.0 });
-    let frames = (duration * sample_rate).round() as u64;
     if !open_ended && !args.quiet {
         for late in program.instances.iter().filter(|i| i.start >= duration) {
             eprintln!(
@@ -380,103 +484,424 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
             );
         }
     }
-    let bytes_per_sample = match args.format {
-        Format::F32 => 4,
-        Format::S16 => 2,
-        Format::S24 => 3,
-    };
-    // A WAV file's sizes are 32-bit: refuse before rendering rather than write a file
-    // whose header lies about its length.
-    let bytes_per_frame = bytes_per_sample * program.settings.channels.unwrap_or(1) as u64;
-    if frames.saturating_mul(bytes_per_frame) > wav_out::MAX_DATA_BYTES {
-        let max_seconds = wav_out::MAX_DATA_BYTES / bytes_per_frame / sample_rate as u64;
-        return Err(Failure::Message(format!(
-            "{duration} s at {sample_rate} Hz does not fit in a WAV file (4 GiB at most: {max_seconds} s in this format); \
-             render shorter parts, or use --format s16 for twice the length"
-        )));
-    }
-
-    let interrupted = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupted.clone();
-        // If a handler cannot be installed, the render still works; only an interrupt
-        // would then leave the temporary file behind.
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
-    }
-    let config = timbre_ir::RenderConfig {
-        sample_rate,
-        block_size: args.block_size as usize,
+    let rendered_channels = program.settings.channels.unwrap_or(1);
+    let channels = match args.channels.map(usize::from) {
+        None => rendered_channels,
+        Some(n) if n == rendered_channels || rendered_channels == 1 || n == 1 => n,
+        Some(n) => {
+            return Err(Failure::Message(format!(
+                "--channels {n}: the sound has {rendered_channels} channels; it can be written as they are, or mixed down to 1"
+            )))
+        }
     };
     let engine = match args.engine {
         Engine::Jit => timbre_scene::Engine::Jit,
         Engine::Interp => timbre_scene::Engine::Interpreter,
     };
-    let mut scene = timbre_scene::SceneRenderer::new(&program, config, engine)
-        .map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?;
-    let job = WavJob {
-        path: &args.output,
-        sample_rate: sample_rate as u32,
-        channels: scene.channels() as u16,
-        format: match args.format {
-            Format::F32 => SampleFormat::F32,
-            Format::S16 => SampleFormat::S16,
-            Format::S24 => SampleFormat::S24,
-        },
+    Ok(Plan {
+        program,
+        sample_rate,
+        frames: (duration * sample_rate).round() as u64,
+        open_ended,
+        rendered_channels,
+        channels,
         gain: args.gain,
-        frames,
+        fade_frames: args
+            .fade_out
+            .map_or(0, |s| (s * sample_rate).round() as u64),
+        config: timbre_ir::RenderConfig {
+            sample_rate,
+            block_size: args.block_size as usize,
+        },
+        engine,
+        quiet: args.quiet,
+    })
+}
+
+/// Renders `plan` chunk by chunk: `write` gets interleaved frames of `plan.channels`
+/// channels, gain and fade applied, and returns `Some(k)` when the sound is over after
+/// the chunk's first `k` frames. `length` is the sound's length when known (for the
+/// fade), `scale` an extra gain (normalisation).
+struct Pass<'p> {
+    plan: &'p Plan<'p>,
+    scene: timbre_scene::SceneRenderer,
+    rendered: Vec<f64>,
+    /// Frames of the sound, when known (the fade ends there).
+    length: u64,
+    scale: f64,
+    progress: Progress,
+}
+
+impl<'p> Pass<'p> {
+    fn new(plan: &'p Plan<'p>, length: u64, scale: f64) -> Result<Self, Failure> {
+        let scene = timbre_scene::SceneRenderer::new(plan.program, plan.config, plan.engine)
+            .map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?;
+        Ok(Pass {
+            plan,
+            scene,
+            rendered: vec![],
+            length,
+            scale,
+            progress: Progress::new(length, plan.sample_rate, plan.quiet, plan.open_ended),
+        })
+    }
+
+    /// Renders the next `out.len() / channels` frames into `out`; `Some(k)` when the
+    /// sound ended after `k` of them.
+    fn next(&mut self, out: &mut [f64]) -> Result<Option<usize>, String> {
+        let plan = self.plan;
+        let (from, to) = (plan.rendered_channels, plan.channels);
+        let n = out.len() / to;
+        self.rendered.resize(n * from, 0.0);
+        let first = self.scene.position();
+        self.scene
+            .render(&mut self.rendered)
+            .map_err(|e| format!("{e}; use --engine interp"))?;
+        for (k, (y, x)) in out
+            .chunks_exact_mut(to)
+            .zip(self.rendered.chunks_exact(from))
+            .enumerate()
+        {
+            let frame = first + k as u64;
+            let fade = fade_gain(frame, self.length, plan.fade_frames);
+            let gain = plan.gain * self.scale * fade;
+            match (from, to) {
+                (a, b) if a == b => y.iter_mut().zip(x).for_each(|(y, x)| *y = x * gain),
+                (1, _) => y.fill(x[0] * gain),
+                _ => y[0] = x.iter().sum::<f64>() / from as f64 * gain,
+            }
+        }
+        self.progress.advance(n as u64);
+        // An open-ended scene is over once its last instance has ended.
+        Ok((plan.open_ended && self.scene.finished())
+            .then(|| self.scene.ended_at().saturating_sub(first) as usize))
+    }
+}
+
+/// A raised-cosine fade over the last `fade` frames of `length`.
+fn fade_gain(frame: u64, length: u64, fade: u64) -> f64 {
+    if fade == 0 || frame + fade < length {
+        return 1.0;
+    }
+    let left = length.saturating_sub(frame + 1) as f64 / fade as f64;
+    0.5 - 0.5 * (std::f64::consts::PI * left.clamp(0.0, 1.0)).cos()
+}
+
+/// Renders without writing: the sound's length in frames and its peak (before any
+/// fade), for normalising and for fading a scene whose end is not known in advance.
+fn measure(plan: &Plan<'_>, interrupted: &AtomicBool) -> Result<(u64, f64), Failure> {
+    let mut pass = Pass::new(plan, plan.frames, 1.0)?;
+    let mut buffer = vec![0.0; 8192 * plan.channels];
+    let (mut done, mut peak) = (0u64, 0.0f64);
+    while done < plan.frames {
+        if interrupted.load(Ordering::Relaxed) {
+            return Err(Failure::Interrupted);
+        }
+        let n = (plan.frames - done).min(8192) as usize;
+        let chunk = &mut buffer[..n * plan.channels];
+        let last = pass.next(chunk).map_err(Failure::Message)?;
+        let kept = last.map_or(n, |k| k.min(n));
+        peak = chunk[..kept * plan.channels]
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold(peak, |m, x| m.max(x.abs()));
+        done += kept as u64;
+        if last.is_some() {
+            break;
+        }
+    }
+    Ok((done, peak))
+}
+
+fn interrupt_flag() -> Arc<AtomicBool> {
+    let interrupted = Arc::new(AtomicBool::new(false));
+    let flag = interrupted.clone();
+    // If a handler cannot be installed, the render still works; only an interrupt
+    // would then leave the temporary file behind.
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    interrupted
+}
+
+/// The canonical form of a path that may not exist yet: its directory's canonical
+/// path and its name.
+fn canonical_target(path: &Path) -> Option<PathBuf> {
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(dir).ok()?.join(path.file_name()?))
+}
+
+fn render(args: RenderArgs) -> Result<(), Failure> {
+    let (program, inputs) = compile_source(&args.source)?;
+    if let Some(target) = canonical_target(&args.output).filter(|_| args.output.as_os_str() != "-")
+    {
+        if inputs.contains(&target) {
+            return Err(Failure::Message(format!(
+                "refusing to overwrite `{}`: the render reads it; choose another output name",
+                args.output.display()
+            )));
+        }
+    }
+    let to_stdout = args.output.as_os_str() == "-";
+    let container = if to_stdout {
+        Container::Wav
+    } else {
+        match args.output.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase) {
+            Some(e) if e == "wav" => Container::Wav,
+            Some(e) if e == "flac" => Container::Flac,
+            _ => {
+                return Err(Failure::Message(format!(
+                    "cannot write `{}`: timbre writes .wav and .flac files (or `-o -` for a WAV stream on standard output)",
+                    args.output.display()
+                )))
+            }
+        }
+    };
+    let format = match (container, args.format) {
+        (Container::Flac, Some(Format::F32)) => {
+            return Err(Failure::Message(
+                "FLAC holds integer samples: use --format s16 or s24 (the default for .flac), or write a .wav for 32-bit float".into(),
+            ))
+        }
+        (_, Some(Format::F32)) | (Container::Wav, None) => SampleFormat::F32,
+        (_, Some(Format::S16)) => SampleFormat::S16,
+        (_, Some(Format::S24)) | (Container::Flac, None) => SampleFormat::S24,
+    };
+    let plan = plan(&program, &args.sound)?;
+    // A WAV file's sizes are 32-bit: refuse before rendering rather than write a file
+    // whose header lies about its length.
+    let bytes_per_frame = format.bytes() * plan.channels as u64;
+    if container == Container::Wav
+        && plan.frames.saturating_mul(bytes_per_frame) > audio_out::MAX_DATA_BYTES
+    {
+        let max_seconds = audio_out::MAX_DATA_BYTES / bytes_per_frame / plan.sample_rate as u64;
+        return Err(Failure::Message(format!(
+            "{} s at {} Hz does not fit in a WAV file (4 GiB at most: {max_seconds} s in this format); \
+             render shorter parts, or use --format s16 for twice the length",
+            plan.frames as f64 / plan.sample_rate,
+            plan.sample_rate
+        )));
+    }
+    let interrupted = interrupt_flag();
+    let (length, scale) = measured(&plan, &args.sound, to_stdout, &interrupted)?;
+    let job = OutputJob {
+        destination: if to_stdout {
+            Destination::Stdout
+        } else {
+            Destination::File(&args.output)
+        },
+        container,
+        sample_rate: plan.sample_rate as u32,
+        channels: plan.channels as u16,
+        format,
+        frames: length,
         interrupted: &interrupted,
     };
-    let mut progress = Progress::new(frames, sample_rate, args.quiet);
-    let channels = scene.channels();
-    let render = |out: &mut [f64]| {
-        let first = scene.position();
-        scene
-            .render(out)
-            .map_err(|e| format!("{e}; use --engine interp"))?;
-        progress.advance((out.len() / channels) as u64);
-        // An open-ended scene is over once its last instance has ended.
-        Ok((open_ended && scene.finished())
-            .then(|| scene.ended_at().saturating_sub(first) as usize))
-    };
-    let summary = write_wav_atomically(&job, render).map_err(|e| match e {
-        wav_out::WriteError::Interrupted => Failure::Interrupted,
+    let mut pass = Pass::new(&plan, length, scale)?;
+    let summary = write_audio(&job, |out| pass.next(out)).map_err(|e| match e {
+        audio_out::WriteError::Interrupted => Failure::Interrupted,
         other => Failure::Message(other.to_string()),
     })?;
+    drop(pass);
+    let format_name = args
+        .format
+        .unwrap_or(match format {
+            SampleFormat::F32 => Format::F32,
+            SampleFormat::S16 => Format::S16,
+            SampleFormat::S24 => Format::S24,
+        })
+        .to_possible_value()
+        .map(|v| v.get_name().to_owned())
+        .unwrap_or_default();
+    report_render(
+        &plan,
+        &summary,
+        &format_name,
+        &args.output.display().to_string(),
+    );
+    if !to_stdout && container == Container::Wav {
+        plot::draw_pictures(&args.output, &args.pictures, plan.quiet).map_err(Failure::Message)?;
+    }
+    if args.play && !to_stdout {
+        let samples = read_back(&args.output)?;
+        play_samples(&samples, plan.channels, plan.sample_rate, &interrupted)?;
+    }
+    Ok(())
+}
+
+/// The length to render and the normalising gain: from a measuring pass when
+/// normalising, or when the length must be known first (a fade, or a stream whose
+/// header comes first) but a scene decides it.
+fn measured(
+    plan: &Plan<'_>,
+    args: &SoundArgs,
+    to_stdout: bool,
+    interrupted: &AtomicBool,
+) -> Result<(u64, f64), Failure> {
+    let needs_length = plan.open_ended && (plan.fade_frames > 0 || to_stdout);
+    if args.normalize.is_none() && !needs_length {
+        return Ok((plan.frames, 1.0));
+    }
+    let (length, peak) = measure(plan, interrupted)?;
+    let scale = match args.normalize {
+        Some(db) if peak > 0.0 => 10f64.powf(db / 20.0) / peak,
+        Some(_) => {
+            if !plan.quiet {
+                eprintln!("warning: the sound is silent; --normalize has nothing to scale");
+            }
+            1.0
+        }
+        None => 1.0,
+    };
+    Ok((length, scale))
+}
+
+fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, output: &str) {
+    if plan.quiet {
+        return;
+    }
     let frames = summary.frames;
-    if !args.quiet {
-        if open_ended && frames == (OPEN_SCENE_LIMIT * sample_rate).round() as u64 {
-            eprintln!(
-                "warning: the scene had not ended after {OPEN_SCENE_LIMIT} s (an instance without :stop that never decays?); the render stops there: give the scene a :duration, or its instances a :stop"
-            );
-        }
-        if summary.non_finite > 0 {
-            eprintln!(
-                "warning: {} samples were not finite (inf or NaN) and were written as silence; \
-                 look for a division by zero or a log of zero in the tree",
-                summary.non_finite
-            );
-        }
-        if summary.clipped > 0 {
-            eprintln!(
-                "warning: {} samples clipped at full scale; lower --gain",
-                summary.clipped
-            );
-        }
+    let sample_rate = plan.sample_rate;
+    if plan.open_ended && frames == (OPEN_SCENE_LIMIT * sample_rate).round() as u64 {
         eprintln!(
-            "rendered {:.3} s ({} samples at {} Hz, {}) to {}; peak {}",
-            frames as f64 / sample_rate,
-            frames,
-            sample_rate,
-            args.format
-                .to_possible_value()
-                .map(|v| v.get_name().to_owned())
-                .unwrap_or_default(),
-            args.output.display(),
-            format_db(summary.peak),
+            "warning: the scene had not ended after {OPEN_SCENE_LIMIT} s (an instance without :stop that never decays?); the render stops there: give the scene a :duration, or its instances a :stop"
         );
     }
-    plot::draw_pictures(&args.output, &args.pictures, args.quiet).map_err(Failure::Message)?;
-    Ok(())
+    if summary.non_finite > 0 {
+        eprintln!(
+            "warning: {} samples were not finite (inf or NaN) and were written as silence; \
+             look for a division by zero or a log of zero in the tree",
+            summary.non_finite
+        );
+    }
+    if summary.peak > 1.0 {
+        let over = 20.0 * summary.peak.log10();
+        let clipped = if summary.clipped > 0 {
+            format!("; {} samples clipped at full scale", summary.clipped)
+        } else {
+            String::new()
+        };
+        eprintln!(
+            "warning: the peak is +{over:.1} dBFS, above full scale{clipped}; lower --gain by {:.1} dB, or use --normalize",
+            (over * 10.0).ceil() / 10.0,
+        );
+    }
+    let output = if output == "-" {
+        "standard output"
+    } else {
+        output
+    };
+    eprintln!(
+        "rendered {:.3} s ({} samples at {} Hz, {format}) to {output}; peak {}",
+        frames as f64 / sample_rate,
+        frames,
+        sample_rate,
+        format_db(summary.peak),
+    );
+}
+
+/// Renders and plays; without a way to play, writes the WAV and says why.
+fn play(args: PlayArgs) -> Result<(), Failure> {
+    let (program, _) = compile_source(&args.source)?;
+    let plan = plan(&program, &args.sound)?;
+    let interrupted = interrupt_flag();
+    let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;
+    let mut pass = Pass::new(&plan, length, scale)?;
+    let mut samples = vec![0.0; length as usize * plan.channels];
+    let mut done = 0usize;
+    for chunk in samples.chunks_mut(8192 * plan.channels) {
+        if interrupted.load(Ordering::Relaxed) {
+            return Err(Failure::Interrupted);
+        }
+        let n = chunk.len() / plan.channels;
+        let last = pass.next(chunk).map_err(Failure::Message)?;
+        done += last.map_or(n, |k| k.min(n));
+        if last.is_some() {
+            break;
+        }
+    }
+    drop(pass);
+    samples.truncate(done * plan.channels);
+    let peak = samples.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !plan.quiet {
+        eprintln!(
+            "playing {:.3} s ({} channel{}); peak {}",
+            done as f64 / plan.sample_rate,
+            plan.channels,
+            if plan.channels == 1 { "" } else { "s" },
+            format_db(peak)
+        );
+    }
+    match playback::play(&samples, plan.channels, plan.sample_rate, &interrupted) {
+        Ok(playback::Played::Whole) => Ok(()),
+        Ok(playback::Played::Cancelled) => Err(Failure::Interrupted),
+        Err(why) => {
+            if args.output.extension().is_none_or(|e| e != "wav") {
+                return Err(Failure::Message(format!(
+                    "cannot play ({why}), and `{}` is not a .wav file to write instead",
+                    args.output.display()
+                )));
+            }
+            let job = OutputJob {
+                destination: Destination::File(&args.output),
+                container: Container::Wav,
+                sample_rate: plan.sample_rate as u32,
+                channels: plan.channels as u16,
+                format: SampleFormat::F32,
+                frames: done as u64,
+                interrupted: &interrupted,
+            };
+            let mut written = 0;
+            write_audio(&job, |out| {
+                out.copy_from_slice(&samples[written..written + out.len()]);
+                written += out.len();
+                Ok(None)
+            })
+            .map_err(|e| Failure::Message(e.to_string()))?;
+            eprintln!(
+                "cannot play: {why}; wrote {} instead",
+                args.output.display()
+            );
+            Ok(())
+        }
+    }
+}
+
+/// The samples of a WAV file just written, interleaved.
+fn read_back(path: &Path) -> Result<Vec<f64>, Failure> {
+    let fail = |e: hound::Error| Failure::Message(format!("cannot read `{}`: {e}", path.display()));
+    let mut reader = hound::WavReader::open(path).map_err(fail)?;
+    let spec = reader.spec();
+    match spec.sample_format {
+        hound::SampleFormat::Float => reader
+            .samples::<f32>()
+            .map(|x| x.map(f64::from).map_err(fail))
+            .collect(),
+        hound::SampleFormat::Int => {
+            let full = ((1i64 << (spec.bits_per_sample - 1)) - 1) as f64;
+            reader
+                .samples::<i32>()
+                .map(|x| x.map(|x| x as f64 / full).map_err(fail))
+                .collect()
+        }
+    }
+}
+
+fn play_samples(
+    samples: &[f64],
+    channels: usize,
+    sample_rate: f64,
+    interrupted: &AtomicBool,
+) -> Result<(), Failure> {
+    match playback::play(samples, channels, sample_rate, interrupted) {
+        Ok(playback::Played::Whole) => Ok(()),
+        Ok(playback::Played::Cancelled) => Err(Failure::Interrupted),
+        Err(why) => {
+            eprintln!("cannot play: {why}");
+            Ok(())
+        }
+    }
 }
 
 /// A progress bar for renders that take more than about a second: shown on a
@@ -492,15 +917,21 @@ impl Progress {
     /// Before this much wall time the bar stays hidden: short renders print nothing.
     const DELAY: std::time::Duration = std::time::Duration::from_secs(1);
 
-    fn new(frames: u64, sample_rate: f64, quiet: bool) -> Self {
+    /// `open_ended`: a scene that ends with its last instance, so `frames` is only
+    /// the cap (the bar says so).
+    fn new(frames: u64, sample_rate: f64, quiet: bool, open_ended: bool) -> Self {
         let bar = (!quiet).then(|| {
             let bar = indicatif::ProgressBar::with_draw_target(
                 Some(frames),
                 indicatif::ProgressDrawTarget::hidden(),
             );
-            let style =
-                indicatif::ProgressStyle::with_template("{bar:40} {percent:>3}%  {msg}  ETA {eta}")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+            let template = if open_ended {
+                "{bar:40} {msg} (until the last instance ends, at most {len} samples)"
+            } else {
+                "{bar:40} {percent:>3}%  {msg}  ETA {eta}"
+            };
+            let style = indicatif::ProgressStyle::with_template(template)
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
             bar.set_style(style);
             bar
         });

@@ -1,11 +1,15 @@
 //! Playing sound: through the sound device with the `playback` feature (which needs
-//! the platform's audio library, ALSA on Linux). Every failure is a reason the caller
-//! reports before writing a WAV instead.
+//! the platform's audio library, ALSA on Linux), else through a system player found on
+//! the `PATH`. Every failure is a reason the caller reports before writing a WAV
+//! instead.
 
-use std::sync::atomic::AtomicBool;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::audio_out::{write_audio, Container, Destination, OutputJob, SampleFormat};
 
 /// How a play ended.
-#[cfg_attr(not(feature = "playback"), allow(dead_code))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Played {
     /// Played to the end.
@@ -15,9 +19,26 @@ pub enum Played {
 }
 
 /// Plays interleaved `samples` of `channels` channels at `sample_rate` and waits until
-/// they have played, or until `cancel` is set. `Err` says why nothing could be played.
-#[cfg(feature = "playback")]
+/// they have played, or until `cancel` is set: on the sound device (with the
+/// `playback` feature), else with a system player. `Err` says why nothing could be
+/// played.
 pub fn play(
+    samples: &[f64],
+    channels: usize,
+    sample_rate: f64,
+    cancel: &AtomicBool,
+) -> Result<Played, String> {
+    let device = play_on_device(samples, channels, sample_rate, cancel);
+    match device {
+        Ok(played) => Ok(played),
+        Err(why) => play_with_system_player(samples, channels, sample_rate, cancel)
+            .map_err(|none| format!("{why}; {none}")),
+    }
+}
+
+/// Plays on the default output device.
+#[cfg(feature = "playback")]
+fn play_on_device(
     samples: &[f64],
     channels: usize,
     sample_rate: f64,
@@ -74,13 +95,173 @@ pub fn play(
     Ok(Played::Whole)
 }
 
-/// Without the `playback` feature there is nothing to play on.
+/// Without the `playback` feature there is no sound device to play on.
 #[cfg(not(feature = "playback"))]
-pub fn play(
+fn play_on_device(
     _samples: &[f64],
     _channels: usize,
     _sample_rate: f64,
     _cancel: &AtomicBool,
 ) -> Result<Played, String> {
-    Err("built without the `playback` feature".into())
+    Err("built without the `playback` feature, which plays on the sound device".into())
+}
+
+/// The system players tried, in order, with their arguments before the file name,
+/// and whether they need 16-bit integer samples.
+const PLAYERS: &[(&str, &[&str], bool)] = &[
+    ("pw-play", &[], false),
+    ("paplay", &[], false),
+    // aplay plays integer WAV files reliably, float ones not everywhere.
+    ("aplay", &["-q"], true),
+    ("afplay", &[], false),
+    (
+        "ffplay",
+        &["-nodisp", "-autoexit", "-loglevel", "quiet"],
+        false,
+    ),
+];
+
+/// Names a player command to use instead of searching (its arguments, then the WAV
+/// file's path), or `none` for no player.
+const PLAYER_VARIABLE: &str = "TIMBRE_PLAYER";
+
+/// Writes the sound to a temporary WAV and plays it with the first player that works.
+fn play_with_system_player(
+    samples: &[f64],
+    channels: usize,
+    sample_rate: f64,
+    cancel: &AtomicBool,
+) -> Result<Played, String> {
+    let candidates: Vec<(String, Vec<String>, bool)> = match std::env::var(PLAYER_VARIABLE) {
+        Ok(command) if command.trim() == "none" => {
+            return Err(format!("no system player ({PLAYER_VARIABLE}=none)"))
+        }
+        Ok(command) => {
+            let mut words = command.split_whitespace().map(str::to_owned);
+            let program = words
+                .next()
+                .ok_or_else(|| format!("{PLAYER_VARIABLE} is empty"))?;
+            vec![(program, words.collect(), false)]
+        }
+        Err(_) => PLAYERS
+            .iter()
+            .filter(|(name, _, _)| on_path(name).is_some())
+            .map(|(name, args, s16)| {
+                (
+                    name.to_string(),
+                    args.iter().map(|a| a.to_string()).collect(),
+                    *s16,
+                )
+            })
+            .collect(),
+    };
+    if candidates.is_empty() {
+        let tried: Vec<&str> = PLAYERS.iter().map(|(name, _, _)| *name).collect();
+        return Err(format!(
+            "no system player found (tried {})",
+            tried.join(", ")
+        ));
+    }
+    let mut failures = vec![];
+    for (program, args, s16) in candidates {
+        let format = if s16 {
+            SampleFormat::S16
+        } else {
+            SampleFormat::F32
+        };
+        let wav = TempWav::write(samples, channels, sample_rate, format)?;
+        match run_player(&program, &args, &wav.0, cancel) {
+            Ok(played) => return Ok(played),
+            Err(why) => failures.push(format!("{program}: {why}")),
+        }
+    }
+    Err(failures.join("; "))
+}
+
+/// Runs a player on `wav` until it ends, or kills it when `cancel` is set.
+fn run_player(
+    program: &str,
+    args: &[String],
+    wav: &Path,
+    cancel: &AtomicBool,
+) -> Result<Played, String> {
+    let mut child = Command::new(program)
+        .args(args)
+        .arg(wav)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| e.to_string())?;
+    loop {
+        if cancel.load(Ordering::Relaxed) {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Ok(Played::Cancelled);
+        }
+        match child.try_wait().map_err(|e| e.to_string())? {
+            Some(status) if status.success() => return Ok(Played::Whole),
+            Some(status) => return Err(format!("it failed ({status})")),
+            None => std::thread::sleep(std::time::Duration::from_millis(20)),
+        }
+    }
+}
+
+/// A WAV file in the temporary directory, removed when dropped.
+struct TempWav(PathBuf);
+
+impl TempWav {
+    fn write(
+        samples: &[f64],
+        channels: usize,
+        sample_rate: f64,
+        format: SampleFormat,
+    ) -> Result<Self, String> {
+        static COUNT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = COUNT.fetch_add(1, Ordering::Relaxed);
+        let path = std::env::temp_dir().join(format!("timbre-play-{}-{n}.wav", std::process::id()));
+        let never = AtomicBool::new(false);
+        let job = OutputJob {
+            destination: Destination::File(&path),
+            container: Container::Wav,
+            sample_rate: sample_rate as u32,
+            channels: channels as u16,
+            format,
+            frames: (samples.len() / channels.max(1)) as u64,
+            interrupted: &never,
+        };
+        let mut written = 0;
+        write_audio(&job, |out| {
+            out.copy_from_slice(&samples[written..written + out.len()]);
+            written += out.len();
+            Ok(None)
+        })
+        .map_err(|e| e.to_string())?;
+        Ok(TempWav(path))
+    }
+}
+
+impl Drop for TempWav {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// Where `program` is on the `PATH`, if it is.
+fn on_path(program: &str) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .map(|dir| dir.join(program))
+        .find(|candidate| is_executable(candidate))
+}
+
+#[cfg(unix)]
+fn is_executable(path: &Path) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+}
+
+#[cfg(not(unix))]
+fn is_executable(path: &Path) -> bool {
+    path.is_file()
 }

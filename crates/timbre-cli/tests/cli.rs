@@ -928,7 +928,7 @@ fn bad_usage_exits_2() {
             &["render", "examples/bell.tt", "--expr", A440, "-o", o],
             "cannot be used with",
         ),
-        (&["play", "examples/bell.tt"], "unrecognized subcommand"),
+        (&["sing", "examples/bell.tt"], "unrecognized subcommand"),
     ];
     for (args, message) in cases {
         let run = run(*args);

@@ -1,0 +1,364 @@
+//! Writing rendered sound: WAV or FLAC to a file, or WAV to standard output. A file
+//! is never left truncated: samples go to a temporary file next to the target, which
+//! is renamed over it only when complete.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Most bytes of sample data a WAV file can describe (its sizes are 32-bit, and the
+/// RIFF size also counts the header bytes after it).
+pub const MAX_DATA_BYTES: u64 = u32::MAX as u64 - 48;
+
+/// Frames rendered and written per step; bounds memory whatever the duration.
+const CHUNK_FRAMES: usize = 8192;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleFormat {
+    F32,
+    S16,
+    S24,
+}
+
+impl SampleFormat {
+    pub fn bytes(self) -> u64 {
+        match self {
+            SampleFormat::F32 => 4,
+            SampleFormat::S16 => 2,
+            SampleFormat::S24 => 3,
+        }
+    }
+}
+
+/// The kind of file written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Container {
+    Wav,
+    /// Lossless and integer only (16 or 24 bits).
+    Flac,
+}
+
+/// Where the sound goes.
+#[derive(Clone, Copy, Debug)]
+pub enum Destination<'a> {
+    File(&'a Path),
+    /// Standard output, as a WAV stream whose header is written first.
+    Stdout,
+}
+
+pub struct OutputJob<'a> {
+    pub destination: Destination<'a>,
+    pub container: Container,
+    pub sample_rate: u32,
+    /// Interleaved channels per frame.
+    pub channels: u16,
+    pub format: SampleFormat,
+    /// Frames to write; a render may end sooner, except to standard output, whose
+    /// header is written first (it is then padded with silence).
+    pub frames: u64,
+    pub interrupted: &'a AtomicBool,
+}
+
+#[derive(Debug, Default)]
+pub struct Summary {
+    /// Largest absolute sample value.
+    pub peak: f64,
+    /// Samples outside [-1, 1] that integer formats had to clip.
+    pub clipped: u64,
+    /// Samples that were inf or NaN, written as 0.
+    pub non_finite: u64,
+    /// Frames written.
+    pub frames: u64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    #[error("cannot write `{path}`: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write `{path}`: {message}")]
+    Encode { path: PathBuf, message: String },
+    #[error("interrupted")]
+    Interrupted,
+    #[error("{0}")]
+    Render(String),
+}
+
+/// Renders up to `job.frames` frames with `render` (called with successive chunks of
+/// interleaved frames; it returns `Some(k)` when the sound is over after the chunk's
+/// first `k` frames) and writes them. On any failure or interruption the temporary
+/// file is removed and the target is left as it was.
+pub fn write_audio(
+    job: &OutputJob<'_>,
+    mut render: impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
+) -> Result<Summary, WriteError> {
+    match job.destination {
+        Destination::Stdout => {
+            let path = PathBuf::from("<stdout>");
+            let mut out = BufWriter::new(std::io::stdout().lock());
+            let mut writer = Writer::Stream {
+                out: &mut out,
+                format: job.format,
+            };
+            let io = |source| WriteError::Io {
+                path: path.clone(),
+                source,
+            };
+            write_wav_header(writer.stream(), job).map_err(io)?;
+            let summary = pump(job, &mut render, &mut writer, true)?;
+            out.flush().map_err(io)?;
+            Ok(summary)
+        }
+        Destination::File(target) => {
+            let temp = temp_path(target);
+            let result = write_file(&temp, target, job, &mut render).and_then(|summary| {
+                std::fs::rename(&temp, target).map_err(|source| WriteError::Io {
+                    path: target.to_path_buf(),
+                    source,
+                })?;
+                Ok(summary)
+            });
+            if result.is_err() {
+                let _ = std::fs::remove_file(&temp);
+            }
+            result
+        }
+    }
+}
+
+fn write_file(
+    temp: &Path,
+    target: &Path,
+    job: &OutputJob<'_>,
+    render: &mut impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
+) -> Result<Summary, WriteError> {
+    let io = |source| WriteError::Io {
+        path: target.to_path_buf(),
+        source,
+    };
+    let encode = |message: String| WriteError::Encode {
+        path: target.to_path_buf(),
+        message,
+    };
+    match job.container {
+        Container::Wav => {
+            let (bits, sample_format) = match job.format {
+                SampleFormat::F32 => (32, hound::SampleFormat::Float),
+                SampleFormat::S16 => (16, hound::SampleFormat::Int),
+                SampleFormat::S24 => (24, hound::SampleFormat::Int),
+            };
+            let spec = hound::WavSpec {
+                channels: job.channels,
+                sample_rate: job.sample_rate,
+                bits_per_sample: bits,
+                sample_format,
+            };
+            let file = File::create(temp).map_err(io)?;
+            let wav = hound::WavWriter::new(BufWriter::new(file), spec)
+                .map_err(|e| encode(e.to_string()))?;
+            let mut writer = Writer::Hound(wav, job.format);
+            let summary = pump(job, render, &mut writer, false)?;
+            let Writer::Hound(wav, _) = writer else {
+                unreachable!("the writer made above")
+            };
+            wav.finalize().map_err(|e| encode(e.to_string()))?;
+            Ok(summary)
+        }
+        Container::Flac => {
+            // The encoder takes the whole sound at once: 4 bytes per sample in memory
+            // (an hour of 48 kHz mono is 691 MB), then the file is written in one go.
+            let mut writer = Writer::Collect(vec![], job.format);
+            let summary = pump(job, render, &mut writer, false)?;
+            let Writer::Collect(samples, _) = writer else {
+                unreachable!("the writer made above")
+            };
+            let bits = if job.format == SampleFormat::S16 {
+                16
+            } else {
+                24
+            };
+            let bytes = encode_flac(&samples, job.channels as usize, bits, job.sample_rate)
+                .map_err(encode)?;
+            std::fs::write(temp, bytes).map_err(io)?;
+            Ok(summary)
+        }
+    }
+}
+
+fn encode_flac(
+    samples: &[i32],
+    channels: usize,
+    bits: usize,
+    sample_rate: u32,
+) -> Result<Vec<u8>, String> {
+    use flacenc::component::BitRepr;
+    use flacenc::error::Verify;
+    let config = flacenc::config::Encoder::default()
+        .into_verified()
+        .map_err(|(_, e)| format!("{e:?}"))?;
+    let source =
+        flacenc::source::MemSource::from_samples(samples, channels, bits, sample_rate as usize);
+    let stream = flacenc::encode_with_fixed_block_size(&config, source, config.block_size)
+        .map_err(|e| e.to_string())?;
+    let mut sink = flacenc::bitsink::ByteSink::new();
+    stream.write(&mut sink).map_err(|e| e.to_string())?;
+    Ok(sink.as_slice().to_vec())
+}
+
+enum Writer<'w> {
+    Hound(hound::WavWriter<BufWriter<File>>, SampleFormat),
+    Stream {
+        out: &'w mut dyn Write,
+        format: SampleFormat,
+    },
+    /// Integer samples kept for an encoder that needs them all.
+    Collect(Vec<i32>, SampleFormat),
+}
+
+impl Writer<'_> {
+    fn stream(&mut self) -> &mut dyn Write {
+        match self {
+            Writer::Stream { out, .. } => *out,
+            _ => unreachable!("only a stream has a raw writer"),
+        }
+    }
+
+    fn write(&mut self, y: f64, clipped: &mut u64) -> Result<(), String> {
+        match self {
+            Writer::Hound(wav, format) => match format {
+                SampleFormat::F32 => wav.write_sample(y as f32),
+                SampleFormat::S16 => wav.write_sample(quantise(y, 16, clipped) as i16),
+                SampleFormat::S24 => wav.write_sample(quantise(y, 24, clipped)),
+            }
+            .map_err(|e| e.to_string()),
+            Writer::Stream { out, format } => match format {
+                SampleFormat::F32 => out.write_all(&(y as f32).to_le_bytes()),
+                SampleFormat::S16 => {
+                    out.write_all(&(quantise(y, 16, clipped) as i16).to_le_bytes())
+                }
+                SampleFormat::S24 => out.write_all(&quantise(y, 24, clipped).to_le_bytes()[..3]),
+            }
+            .map_err(|e| e.to_string()),
+            Writer::Collect(samples, format) => {
+                let bits = if *format == SampleFormat::S16 { 16 } else { 24 };
+                samples.push(quantise(y, bits, clipped));
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Renders chunk after chunk into `writer`; with `exact`, pads to `job.frames`.
+fn pump(
+    job: &OutputJob<'_>,
+    render: &mut impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
+    writer: &mut Writer<'_>,
+    exact: bool,
+) -> Result<Summary, WriteError> {
+    let failed = |message: String| WriteError::Encode {
+        path: match job.destination {
+            Destination::File(p) => p.to_path_buf(),
+            Destination::Stdout => PathBuf::from("<stdout>"),
+        },
+        message,
+    };
+    let mut summary = Summary::default();
+    let channels = job.channels as usize;
+    let mut buffer = vec![0.0; CHUNK_FRAMES * channels];
+    let mut remaining = job.frames;
+    let mut over = false;
+    while remaining > 0 {
+        if job.interrupted.load(Ordering::Relaxed) {
+            return Err(WriteError::Interrupted);
+        }
+        let n = remaining.min(CHUNK_FRAMES as u64) as usize;
+        let chunk = &mut buffer[..n * channels];
+        let kept = if over {
+            // A stream whose length is already promised is filled with silence.
+            chunk.fill(0.0);
+            n
+        } else {
+            // The render says when the sound is over: its last frame in this chunk.
+            match render(chunk).map_err(WriteError::Render)? {
+                Some(last) => {
+                    over = true;
+                    let last = last.min(n);
+                    if exact {
+                        chunk[last * channels..].fill(0.0);
+                        n
+                    } else {
+                        last
+                    }
+                }
+                None => n,
+            }
+        };
+        for x in &buffer[..kept * channels] {
+            let y = if x.is_finite() {
+                *x
+            } else {
+                summary.non_finite += 1;
+                0.0
+            };
+            summary.peak = summary.peak.max(y.abs());
+            writer.write(y, &mut summary.clipped).map_err(failed)?;
+        }
+        remaining -= kept as u64;
+        summary.frames += kept as u64;
+        if over && !exact {
+            break;
+        }
+    }
+    Ok(summary)
+}
+
+/// The header of a WAV stream of `job.frames` frames (PCM, or IEEE float with its
+/// `fact` chunk), written before the samples since a pipe cannot be rewound.
+fn write_wav_header(out: &mut dyn Write, job: &OutputJob<'_>) -> std::io::Result<()> {
+    let bytes = job.format.bytes() as u32;
+    let block_align = bytes * job.channels as u32;
+    let data = job.frames as u32 * block_align;
+    let float = job.format == SampleFormat::F32;
+    let fact = if float { 12 } else { 0 };
+    let mut header = Vec::with_capacity(58);
+    header.extend_from_slice(b"RIFF");
+    header.extend_from_slice(&(4 + 24 + fact + 8 + data).to_le_bytes());
+    header.extend_from_slice(b"WAVEfmt ");
+    header.extend_from_slice(&16u32.to_le_bytes());
+    header.extend_from_slice(&(if float { 3u16 } else { 1 }).to_le_bytes());
+    header.extend_from_slice(&job.channels.to_le_bytes());
+    header.extend_from_slice(&job.sample_rate.to_le_bytes());
+    header.extend_from_slice(&(job.sample_rate * block_align).to_le_bytes());
+    header.extend_from_slice(&(block_align as u16).to_le_bytes());
+    header.extend_from_slice(&(bytes as u16 * 8).to_le_bytes());
+    if float {
+        header.extend_from_slice(b"fact");
+        header.extend_from_slice(&4u32.to_le_bytes());
+        header.extend_from_slice(&(job.frames as u32).to_le_bytes());
+    }
+    header.extend_from_slice(b"data");
+    header.extend_from_slice(&data.to_le_bytes());
+    out.write_all(&header)
+}
+
+/// A sample in [-1, 1] as a signed integer of `bits` bits (clipped, and counted).
+fn quantise(y: f64, bits: u32, clipped: &mut u64) -> i32 {
+    if y.abs() > 1.0 {
+        *clipped += 1;
+    }
+    let full_scale = ((1i64 << (bits - 1)) - 1) as f64;
+    (y.clamp(-1.0, 1.0) * full_scale).round() as i32
+}
+
+/// `dir/.name.partial-PID`: same directory (so the rename is atomic), hidden, and
+/// unique per process.
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output.wav".into());
+    path.with_file_name(format!(".{name}.partial-{}", std::process::id()))
+}
