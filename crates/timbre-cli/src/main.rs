@@ -35,7 +35,7 @@ use crate::audio_out::{write_audio, Container, Destination, OutputJob, SampleFor
   timbre play examples/bee.tt
   timbre check examples/wind.tt
 
-The language: lang-spec/README.md. A first session: docs/getting-started.md."
+Each command has its own --help with examples; in `timbre repl`, Tab completes node names."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -375,8 +375,14 @@ fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure>
         (None, None) => unreachable!("clap requires a file or an expression"),
     };
     let program = compile(source, dir.as_deref(), &options)?;
+    for warning in &program.warnings {
+        eprintln!("{:?}", miette::Report::new(warning.clone()));
+    }
     for name in &program.unused_bindings {
-        eprintln!("warning: `--set {name}=…` is not used by any expression");
+        let close = timbre_ir::did_you_mean(name, program.definitions.iter().map(String::as_str))
+            .map(|n| format!("; did you mean `--set {n}=…`?"))
+            .unwrap_or_default();
+        eprintln!("warning: `--set {name}=…` is not used by any expression{close}");
     }
     Ok((program, loader.read.into_inner()))
 }

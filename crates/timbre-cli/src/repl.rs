@@ -644,6 +644,7 @@ fn evaluate(session: &mut Session, input: &str) {
         Ok(program) => program,
         Err(diagnostics) => return report(diagnostics),
     };
+    report(timbre_ir::Diagnostics(program.warnings.clone()));
     for (name, text) in reading.defines {
         let verb = if session.redefine(&name, text) {
             "redefined"

@@ -172,8 +172,8 @@ pub fn names() -> impl Iterator<Item = &'static str> {
 
 const MATHS: &str = "Arithmetic and maths";
 const LOGIC: &str = "Comparisons and logic";
-const WAVES: &str = "Waveforms";
-const BAND_LIMITED: &str = "Band-limited waveforms";
+pub(crate) const WAVES: &str = "Waveforms";
+pub(crate) const BAND_LIMITED: &str = "Band-limited waveforms";
 const LEVELS: &str = "Levels and pitches";
 const NOISES: &str = "Noises";
 const VECTORS: &str = "Vector nodes";
@@ -1164,4 +1164,80 @@ impl Lowerer<'_> {
         }
         acc
     }
+}
+
+/// Names other languages give to what timbre has under another name: (their name,
+/// lowercase; timbre's; how timbre writes it). `unknown function` suggests these.
+pub const ALIASES: &[(&str, &str, &str)] = &[
+    ("sinosc", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("sinwave", "sine", "write `(sine (* t f))`: timbre's `sine` takes a phase in cycles"),
+    ("sinewave", "sine", "write `(sine (* t f))`: timbre's `sine` takes a phase in cycles"),
+    ("osc", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("oscil", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("oscili", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("poscil", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("os.osc", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("hzosc", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("sin-osc", "sine", "write `(sine (phasor f))`: timbre's `sine` takes a phase in cycles"),
+    ("saw", "saw-bl", "write `(saw-bl (phasor f))`, or `(sawtooth …)` for the naive one"),
+    ("lfsaw", "sawtooth", "write `(sawtooth (phasor f))`"),
+    ("vco2", "saw-bl", "write `(saw-bl (phasor f))`"),
+    ("osc-saw", "saw-bl", "write `(saw-bl (phasor f))`"),
+    ("pulse-osc", "pulse", "write `(pulse (phasor f) width)`"),
+    ("lfpulse", "pulse", "write `(pulse (phasor f) width)`"),
+    ("lftri", "triangle", "write `(triangle (phasor f))`"),
+    ("tri", "triangle", "write `(triangle (phasor f))`"),
+    ("whitenoise", "white", "write `(white)`"),
+    ("rand", "white", "write `(white)`"),
+    ("pinknoise", "pink", "write `(pink)`"),
+    ("pinkish", "pink", "write `(pink)`"),
+    ("lfnoise0", "latch", "stepped random: `(latch (white) (square (* t rate)))`"),
+    ("randh", "latch", "stepped random: `(latch (white) (square (* t rate)))`"),
+    ("lfnoise1", "noise", "smooth random: `(noise (* t 2 rate))`"),
+    ("lfnoise2", "noise", "smooth random: `(noise (* t 2 rate))`"),
+    ("randi", "noise", "smooth random: `(noise (* t 2 rate))`"),
+    ("lpf", "lowpass", "write `(lowpass x freq)`"),
+    ("rlpf", "lowpass", "write `(lowpass x freq :q q)`"),
+    ("lp", "lowpass", "write `(lowpass x freq)`"),
+    ("butlp", "lowpass", "write `(lowpass x freq)`"),
+    ("moogladder", "lowpass", "write `(lowpass x freq :q q)`"),
+    ("hpf", "highpass", "write `(highpass x freq)`"),
+    ("hp", "highpass", "write `(highpass x freq)`"),
+    ("bpf", "bandpass", "write `(bandpass x freq)`"),
+    ("resonz", "resonator", "write `(resonator x freq bandwidth)`"),
+    ("reson", "resonator", "write `(resonator x freq bandwidth)`"),
+    ("delayn", "delay", "write `(delay x seconds)`"),
+    ("delayl", "delay", "write `(delay x seconds)`"),
+    ("delayc", "delay", "write `(delay x seconds)`"),
+    ("vdelay", "delay", "write `(delay x seconds)`"),
+    ("combn", "comb", "write `(comb x delay feedback)`"),
+    ("combl", "comb", "write `(comb x delay feedback)`"),
+    ("allpassn", "allpass", "write `(allpass x delay gain)`"),
+    ("envgen", "env", "`(env t attack decay)`, or `(adsr gate a d s r)` with a gate"),
+    ("line", "env", "`(env t attack decay)`, or keyframes for a curve over the scene"),
+    ("linseg", "env", "`(env t attack decay)`, or keyframes for a curve over the scene"),
+    ("expseg", "env", "`(env t attack decay :decay-curve -5)`"),
+    ("pwl", "env", "`(env t attack decay)`, or keyframes for a curve over the scene"),
+    ("madsr", "adsr", "write `(adsr gate attack decay sustain release)`"),
+    ("pan2", "pan", "write `(pan position x)`, position from −1 (left) to 1 (right)"),
+    ("port", "lag", "write `(lag x seconds)`"),
+    ("klank", "combine", "a mode bank is a sum over lanes: `(combine (* amps (sine (* t freqs)) (damp (/ (* 6.91 t) t60s))))`"),
+    ("mix", "combine", "`(combine x)` sums the lanes of x; `(+ a b)` sums trees"),
+    ("midicps", "midihz", "write `(midihz note)`"),
+    ("cpsmidinn", "midihz", "write `(midihz note)`"),
+    ("playbuf", "sample", "write `(sample \"file.wav\")`"),
+    ("diskin", "sample", "write `(sample \"file.wav\")`"),
+    ("diskin2", "sample", "write `(sample \"file.wav\")`"),
+    ("convolution", "conv", "write `(conv x \"response.wav\")`"),
+    ("pconvolve", "conv", "write `(conv x \"response.wav\")`"),
+];
+
+/// What another language's `name` is in timbre: the node and how to write it.
+pub fn alias(name: &str) -> Option<(&'static str, &'static str)> {
+    let lower = name.to_ascii_lowercase();
+    let bare = lower.trim_end_matches(".ar").trim_end_matches(".kr");
+    ALIASES
+        .iter()
+        .find(|(other, ..)| *other == bare)
+        .map(|(_, ours, how)| (*ours, *how))
 }

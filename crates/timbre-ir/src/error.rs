@@ -57,6 +57,8 @@ pub struct Diag {
     pub labels: Vec<(Span, String)>,
     pub help: Option<String>,
     pub source: Option<Arc<SourceFile>>,
+    /// A warning (a lint): the file compiles, but probably not as meant.
+    pub warning: bool,
 }
 
 impl Diag {
@@ -67,7 +69,14 @@ impl Diag {
             labels: vec![],
             help: None,
             source: None,
+            warning: false,
         }
+    }
+
+    /// The same diagnostic as a warning.
+    pub fn as_warning(mut self) -> Self {
+        self.warning = true;
+        self
     }
 
     pub fn label(mut self, span: Span, text: impl Into<String>) -> Self {
@@ -95,12 +104,10 @@ impl Diag {
         if let Some(code) = error.code() {
             diag.code = Cow::Owned(code.to_string());
         }
-        let caption = error
-            .labels()
-            .and_then(|mut labels| labels.next())
-            .and_then(|l| l.label().map(str::to_owned))
-            .unwrap_or_default();
-        diag = diag.label(error.span(), caption);
+        for label in error.labels().into_iter().flatten() {
+            let span = Span::new(label.offset(), label.offset() + label.len());
+            diag = diag.label(span, label.label().unwrap_or_default().to_owned());
+        }
         if let Some(help) = error.help() {
             diag = diag.help(help.to_string());
         }
@@ -131,6 +138,14 @@ impl std::error::Error for Diag {}
 impl Diagnostic for Diag {
     fn code<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {
         Some(Box::new(&self.code))
+    }
+
+    fn severity(&self) -> Option<miette::Severity> {
+        Some(if self.warning {
+            miette::Severity::Warning
+        } else {
+            miette::Severity::Error
+        })
     }
 
     fn help<'a>(&'a self) -> Option<Box<dyn fmt::Display + 'a>> {

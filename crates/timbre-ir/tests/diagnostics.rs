@@ -413,3 +413,287 @@ fn nesting_too_deep_is_an_error_not_a_crash() {
         );
     }
 }
+
+/// Diagnostics whose help says how to fix them: (source, code, message prefix,
+/// underlined text, text the help contains).
+const HELPED: &[(&str, &str, &str, &str, &str)] = &[
+    (
+        "(scene :duration 1)\n// a comment the C way\n(sine (* t 440))",
+        "timbre::syntax::wrong-comment",
+        "comments start with `;`",
+        "//",
+        "write `; …`",
+    ),
+    (
+        "  # a shell comment\n(sine (* t 440))",
+        "timbre::syntax::wrong-comment",
+        "comments start with `;`",
+        "#",
+        "a comment runs from `;`",
+    ),
+    (
+        "(define f (x)\n  (* x 2)\n\n(sine (* t (f 220)))",
+        "timbre::syntax::unclosed-list",
+        "unclosed list",
+        "(",
+        "add `)` at the end of line 2",
+    ),
+    (
+        "(define (f x) (* x 2))",
+        "timbre::bad-define",
+        "timbre writes a definition as `(define name (param …) body)`",
+        "(f x)",
+        "write `(define f (x) …)`",
+    ),
+    (
+        "(define-sound (hit amp f) (* amp (sine (* t f))))",
+        "timbre::bad-define",
+        "timbre writes a definition as `(define-sound name (param …) body)`",
+        "(hit amp f)",
+        "write `(define-sound hit (amp f) …)`",
+    ),
+    (
+        "(define-sound unused (f) (sinee (* t f)))\n(sine (* t 440))",
+        "timbre::unknown-function",
+        "unknown function `sinee`",
+        "sinee",
+        "did you mean `sine`?",
+    ),
+    (
+        "(SinOsc 440)",
+        "timbre::unknown-function",
+        "unknown function `SinOsc`",
+        "SinOsc",
+        "did you mean `sine`? write `(sine (phasor f))`",
+    ),
+    (
+        "(SinOsc.ar 440)",
+        "timbre::unknown-function",
+        "unknown function `SinOsc.ar`",
+        "SinOsc.ar",
+        "did you mean `sine`?",
+    ),
+    (
+        "(sinwave (* t 440))",
+        "timbre::unknown-function",
+        "unknown function `sinwave`",
+        "sinwave",
+        "did you mean `sine`?",
+    ),
+    (
+        "(osc 440)",
+        "timbre::unknown-function",
+        "unknown function `osc`",
+        "osc",
+        "did you mean `sine`?",
+    ),
+    (
+        "(Pan2 (white) 0)",
+        "timbre::unknown-function",
+        "unknown function `Pan2`",
+        "Pan2",
+        "did you mean `pan`?",
+    ),
+    (
+        "(LFNoise2 4)",
+        "timbre::unknown-function",
+        "unknown function `LFNoise2`",
+        "LFNoise2",
+        "did you mean `noise`?",
+    ),
+    (
+        "(Klank 1)",
+        "timbre::unknown-function",
+        "unknown function `Klank`",
+        "Klank",
+        "did you mean `combine`?",
+    ),
+    (
+        "(frobnicate 1)",
+        "timbre::unknown-function",
+        "unknown function `frobnicate`",
+        "frobnicate",
+        "define it with (define …)",
+    ),
+    (
+        "(define-sound a (f) (sine (* t f)))\n(instance x (a :f 1) :pan 0)",
+        "timbre::bad-instance",
+        "`:pan` needs a stereo scene",
+        "0",
+        ":channels 2",
+    ),
+    (
+        "(scene :channels 2)\n(define-sound a (f) (pan 0 (sine (* t f))))\n(instance x (a :f 1) :pan 0)",
+        "timbre::bad-instance",
+        "`:pan` places a one-lane sound, and `x` has a lane per channel",
+        "0",
+        "leave the option out",
+    ),
+    (
+        "(define-sound a (f) (pan 0 (sine (* t f))))\n(instance x (a :f 1))",
+        "timbre::wide-sound",
+        "instance `x` is 2 lanes wide",
+        "(a :f 1)",
+        "(scene :channels N)",
+    ),
+];
+
+#[test]
+fn diagnostics_say_how_to_fix_them() {
+    let mut failures = vec![];
+    for (source, code, message, underlined, help) in HELPED {
+        let diags = match common::compile_with(source, &[], 0) {
+            Ok(_) => {
+                failures.push(format!("{source:?}: compiled without error"));
+                continue;
+            }
+            Err(d) => d,
+        };
+        let first = &diags.0[0];
+        let span = first.span().expect("every diagnostic points somewhere");
+        let actual = &source[span.start..span.end];
+        let actual_help = first.help.clone().unwrap_or_default();
+        if first.code != *code
+            || !first.message.starts_with(message)
+            || actual != *underlined
+            || !actual_help.contains(help)
+            || actual_help.contains("lang-spec/")
+        {
+            failures.push(format!(
+                "{source:?}: got {} / {:?} at {actual:?} / help {actual_help:?}, expected {code} / {message:?} at {underlined:?} / help with {help:?}",
+                first.code, first.message
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The codes of all diagnostics of `source`.
+fn codes(source: &str, bindings: &[(&str, f64)]) -> Vec<String> {
+    match common::compile_with(source, bindings, 0) {
+        Ok(_) => vec![],
+        Err(d) => d.0.iter().map(|d| d.code.to_string()).collect(),
+    }
+}
+
+#[test]
+fn one_cause_gives_one_diagnostic() {
+    // A comment the C way among several forms: one error, the forms still read.
+    assert_eq!(
+        codes(
+            "(define f (x) (* x 2))\n// twice the frequency\n(sine (* t (f 220)))",
+            &[]
+        ),
+        ["timbre::syntax::wrong-comment"]
+    );
+    // A missing include: nothing about the names it would have defined.
+    assert_eq!(
+        codes(
+            "(include \"no-such-file.tt\")\n(sine (* t (helper 3)))",
+            &[]
+        ),
+        ["timbre::include-unreadable"]
+    );
+    // A malformed keyframes form: no "unbound parameter … --set force=VALUE".
+    assert_eq!(
+        codes(
+            "(keyframes force :interp cubic (0 1) (1 2))\n(* force (sine (* t 440)))",
+            &[]
+        ),
+        ["timbre::bad-keyframes"]
+    );
+    // A definition written Scheme's way: no "unknown function `f`" after it.
+    assert_eq!(
+        codes("(define (f x) (* x 2))\n(sine (* t (f 220)))", &[]),
+        ["timbre::bad-define"]
+    );
+    // An unclosed list followed by a form at the margin: that form reads normally.
+    let source = "(define f (x)\n  (* x 2)\n(sine (* t (f 220)))";
+    let diags = common::compile_with(source, &[], 0).unwrap_err();
+    assert_eq!(diags.0.len(), 1, "{:?}", diags.0);
+    let labels = &diags.0[0].labels;
+    assert_eq!(labels.len(), 2);
+    let line_of = |at: usize| source[..at].matches('\n').count() + 1;
+    assert_eq!(line_of(labels[0].0.start), 1);
+    assert_eq!(&source[labels[1].0.start..labels[1].0.end], ")");
+    assert_eq!(line_of(labels[1].0.start), 2);
+}
+
+#[test]
+fn a_misspelt_set_name_is_named_in_the_help() {
+    let diags = common::compile_with("(sine (* t freq))", &[("frq", 3.0)], 0).unwrap_err();
+    assert_eq!(
+        diags.0[0].help.as_deref(),
+        Some("a value was given as `--set frq=…`: did you mean `--set freq=…`?")
+    );
+}
+
+/// Lints: (source, code, message prefix, underlined text, text the help contains).
+const WARNINGS: &[(&str, &str, &str, &str, &str)] = &[
+    (
+        "(* 0.5 (sine 440))",
+        "timbre::lint::constant-phase",
+        "`(sine 440)` has a constant phase, so it is a constant, not a tone",
+        "440",
+        "did you mean `(sine (* t 440))`?",
+    ),
+    (
+        "(saw-bl 0.25)",
+        "timbre::lint::constant-phase",
+        "`(saw-bl 0.25)` has a constant phase",
+        "0.25",
+        "(saw-bl (* t 0.25))",
+    ),
+    (
+        "(* 0.5 0.25)",
+        "timbre::lint::constant-sound",
+        "this sound is the constant 0.125",
+        "(* 0.5 0.25)",
+        "a sound changes with time",
+    ),
+    (
+        "(- 1 1)",
+        "timbre::lint::silent-sound",
+        "this sound is silent",
+        "(- 1 1)",
+        "a sound changes with time",
+    ),
+    (
+        "(define-sound a (level) level)\n(instance x (a :level 0) :start 0)",
+        "timbre::lint::silent-sound",
+        "this sound is silent",
+        "(a :level 0)",
+        "use `t`",
+    ),
+];
+
+#[test]
+fn lints_warn_with_the_fix() {
+    let mut failures = vec![];
+    for (source, code, message, underlined, help) in WARNINGS {
+        let program = common::compile_with(source, &[], 0).unwrap();
+        let Some(first) = program.warnings.first() else {
+            failures.push(format!("{source:?}: no warning"));
+            continue;
+        };
+        let span = first.span().unwrap();
+        let actual = &source[span.start..span.end];
+        if !first.warning
+            || first.code != *code
+            || !first.message.starts_with(message)
+            || actual != *underlined
+            || !first.help.as_deref().unwrap_or_default().contains(help)
+        {
+            failures.push(format!("{source:?}: got {first:?} at {actual:?}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    // A tone warns about nothing; an unused tree is checked, but never linted.
+    for quiet in [
+        "(sine (* t 440))",
+        "(define-sound a (f) (sine f))\n(define-sound b (f) (sine (* t f)))\n(instance x (b :f 1) :start 0)",
+    ] {
+        let program = common::compile_with(quiet, &[], 0).unwrap();
+        assert!(program.warnings.is_empty(), "{quiet:?}: {:?}", program.warnings);
+    }
+}

@@ -14,14 +14,28 @@ use crate::parser::MAX_DEPTH;
 /// Messages are short and lowercase; the label says where, the help says what to do.
 #[derive(Debug, Clone, PartialEq, thiserror::Error, miette::Diagnostic)]
 pub enum SyntaxError {
-    /// A `(` with no matching `)` before the end of the input.
+    /// A `(` with no matching `)`: before the end of the input, or before a later
+    /// line that starts a new form at (or left of) its indentation, where `missing`
+    /// points at the last token before which a `)` was probably meant.
     #[error("unclosed list")]
-    #[diagnostic(
-        code("timbre::syntax::unclosed-list"),
-        help("add a `)` to close this list")
-    )]
+    #[diagnostic(code("timbre::syntax::unclosed-list"))]
     UnclosedList {
         #[label("this `(` is never closed")]
+        span: Span,
+        #[label("a `)` is probably missing after this")]
+        missing: Option<Span>,
+        #[help]
+        help: String,
+    },
+
+    /// A comment written as in C (`//`) or a shell (`#`) at the start of a line.
+    #[error("comments start with `;`")]
+    #[diagnostic(
+        code("timbre::syntax::wrong-comment"),
+        help("write `; …`: a comment runs from `;` to the end of the line")
+    )]
+    WrongComment {
+        #[label("not a comment in timbre")]
         span: Span,
     },
 
@@ -128,7 +142,8 @@ impl SyntaxError {
     /// Where in the source the problem is.
     pub fn span(&self) -> Span {
         match self {
-            SyntaxError::UnclosedList { span }
+            SyntaxError::UnclosedList { span, .. }
+            | SyntaxError::WrongComment { span }
             | SyntaxError::UnexpectedClose { span }
             | SyntaxError::BadNumber { span, .. }
             | SyntaxError::NumberTooLarge { span, .. }

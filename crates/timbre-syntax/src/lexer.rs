@@ -98,9 +98,64 @@ fn span_of(range: std::ops::Range<usize>) -> Span {
     Span::new(range.start, range.end)
 }
 
+/// Lines that begin (after blanks) with `//` or `#`: comments written in another
+/// language's way. The span of the marker and the byte range of the line.
+fn wrong_comments(source: &str) -> Vec<(Span, std::ops::Range<usize>)> {
+    let mut found = vec![];
+    let mut start = 0;
+    for line in source.split_inclusive('\n') {
+        let text = line.trim_start_matches([' ', '\t']);
+        let at = start + (line.len() - text.len());
+        let marker = if text.starts_with("//") {
+            2
+        } else if text.starts_with('#') {
+            1
+        } else {
+            0
+        };
+        if marker > 0 {
+            found.push((Span::new(at, at + marker), start..start + line.len()));
+        }
+        start += line.len();
+    }
+    found
+}
+
 /// Splits the source into tokens with their spans. Errors come back as
-/// [`Token::Error`] tokens in source order; nothing is dropped silently.
+/// [`Token::Error`] tokens in source order; nothing is dropped silently. A line that
+/// starts with `//` or `#` gives one error and is otherwise skipped, as a comment.
 pub(crate) fn lex(source: &str) -> Vec<(Token<'_>, Span)> {
+    let comments = wrong_comments(source);
+    let tokens = lex_tokens(source);
+    if comments.is_empty() {
+        return tokens;
+    }
+    let mut kept = Vec::with_capacity(tokens.len());
+    let mut next = comments.iter().peekable();
+    for (token, span) in tokens {
+        while let Some((marker, _)) = next.next_if(|(_, line)| line.end <= span.start) {
+            kept.push((
+                Token::Error(SyntaxError::WrongComment { span: *marker }),
+                *marker,
+            ));
+        }
+        let in_comment = next
+            .peek()
+            .is_some_and(|(_, line)| line.contains(&span.start));
+        if !in_comment {
+            kept.push((token, span));
+        }
+    }
+    for (marker, _) in next {
+        kept.push((
+            Token::Error(SyntaxError::WrongComment { span: *marker }),
+            *marker,
+        ));
+    }
+    kept
+}
+
+fn lex_tokens(source: &str) -> Vec<(Token<'_>, Span)> {
     let mut lexer = Token::lexer(source);
     let mut tokens = Vec::new();
     while let Some(result) = lexer.next() {

@@ -39,7 +39,7 @@ pub struct Parse {
 /// Parses a whole source text. Never panics, whatever the input.
 pub fn parse(source: &str) -> Parse {
     let tokens = lex(source);
-    let (tokens, mut errors) = check_structure(tokens);
+    let (tokens, mut errors) = check_structure(tokens, source);
 
     let eoi: SimpleSpan = (source.len()..source.len()).into();
     let stream = Stream::from_iter(
@@ -68,7 +68,10 @@ pub fn parse(source: &str) -> Parse {
 ///
 /// Returns the tokens that form complete, shallow-enough expressions, and the
 /// errors (not yet sorted: unclosed lists are only known at the end).
-fn check_structure(tokens: Vec<(Token<'_>, Span)>) -> (Vec<(Token<'_>, Span)>, Vec<SyntaxError>) {
+fn check_structure<'src>(
+    tokens: Vec<(Token<'src>, Span)>,
+    source: &str,
+) -> (Vec<(Token<'src>, Span)>, Vec<SyntaxError>) {
     let mut kept = Vec::with_capacity(tokens.len());
     let mut errors = Vec::new();
     // Open lists: where each `(` went in `kept`, and its span. At most MAX_DEPTH long.
@@ -76,8 +79,34 @@ fn check_structure(tokens: Vec<(Token<'_>, Span)>) -> (Vec<(Token<'_>, Span)>, V
     // While skipping a too-deep list: how many of its parentheses are open.
     // A counter, not a stack, so any depth costs no memory.
     let mut skip_depth = 0usize;
+    // The last token kept, after which a missing `)` would go.
+    let mut last: Option<Span> = None;
 
     for (token, span) in tokens {
+        // A `(` that starts a line at or left of the column of the outermost open
+        // list begins a new form: the open lists were meant to close before it.
+        if token == Token::LParen
+            && skip_depth == 0
+            && !open.is_empty()
+            && starts_line(source, span.start)
+            && column(source, span.start) <= column(source, open[0].1.start)
+        {
+            let after = last.unwrap_or(span);
+            let missing = open.len();
+            let line = source[..after.end].matches('\n').count() + 1;
+            errors.push(SyntaxError::UnclosedList {
+                span: open[0].1,
+                missing: Some(after),
+                help: format!("add `{}` at the end of line {line}", ")".repeat(missing)),
+            });
+            // The unclosed form is left out (as at the end of the input), and the
+            // forms after it read as written.
+            kept.truncate(open[0].0);
+            open.clear();
+        }
+        if !matches!(token, Token::Error(_)) && skip_depth == 0 {
+            last = Some(span);
+        }
         match token {
             // Lexer errors are reported wherever they are, even inside skipped lists.
             Token::Error(error) => errors.push(error),
@@ -109,12 +138,29 @@ fn check_structure(tokens: Vec<(Token<'_>, Span)>) -> (Vec<(Token<'_>, Span)>, V
     if let Some(&(first_index, _)) = open.first() {
         kept.truncate(first_index);
     }
-    errors.extend(
-        open.into_iter()
-            .map(|(_, span)| SyntaxError::UnclosedList { span }),
-    );
+    errors.extend(open.into_iter().map(|(_, span)| SyntaxError::UnclosedList {
+        span,
+        missing: None,
+        help: "add a `)` to close this list".into(),
+    }));
 
     (kept, errors)
+}
+
+/// Whether only blanks precede `at` on its line.
+fn starts_line(source: &str, at: usize) -> bool {
+    source[..at]
+        .rsplit('\n')
+        .next()
+        .is_some_and(|before| before.chars().all(|c| c == ' ' || c == '\t'))
+}
+
+/// The column of `at` on its line, in characters.
+fn column(source: &str, at: usize) -> usize {
+    source[..at]
+        .rsplit('\n')
+        .next()
+        .map_or(0, |before| before.chars().count())
 }
 
 /// Step 2: the grammar, `expr* EOI` with `expr = atom | "(" expr* ")"`.

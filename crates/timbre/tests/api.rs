@@ -243,11 +243,17 @@ fn engines_on_several_threads_render_independently() {
 #[test]
 fn script_errors_are_diagnostics() {
     let engine = engine();
-    let err = engine.load_library("(define-sound x (a) (sinee a))").err();
-    assert!(
-        err.is_none(),
-        "lowering of class bodies happens at instantiation"
-    );
+    // Every class is checked when the library is read, instantiated or not.
+    let err = engine
+        .load_library(
+            "(define-sound ok (a) (sine (* t a)))
+(define-sound x (a) (sinee a))",
+        )
+        .err()
+        .expect("a typo in a class is a load-time error");
+    assert_eq!(err.0.len(), 1);
+    assert_eq!(err.0[0].code, "timbre::unknown-function");
+    assert_eq!(err.0[0].help.as_deref(), Some("did you mean `sine`?"));
     let library = engine.load_library(LIBRARY).unwrap();
     let mut scene = engine.scene(&library).unwrap();
     let message = |r: Result<timbre::InstanceId, timbre::Error>| r.unwrap_err().to_string();

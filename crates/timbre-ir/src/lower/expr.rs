@@ -134,13 +134,23 @@ impl Lowerer<'_> {
                 .label(span, "used without parentheses")
                 .help(format!("call it: ({name} …)")));
         }
+        if self.names_incomplete || self.failed_names.contains(name) {
+            return Err(self.follow_on(name, span, origin));
+        }
+        if self.checking_unused {
+            // An unused definition may name a value that `--set` will give.
+            return Ok(self.graph.constant(1.0));
+        }
         let mut candidates: Vec<&str> = scope.iter().map(|(n, _)| n.as_str()).collect();
         candidates.extend(self.definitions.keys().map(String::as_str));
         candidates.extend(self.options.bindings.keys().map(String::as_str));
         candidates.extend(["t", "pi"]);
-        let help = match super::did_you_mean(name, candidates) {
-            Some(close) => format!("did you mean `{close}`? Otherwise give `{name}` a value: `--set {name}=VALUE` on the command line, or (define {name} VALUE)"),
-            None => format!("give it a value: `--set {name}=VALUE` on the command line, or (define {name} VALUE)"),
+        let misspelt_binding =
+            super::did_you_mean(name, self.options.bindings.keys().map(String::as_str));
+        let help = match (misspelt_binding, super::did_you_mean(name, candidates)) {
+            (Some(given), _) => format!("a value was given as `--set {given}=…`: did you mean `--set {name}=…`?"),
+            (None, Some(close)) => format!("did you mean `{close}`? Otherwise give `{name}` a value: `--set {name}=VALUE` on the command line, or (define {name} VALUE)"),
+            (None, None) => format!("give it a value: `--set {name}=VALUE` on the command line, or (define {name} VALUE)"),
         };
         Err(self
             .diag(
@@ -206,14 +216,19 @@ impl Lowerer<'_> {
         if let Some(node) = self.options.registry.get(name).cloned() {
             return self.lower_custom(&call, node, origin, scope);
         }
+        if self.names_incomplete || self.failed_names.contains(name) {
+            return Err(self.follow_on(name, head.span, origin));
+        }
         let mut candidates: Vec<&str> = catalogue::names().collect();
         candidates.extend(self.definitions.keys().map(String::as_str));
         candidates.extend(self.options.registry.names());
         candidates.extend(super::FORMS);
-        let help = match super::did_you_mean(name, candidates) {
-            Some(close) => format!("did you mean `{close}`?"),
-            None => "see lang-spec/nodes.md for the nodes there are, or define it with (define …)"
-                .into(),
+        let help = match (catalogue::alias(name), super::did_you_mean(name, candidates)) {
+            (Some((ours, how)), _) => format!("did you mean `{ours}`? {how}"),
+            (None, Some(close)) => format!("did you mean `{close}`?"),
+            (None, None) => {
+                "no node or defined tree has this name: define it with (define …), or include the file that does".into()
+            }
         };
         Err(self
             .diag(
@@ -312,6 +327,7 @@ impl Lowerer<'_> {
                 .label(span, "recursive use")
                 .help("timbre trees are finite: a named tree cannot contain itself"));
         }
+        self.expanded.insert(name.to_owned());
         let params: Vec<Param> = def
             .params
             .iter()
@@ -381,6 +397,31 @@ impl Lowerer<'_> {
 
     /// A call of a built-in node: its arguments bound to the catalogue entry's
     /// parameters, checked, and built.
+    /// Warns about a waveform whose phase is a constant: `(sine 440)` is not a
+    /// 440 Hz tone but the constant sin(2π·440).
+    fn lint_constant_phase(&mut self, call: &Call<'_>, phase: &Arg, origin: &Origin) {
+        if self.graph.node(phase.node).as_const().is_none() {
+            return;
+        }
+        let text = origin
+            .source
+            .text
+            .get(phase.span.start..phase.span.end)
+            .unwrap_or("…");
+        let name = call.name;
+        let diag = self
+            .diag(
+                "timbre::lint::constant-phase",
+                format!("`({name} {text})` has a constant phase, so it is a constant, not a tone"),
+                origin,
+            )
+            .label(phase.span, "a phase, in cycles, that never changes")
+            .help(format!(
+                "did you mean `({name} (* t {text}))`? A waveform takes its phase: time times frequency"
+            ));
+        self.warn(diag);
+    }
+
     pub(crate) fn lower_builtin(
         &mut self,
         call: &Call<'_>,
@@ -400,6 +441,9 @@ impl Lowerer<'_> {
         let args: Vec<Arg> = bound.args.into_iter().flatten().collect();
         if spec.width == Width::Broadcast {
             self.check_widths(call, &args, origin)?;
+        }
+        if spec.section == catalogue::WAVES || spec.section == catalogue::BAND_LIMITED {
+            self.lint_constant_phase(call, &args[0], origin);
         }
         let nodes: Vec<NodeId> = args.iter().map(|a| a.node).collect();
         let result = match build {

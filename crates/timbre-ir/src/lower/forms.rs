@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use timbre_syntax::{Expr, ExprKind, Span};
+use timbre_syntax::{Expr, ExprKind, Span, SyntaxError};
 
 use super::{Definition, Lowerer, Origin};
 use crate::error::{Diag, SourceFile};
@@ -38,6 +38,14 @@ impl Lowerer<'_> {
         included_at: Option<&str>,
     ) {
         let parse = timbre_syntax::parse(&source.text);
+        // A form lost to a syntax error (a list never closed, or nested too deep) may
+        // have defined names used elsewhere.
+        self.names_incomplete |= parse.errors.iter().any(|e| {
+            matches!(
+                e,
+                SyntaxError::UnclosedList { .. } | SyntaxError::TooDeep { .. }
+            )
+        });
         for error in &parse.errors {
             self.errors.push(Diag::from_syntax(error, &source));
         }
@@ -53,10 +61,13 @@ impl Lowerer<'_> {
         origin: &Origin,
         included_at: Option<&str>,
     ) {
-        let head = form
+        let head: Option<String> = form
             .as_list()
             .and_then(|items| items.first())
-            .and_then(Expr::as_symbol);
+            .and_then(Expr::as_symbol)
+            .map(str::to_owned);
+        let defined = defined_name(&form).map(str::to_owned);
+        let head = head.as_deref();
         let result = match head {
             Some("define") => self.read_define(&form, origin, false),
             Some("define-sound") => self.read_define(&form, origin, true),
@@ -89,6 +100,13 @@ impl Lowerer<'_> {
             }
         };
         if let Err(diag) = result {
+            match head {
+                Some("include") => self.names_incomplete = true,
+                Some("define" | "define-sound" | "keyframes") => {
+                    self.failed_names.extend(defined);
+                }
+                _ => {}
+            }
             self.errors.push(diag);
         }
     }
@@ -110,6 +128,28 @@ impl Lowerer<'_> {
             .label(form.span, "incomplete definition")
             .help(shape_help));
         };
+        // Scheme's `(define (f x) body)`: say how timbre writes it.
+        if let Some([head, params @ ..]) = name_expr.as_list() {
+            let names: Option<Vec<&str>> = std::iter::once(head)
+                .chain(params)
+                .map(Expr::as_symbol)
+                .collect();
+            if let Some(names) = names {
+                let keyword = if class { "define-sound" } else { "define" };
+                let fixed = format!("({keyword} {} ({}) …)", names[0], names[1..].join(" "));
+                return Err(err(
+                    "timbre::bad-define",
+                    format!("timbre writes a definition as `({keyword} name (param …) body)`"),
+                )
+                .label(
+                    name_expr.span,
+                    "Scheme's way: the name and parameters in one list",
+                )
+                .help(format!(
+                    "write `{fixed}`: the name, then the list of parameters"
+                )));
+            }
+        }
         let Some(name) = name_expr.as_symbol() else {
             return Err(err(
                 "timbre::bad-define",
@@ -294,6 +334,15 @@ impl Lowerer<'_> {
         self.include_stack.pop();
         Ok(())
     }
+}
+
+/// The name a `define`, `define-sound` or `keyframes` form gives, also when written
+/// Scheme's way, `(define (name param …) …)`.
+fn defined_name(form: &Expr) -> Option<&str> {
+    let second = form.as_list()?.get(1)?;
+    second
+        .as_symbol()
+        .or_else(|| second.as_list()?.first()?.as_symbol())
 }
 
 /// Whether `name` may not name a parameter, a binding or a tree.

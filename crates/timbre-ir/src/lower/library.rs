@@ -113,8 +113,10 @@ impl Library {
             .in_source(&origin.source);
             lowerer.errors.push(diag);
         }
-        if !lowerer.errors.is_empty() {
-            return Err(Diagnostics(lowerer.errors));
+        // Every class is checked now, not at its first instance.
+        lowerer.check_unused_definitions();
+        if let Some(errors) = lowerer.take_errors() {
+            return Err(errors);
         }
         let classes = lowerer
             .definition_order

@@ -107,6 +107,8 @@ pub struct Program {
     pub unused_bindings: Vec<String>,
     /// The scene's instances, in the order written (empty unless it is a scene).
     pub instances: Vec<Instance>,
+    /// Lints: things that compile but are probably not what was meant.
+    pub warnings: Vec<Diag>,
 }
 
 impl Program {
@@ -202,7 +204,23 @@ pub(crate) struct Lowerer<'a> {
     /// Expansions of named trees by (name, argument nodes, time offset): a tree
     /// called again with the same arguments is the same node, found, not rebuilt.
     expansions: HashMap<(String, Vec<NodeId>, u64), NodeId>,
+    /// Names whose defining form failed (a `define` or `keyframes` with an error):
+    /// their uses report nothing more, since the first error explains them.
+    failed_names: HashSet<String>,
+    /// Set when an include failed or a file had syntax errors, so that forms may be
+    /// missing: an unknown name is then no error of its own.
+    names_incomplete: bool,
+    /// Named trees expanded at least once (successfully or not).
+    expanded: HashSet<String>,
+    /// While unused definitions are checked (see `check_unused_definitions`).
+    checking_unused: bool,
+    /// Lints met so far, at most one per place.
+    warnings: Vec<Diag>,
 }
+
+/// The code of a diagnostic that only follows from an earlier one; such diagnostics
+/// are dropped before errors are reported.
+pub(crate) const FOLLOW_ON: &str = "timbre::follow-on";
 
 /// Lexical scope: names bound by `let` and by a named tree's parameters.
 pub(crate) type Scope = Vec<(String, NodeId)>;
@@ -232,6 +250,11 @@ impl<'a> Lowerer<'a> {
             instances: vec![],
             time_offset: 0.0,
             expansions: HashMap::new(),
+            failed_names: HashSet::new(),
+            names_incomplete: false,
+            expanded: HashSet::new(),
+            checking_unused: false,
+            warnings: vec![],
         }
     }
 
@@ -261,12 +284,15 @@ impl<'a> Lowerer<'a> {
         }
         let root = roots.first().map(|(node, _, _)| *node);
         if let Some((node, span, origin)) = roots.first() {
+            self.lint_constant_sound(*node, *span, origin);
             let width = self.graph.width(*node);
-            if width != 1 {
+            // One lane, or one per channel of the scene (a `pan`, say).
+            let channels = self.settings.channels.unwrap_or(1);
+            if width != 1 && width != channels {
                 self.errors.push(
                     Diag::new("timbre::wide-sound", format!("the sound is {width} lanes wide"))
                         .label(*span, format!("{width} lanes"))
-                        .help("a sound is one lane: sum its lanes with (combine …) or pick one with (index …)")
+                        .help(format!("a sound is one lane, or one per channel ({channels} here): sum its lanes with (combine …) or pick one with (index …)"))
                         .in_source(&origin.source),
                 );
             }
@@ -305,8 +331,9 @@ impl<'a> Lowerer<'a> {
                 .in_source(&origin.source),
             );
         }
-        if !self.errors.is_empty() {
-            return Err(Diagnostics(self.errors));
+        self.check_unused_definitions();
+        if let Some(errors) = self.take_errors() {
+            return Err(errors);
         }
         let unused_bindings = self
             .options
@@ -322,6 +349,7 @@ impl<'a> Lowerer<'a> {
             definitions: self.definition_order,
             unused_bindings,
             instances: self.instances,
+            warnings: self.warnings,
         })
     }
 
@@ -332,6 +360,104 @@ impl<'a> Lowerer<'a> {
         origin: &Origin,
     ) -> Diag {
         Diag::new(code, message).in_source(&origin.source)
+    }
+
+    /// Lowers every definition that nothing used, so that a typo in an unused class
+    /// or library tree is reported when the file is read. Parameters stand for the
+    /// constant 1 and free names are not errors (`--set` may give them later); the
+    /// nodes made are thrown away.
+    pub(crate) fn check_unused_definitions(&mut self) {
+        let unused: Vec<String> = self
+            .definition_order
+            .iter()
+            .filter(|n| !self.expanded.contains(*n) && !self.failed_names.contains(*n))
+            .cloned()
+            .collect();
+        if unused.is_empty() {
+            return;
+        }
+        let saved = (
+            self.graph.clone(),
+            self.expansions.clone(),
+            self.used_bindings.clone(),
+        );
+        self.checking_unused = true;
+        for name in unused {
+            let Some(def) = self.definitions.get(&name).cloned() else {
+                continue;
+            };
+            let one = self.graph.constant(1.0);
+            let mut scope: Scope = def.params.iter().map(|(p, _)| (p.clone(), one)).collect();
+            let origin = Origin {
+                source: def.source.clone(),
+                dir: def.dir.clone(),
+            };
+            self.expanding.push(name);
+            if let Err(diag) = self.lower(&def.body, &origin, &mut scope) {
+                self.errors.push(diag);
+            }
+            self.expanding.pop();
+        }
+        self.checking_unused = false;
+        (self.graph, self.expansions, self.used_bindings) = saved;
+    }
+
+    /// The errors met, if any, without follow-ons (the first error explains them, and
+    /// there always is one).
+    pub(crate) fn take_errors(&mut self) -> Option<Diagnostics> {
+        if self.errors.is_empty() {
+            return None;
+        }
+        let (follow_ons, mut errors): (Vec<_>, Vec<_>) = std::mem::take(&mut self.errors)
+            .into_iter()
+            .partition(|d| d.code == FOLLOW_ON);
+        if errors.is_empty() {
+            errors = follow_ons;
+        }
+        Some(Diagnostics(errors))
+    }
+
+    /// Records a lint, once per place in the source (a tree expanded again warns once).
+    pub(crate) fn warn(&mut self, diag: Diag) {
+        if self.checking_unused {
+            return;
+        }
+        let place = |d: &Diag| (d.span(), d.source.as_ref().map(|s| s.name.clone()));
+        if !self.warnings.iter().any(|w| place(w) == place(&diag)) {
+            self.warnings.push(diag.as_warning());
+        }
+    }
+
+    /// Warns when `node`, a whole sound, is a constant: silence, or DC.
+    pub(crate) fn lint_constant_sound(&mut self, node: NodeId, span: Span, origin: &Origin) {
+        let Some(values) = self.graph.node(node).as_const() else {
+            return;
+        };
+        let diag = if values.iter().all(|v| *v == 0.0) {
+            self.diag(
+                "timbre::lint::silent-sound",
+                "this sound is silent: it is always 0",
+                origin,
+            )
+            .label(span, "always 0")
+            .help("a sound changes with time: use `t`, a waveform or a noise in it")
+        } else {
+            self.diag(
+                "timbre::lint::constant-sound",
+                format!("this sound is the constant {}: it is heard as silence (DC)", values[0]),
+                origin,
+            )
+            .label(span, "does not change with time")
+            .help("a sound changes with time: use `t`, a waveform or a noise in it, e.g. (sine (* t 440))")
+        };
+        self.warn(diag);
+    }
+
+    /// A use of `name` that an earlier error already explains (see [`FOLLOW_ON`]).
+    pub(crate) fn follow_on(&self, name: &str, span: Span, origin: &Origin) -> Diag {
+        self.diag(FOLLOW_ON, format!("`{name}` is not available"), origin)
+            .label(span, "see the earlier error")
+            .help("fix the error that this name's definition or file reported")
     }
 }
 

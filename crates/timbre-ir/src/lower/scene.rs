@@ -624,13 +624,23 @@ impl Lowerer<'_> {
         let gain = gain.map(|g| self.lower(g, origin, &mut Scope::new()));
         self.time_offset = 0.0;
         let mut sound = sound?;
+        self.lint_constant_sound(sound, call.span, origin);
         if let Some(gain) = gain {
             sound = self
                 .graph
                 .add(Op::Binary(BinaryOp::Mul), vec![gain?, sound]);
         }
         let width = self.graph.width(sound);
-        if width != 1 {
+        let channels = self.settings.channels.unwrap_or(1);
+        // A sound is one lane, or one lane per channel of the scene (a `pan` inside
+        // the class, say): then it is heard as it is, not routed or placed again.
+        let per_channel = width == channels && channels > 1;
+        if width != 1 && !per_channel {
+            let help = if channels > 1 {
+                format!("a sound class is one lane, or one per channel ({channels} here): sum its lanes with (combine …)")
+            } else {
+                "a sound class is one lane: sum its lanes with (combine …), or make the scene wider with (scene :channels N)".to_owned()
+            };
             return Err(self
                 .diag(
                     "timbre::wide-sound",
@@ -638,7 +648,22 @@ impl Lowerer<'_> {
                     origin,
                 )
                 .label(call.span, format!("{width} lanes"))
-                .help("a sound class is one lane: sum its lanes with (combine …)"));
+                .help(help));
+        }
+        if per_channel {
+            if let Some(option) = ["pan", "channel", "source", "at"]
+                .into_iter()
+                .find_map(|key| options.get(key).map(|e| (key, e)))
+            {
+                return Err(self
+                    .diag(
+                        "timbre::bad-instance",
+                        format!("`:{}` places a one-lane sound, and `{name}` has a lane per channel", option.0),
+                        origin,
+                    )
+                    .label(option.1.span, "cannot place this sound")
+                    .help("leave the option out (the class places itself, e.g. with `pan`), or make the class one lane"));
+            }
         }
         let t = self.graph.add(Op::Time, vec![]);
         let length = stop.map(|(stop, _)| stop - start);
