@@ -3,17 +3,19 @@
 //! [`spectrogram_png`] and [`wave_png`] draw samples held in memory (for hosts such as
 //! a REPL); `timbre plot FILE.wav` and `timbre render … --spectrogram/--wave` go through
 //! [`draw_pictures`], which streams the WAV file once and keeps only what the pictures
-//! need (a few MB whatever the duration). Multi-channel files are drawn as the mean of
-//! their channels.
+//! need (a few MB whatever the duration). A file of several channels is drawn as
+//! stacked panels, one per channel, on one time axis and one colour scale.
 //!
 //! # Layout (what a reader of the PNG can rely on)
 //!
-//! The data occupy a *plot area* of [`PLOT_WIDTH`] columns by [`SPECTROGRAM_HEIGHT`]
-//! (or [`WAVE_HEIGHT`]) rows whose top left pixel is ([`PLOT_LEFT`], [`PLOT_TOP`]);
-//! a one-pixel frame is drawn just outside it, and tick labels, axis titles and the
-//! colour bar in the margins. Each PNG also states its mapping in tEXt chunks:
+//! The data occupy a *plot area* (by default [`PLOT_WIDTH`] columns by
+//! [`SPECTROGRAM_HEIGHT`] or [`WAVE_HEIGHT`] rows; `--width`/`--height` set the whole
+//! picture's size) whose top left pixel is ([`PLOT_LEFT`], [`PLOT_TOP`]); a one-pixel
+//! frame is drawn just outside it, and tick labels, axis titles and the colour bar in
+//! the margins. Each PNG also states its mapping in tEXt chunks:
 //!
-//! - `timbre:plot-area` = `X Y WIDTH HEIGHT` (pixels);
+//! - `timbre:plot-area` = `X Y WIDTH HEIGHT` (pixels), the first panel's;
+//! - `timbre:panels` = `N STRIDE`: N panels, panel k's area moved down k · STRIDE rows;
 //! - `timbre:time-axis` = `T0 T1` (seconds): column `c` shows time
 //!   `T0 + (T1 − T0)·(c + ½)/WIDTH`;
 //! - spectrogram: `timbre:frequency-axis` = `linear F0 F1` or `log F0 F1` (Hz): row `r`
@@ -21,7 +23,9 @@
 //!   the axis, `F0 + (F1 − F0)·u` or `F0·(F1/F0)^u`; `timbre:decibels` = `LOW HIGH`,
 //!   the levels of the darkest and brightest colours (dB, 0 = a full-scale sine);
 //! - waveform: `timbre:amplitude-axis` = `-1 1`: row `r` holds the amplitudes `a` with
-//!   `floor((1 − a)/2 · HEIGHT) = r`.
+//!   `floor((1 − a)/2 · HEIGHT) = r`; or, drawn in dB, `timbre:level-axis` = `LOW 0`:
+//!   a column's bar rises from the bottom to row `floor(L / LOW · HEIGHT)`, L its peak
+//!   level in dBFS.
 
 mod canvas;
 mod font;
@@ -61,40 +65,128 @@ const ZERO_LINE: Rgb = Rgb(150, 150, 150);
 const WAVE: Rgb = Rgb(31, 119, 180);
 const CLIPPED: Rgb = Rgb(214, 39, 40);
 
+/// Between stacked panels (one per channel), pixels.
+const PANEL_GAP: usize = 16;
+
 /// How a spectrogram is computed and drawn.
 #[derive(Clone, Debug)]
 pub struct SpectrogramOptions {
     /// Frequency axis on a log scale from `min_frequency` (default: linear from 0 Hz).
     pub log_frequency: bool,
-    /// Lowest frequency of a log axis, in Hz.
-    pub min_frequency: f64,
-    /// Samples per analysis frame (a power of two); `None`: about 43 ms at the sample
-    /// rate, 2048 samples at 48 kHz.
+    /// Lowest frequency shown, in Hz (`None`: 0 on a linear axis, 20 Hz on a log one).
+    pub min_frequency: Option<f64>,
+    /// Highest frequency shown, in Hz (`None`: half the sample rate).
+    pub max_frequency: Option<f64>,
+    /// Samples per analysis frame (rounded up to a power of two); `None`: about 43 ms
+    /// at the sample rate, 2048 samples at 48 kHz. A file shorter than the window is
+    /// analysed with a window that fits it.
     pub window: Option<usize>,
+    /// Samples between analysed frames (`None`: one frame per column).
+    pub hop: Option<usize>,
     /// How many dB below the loudest point are shown; quieter is black.
     pub db_range: f64,
     /// Heading drawn above the plot (e.g. the file name); may be empty.
     pub title: String,
+    /// Size of the whole picture in pixels (`None`: a 1000 × 500 plot area per panel).
+    pub size: Option<(usize, usize)>,
 }
 
 impl Default for SpectrogramOptions {
     fn default() -> Self {
         SpectrogramOptions {
             log_frequency: false,
-            min_frequency: 20.0,
+            min_frequency: None,
+            max_frequency: None,
             window: None,
+            hop: None,
             db_range: 100.0,
             title: String::new(),
+            size: None,
         }
     }
 }
 
 /// How a waveform is drawn.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct WaveOptions {
     /// Heading drawn above the plot (e.g. the file name); may be empty.
     pub title: String,
+    /// Draw the level in dBFS (the peak of each column) instead of the amplitude.
+    pub decibels: bool,
+    /// The dB view's range: its floor is −`db_range` dBFS.
+    pub db_range: f64,
+    /// Size of the whole picture in pixels (`None`: a 1000 × 400 plot area per panel).
+    pub size: Option<(usize, usize)>,
 }
+
+impl Default for WaveOptions {
+    fn default() -> Self {
+        WaveOptions {
+            title: String::new(),
+            decibels: false,
+            db_range: 60.0,
+            size: None,
+        }
+    }
+}
+
+/// Where the panels go: the plot area of each (one per channel) and the picture.
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    /// Plot area of one panel.
+    width: usize,
+    height: usize,
+    panels: usize,
+    right_margin: usize,
+}
+
+impl Layout {
+    /// The layout of `panels` stacked panels in a picture of `size` pixels, or with
+    /// plot areas of `default` pixels each.
+    fn new(
+        size: Option<(usize, usize)>,
+        default: (usize, usize),
+        panels: usize,
+        right_margin: usize,
+    ) -> Self {
+        let panels = panels.max(1);
+        let (width, height) = match size {
+            None => default,
+            Some((w, h)) => (
+                w.saturating_sub(PLOT_LEFT + right_margin).max(1),
+                (h.saturating_sub(PLOT_TOP + MARGIN_BOTTOM + (panels - 1) * PANEL_GAP) / panels)
+                    .max(1),
+            ),
+        };
+        Layout {
+            width,
+            height,
+            panels,
+            right_margin,
+        }
+    }
+
+    fn picture_size(&self) -> (usize, usize) {
+        (
+            PLOT_LEFT + self.width + self.right_margin,
+            PLOT_TOP + self.panels * self.height + (self.panels - 1) * PANEL_GAP + MARGIN_BOTTOM,
+        )
+    }
+
+    /// Top row of panel `k`.
+    fn top(&self, k: usize) -> i64 {
+        (PLOT_TOP + k * (self.height + PANEL_GAP)) as i64
+    }
+
+    /// Below the last panel, where the time axis goes.
+    fn bottom(&self) -> i64 {
+        self.top(self.panels - 1) + self.height as i64
+    }
+}
+
+/// The smallest and largest picture sizes accepted, pixels.
+pub const MIN_SIZE: (usize, usize) = (320, 200);
+pub const MAX_SIZE: usize = 8000;
 
 /// Draws a spectrogram of mono `samples` at `sample_rate` to the PNG file `path`
 /// (written to a temporary file and renamed when complete).
@@ -110,16 +202,17 @@ pub fn spectrogram_png(
     path: &Path,
 ) -> Result<(), String> {
     check_input(samples.len() as u64, sample_rate)?;
-    let mut builder = SpectrogramBuilder::new(samples.len() as u64, sample_rate, options);
+    let layout = spectrogram_layout(options, 1);
+    let mut builder = SpectrogramBuilder::new(samples.len() as u64, sample_rate, options, layout)?;
     samples.iter().for_each(|&x| builder.push(x));
-    let (canvas, text) = builder.finish().draw(options, "");
+    let (canvas, text) = draw_spectrograms(&[builder.finish()], options, layout, 0.0, "");
     canvas.write_png(path, &text)
 }
 
 /// Draws the waveform of mono `samples` at `sample_rate` to the PNG file `path`
 /// (written to a temporary file and renamed when complete): the smallest and largest
-/// sample of each of the [`PLOT_WIDTH`] columns joined by a bar, amplitude −1…1, a zero
-/// line, and any sample beyond full scale marked red at the edge.
+/// sample of each column joined by a bar, amplitude −1…1, a zero line, and any sample
+/// beyond full scale marked red at the edge.
 pub fn wave_png(
     samples: &[f64],
     sample_rate: f64,
@@ -127,10 +220,29 @@ pub fn wave_png(
     path: &Path,
 ) -> Result<(), String> {
     check_input(samples.len() as u64, sample_rate)?;
-    let mut builder = WaveBuilder::new(samples.len() as u64, sample_rate);
+    let layout = wave_layout(options, 1);
+    let mut builder = WaveBuilder::new(samples.len() as u64, sample_rate, layout.width);
     samples.iter().for_each(|&x| builder.push(x));
-    let (canvas, text) = builder.finish().draw(options, "");
+    let (canvas, text) = draw_waves(&[builder.finish()], options, layout, 0.0, "");
     canvas.write_png(path, &text)
+}
+
+fn spectrogram_layout(options: &SpectrogramOptions, panels: usize) -> Layout {
+    Layout::new(
+        options.size,
+        (PLOT_WIDTH, SPECTROGRAM_HEIGHT),
+        panels,
+        MARGIN_RIGHT_SPECTROGRAM,
+    )
+}
+
+fn wave_layout(options: &WaveOptions, panels: usize) -> Layout {
+    Layout::new(
+        options.size,
+        (PLOT_WIDTH, WAVE_HEIGHT),
+        panels,
+        MARGIN_RIGHT_WAVE,
+    )
 }
 
 fn check_input(frames: u64, sample_rate: f64) -> Result<(), String> {
@@ -157,9 +269,59 @@ pub struct PictureArgs {
     #[arg(long, value_name = "FILE.png")]
     pub wave: Option<PathBuf>,
 
-    /// Spectrogram frequency axis on a log scale from 20 Hz (default: linear from 0 Hz).
+    /// Spectrogram frequency axis on a log scale (from --fmin, default 20 Hz).
     #[arg(long, requires = "spectrogram")]
     pub log_frequency: bool,
+
+    /// Draw the waveform's level in dBFS (the peak of each column) instead of its
+    /// amplitude; its floor is −(--db-range).
+    #[arg(long, requires = "wave")]
+    pub wave_db: bool,
+
+    /// Start of the time range drawn, seconds.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_time)]
+    pub from: Option<f64>,
+
+    /// End of the time range drawn, seconds (default: the end of the file).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_time)]
+    pub to: Option<f64>,
+
+    /// Lowest frequency of the spectrogram, Hz.
+    #[arg(long, value_name = "HZ", value_parser = parse_time, requires = "spectrogram")]
+    pub fmin: Option<f64>,
+
+    /// Highest frequency of the spectrogram, Hz (at most half the sample rate).
+    #[arg(long, value_name = "HZ", value_parser = parse_time, requires = "spectrogram")]
+    pub fmax: Option<f64>,
+
+    /// Levels shown below the loudest point, dB (spectrogram; default 100), or the
+    /// depth of the --wave-db view (default 60).
+    #[arg(long, value_name = "DB", value_parser = parse_time)]
+    pub db_range: Option<f64>,
+
+    /// Samples per spectrogram frame, rounded up to a power of two (at least 16;
+    /// default about 43 ms).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(16..=65536), requires = "spectrogram")]
+    pub window: Option<u32>,
+
+    /// Samples between spectrogram frames (default: one frame per column).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..), requires = "spectrogram")]
+    pub hop: Option<u32>,
+
+    /// Width of the pictures, pixels.
+    #[arg(long, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(MIN_SIZE.0 as i64..=MAX_SIZE as i64))]
+    pub width: Option<u32>,
+
+    /// Height of the pictures, pixels (shared by the panels of several channels).
+    #[arg(long, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(MIN_SIZE.1 as i64..=MAX_SIZE as i64))]
+    pub height: Option<u32>,
+}
+
+fn parse_time(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err(format!("`{text}` is not a number ≥ 0")),
+    }
 }
 
 /// `timbre plot`: pictures of a WAV file.
@@ -171,7 +333,7 @@ pub struct PictureArgs {
         .multiple(true)
 ))]
 pub struct PlotArgs {
-    /// The WAV file to draw (several channels are drawn as their mean).
+    /// The WAV file to draw (several channels are drawn as stacked panels).
     #[arg(value_name = "FILE.wav")]
     pub file: PathBuf,
 
@@ -185,8 +347,9 @@ pub fn plot(args: PlotArgs) -> Result<(), String> {
 }
 
 /// Draws the pictures `pictures` asks for of the WAV file `wav`, reading it once, in
-/// a stream; says what it wrote on standard error unless `quiet`. Nothing is written
-/// when the file cannot be read.
+/// a stream; one panel per channel; says what it wrote on standard error unless
+/// `quiet`. Nothing is written when the file cannot be read or an option is out of
+/// range.
 pub fn draw_pictures(wav: &Path, pictures: &PictureArgs, quiet: bool) -> Result<(), String> {
     if pictures.spectrogram.is_none() && pictures.wave.is_none() {
         return Ok(());
@@ -205,47 +368,89 @@ pub fn draw_pictures(wav: &Path, pictures: &PictureArgs, quiet: bool) -> Result<
     }
     let sample_rate = f64::from(spec.sample_rate);
     check_input(frames, sample_rate).map_err(|e| format!("`{}`: {e}", wav.display()))?;
+    let duration = frames as f64 / sample_rate;
+    // The time range, in frames.
+    let from = pictures.from.unwrap_or(0.0);
+    let to = pictures.to.unwrap_or(duration).min(duration);
+    if from >= to {
+        return Err(format!(
+            "--from {from} is not before the end of the range ({to} s; the file lasts {duration} s)"
+        ));
+    }
+    let first = (from * sample_rate).round() as u64;
+    let last = ((to * sample_rate).round() as u64).clamp(first + 1, frames);
+    let shown = last - first;
+
+    let channels = usize::from(spec.channels.max(1));
+    let size = match (pictures.width, pictures.height) {
+        (None, None) => None,
+        (w, h) => Some((
+            w.map_or(PLOT_LEFT + PLOT_WIDTH + MARGIN_RIGHT_SPECTROGRAM, |w| {
+                w as usize
+            }),
+            h.map_or(
+                PLOT_TOP + channels * SPECTROGRAM_HEIGHT + MARGIN_BOTTOM,
+                |h| h as usize,
+            ),
+        )),
+    };
     let options = SpectrogramOptions {
         log_frequency: pictures.log_frequency,
+        min_frequency: pictures.fmin,
+        max_frequency: pictures.fmax,
+        window: pictures.window.map(|w| w as usize),
+        hop: pictures.hop.map(|h| h as usize),
+        db_range: pictures.db_range.unwrap_or(100.0),
         title: file_title(wav),
-        ..SpectrogramOptions::default()
+        size,
     };
-    let mut spectrogram = pictures
-        .spectrogram
-        .as_ref()
-        .map(|_| SpectrogramBuilder::new(frames, sample_rate, &options));
-    let mut wave = pictures
-        .wave
-        .as_ref()
-        .map(|_| WaveBuilder::new(frames, sample_rate));
-    let channels = usize::from(spec.channels.max(1));
-    let mut sum = 0.0;
-    let mut in_frame = 0;
+    let wave_options = WaveOptions {
+        title: options.title.clone(),
+        decibels: pictures.wave_db,
+        db_range: pictures.db_range.unwrap_or(60.0),
+        size,
+    };
+    let spectrogram_layout = spectrogram_layout(&options, channels);
+    let wave_layout = wave_layout(&wave_options, channels);
+    let mut spectrograms = match &pictures.spectrogram {
+        Some(_) => (0..channels)
+            .map(|_| SpectrogramBuilder::new(shown, sample_rate, &options, spectrogram_layout))
+            .collect::<Result<Vec<_>, _>>()?,
+        None => vec![],
+    };
+    let mut waves: Vec<WaveBuilder> = match &pictures.wave {
+        Some(_) => (0..channels)
+            .map(|_| WaveBuilder::new(shown, sample_rate, wave_layout.width))
+            .collect(),
+        None => vec![],
+    };
+    let mut index = 0u64;
     let mut push = |x: f64| {
-        sum += if x.is_finite() { x } else { 0.0 };
-        in_frame += 1;
-        if in_frame == channels {
-            let mono = sum / channels as f64;
-            if let Some(s) = &mut spectrogram {
-                s.push(mono);
-            }
-            if let Some(w) = &mut wave {
-                w.push(mono);
-            }
-            sum = 0.0;
-            in_frame = 0;
+        let frame = index / channels as u64;
+        let channel = (index % channels as u64) as usize;
+        index += 1;
+        if frame < first || frame >= last {
+            return;
+        }
+        let x = if x.is_finite() { x } else { 0.0 };
+        if let Some(s) = spectrograms.get_mut(channel) {
+            s.push(x);
+        }
+        if let Some(w) = waves.get_mut(channel) {
+            w.push(x);
         }
     };
     let broken = |e: hound::Error| format!("cannot read `{}`: {e}", wav.display());
+    let end = last * channels as u64;
     match (spec.sample_format, spec.bits_per_sample) {
         (hound::SampleFormat::Float, 32) => {
-            for s in reader.samples::<f32>() {
+            for s in reader.samples::<f32>().take(end as usize) {
                 push(f64::from(s.map_err(broken)?));
             }
         }
         (hound::SampleFormat::Int, bits @ 1..=32) => {
             let full = (1u64 << (bits - 1)) as f64;
-            for s in reader.samples::<i32>() {
+            for s in reader.samples::<i32>().take(end as usize) {
                 push(f64::from(s.map_err(broken)?) / full);
             }
         }
@@ -256,22 +461,16 @@ pub fn draw_pictures(wav: &Path, pictures: &PictureArgs, quiet: bool) -> Result<
             ))
         }
     }
-    let note = if channels > 1 {
-        format!(", mean of {channels} channels")
-    } else {
-        String::new()
-    };
     let mut written = vec![];
-    if let (Some(path), Some(builder)) = (&pictures.spectrogram, spectrogram) {
-        let (canvas, text) = builder.finish().draw(&options, &note);
+    if let Some(path) = &pictures.spectrogram {
+        let panels: Vec<Spectrogram> = spectrograms.into_iter().map(|b| b.finish()).collect();
+        let (canvas, text) = draw_spectrograms(&panels, &options, spectrogram_layout, from, "");
         canvas.write_png(path, &text)?;
         written.push(format!("a spectrogram to {}", path.display()));
     }
-    if let (Some(path), Some(builder)) = (&pictures.wave, wave) {
-        let options = WaveOptions {
-            title: options.title.clone(),
-        };
-        let (canvas, text) = builder.finish().draw(&options, &note);
+    if let Some(path) = &pictures.wave {
+        let panels: Vec<Wave> = waves.into_iter().map(|b| b.finish()).collect();
+        let (canvas, text) = draw_waves(&panels, &wave_options, wave_layout, from, "");
         canvas.write_png(path, &text)?;
         written.push(format!("the waveform to {}", path.display()));
     }
@@ -279,6 +478,15 @@ pub fn draw_pictures(wav: &Path, pictures: &PictureArgs, quiet: bool) -> Result<
         eprintln!("drew {} of {}", written.join(" and "), wav.display());
     }
     Ok(())
+}
+
+/// The label of panel `k` of `n`: L and R for a stereo file, else the channel number.
+fn panel_label(k: usize, n: usize) -> Option<String> {
+    match n {
+        1 => None,
+        2 => Some(["L", "R"][k].to_owned()),
+        _ => Some(format!("ch {}", k + 1)),
+    }
 }
 
 fn file_title(path: &Path) -> String {
@@ -332,7 +540,11 @@ struct SpectrogramBuilder {
     frames: u64,
     sample_rate: f64,
     axis: FrequencyAxis,
+    columns: usize,
+    hop: Option<usize>,
     hann: Vec<f64>,
+    /// The window was shrunk to fit a short file.
+    shortened: bool,
     /// Amplitude of a full-scale sine's peak bin: 2 / Σ window.
     normalise: f64,
     /// The last `hann.len()` samples; sample `i` is at `i mod len`.
@@ -353,48 +565,71 @@ struct Spectrogram {
     sample_rate: f64,
     axis: FrequencyAxis,
     window: usize,
+    shortened: bool,
     values: Vec<f32>,
 }
 
 impl SpectrogramBuilder {
-    fn new(frames: u64, sample_rate: f64, options: &SpectrogramOptions) -> Self {
-        let n = options
+    fn new(
+        frames: u64,
+        sample_rate: f64,
+        options: &SpectrogramOptions,
+        layout: Layout,
+    ) -> Result<Self, String> {
+        let wanted = options
             .window
             .unwrap_or_else(|| (sample_rate * 2048.0 / 48_000.0) as usize)
-            .clamp(64, 1 << 16)
+            .clamp(16, 1 << 16)
             .next_power_of_two();
+        // A file shorter than the window is analysed with the largest power of two
+        // that fits it (at least 16 samples, zero-padded beyond the end).
+        let fits = (frames.max(16) as usize).next_power_of_two() / 2;
+        let n = if frames < wanted as u64 {
+            fits.max(16)
+        } else {
+            wanted
+        };
         let hann: Vec<f64> = (0..n)
             .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos())
             .collect();
         let normalise = 2.0 / hann.iter().sum::<f64>();
         let nyquist = sample_rate / 2.0;
-        let axis = if options.log_frequency {
-            FrequencyAxis {
-                log: true,
-                low: options.min_frequency.clamp(1.0, nyquist / 4.0),
-                high: nyquist,
-            }
-        } else {
-            FrequencyAxis {
-                log: false,
-                low: 0.0,
-                high: nyquist,
-            }
+        let high = options.max_frequency.unwrap_or(nyquist);
+        if high > nyquist {
+            return Err(format!(
+                "--fmax {high} is above the Nyquist frequency, {nyquist} Hz (half the sample rate)"
+            ));
+        }
+        let low = options
+            .min_frequency
+            .unwrap_or(if options.log_frequency { 20.0 } else { 0.0 });
+        if options.log_frequency && low <= 0.0 {
+            return Err("a log frequency axis needs --fmin above 0 Hz".into());
+        }
+        if low >= high {
+            return Err(format!(
+                "--fmin {low} Hz is not below the top of the frequency axis ({high} Hz)"
+            ));
+        }
+        let axis = FrequencyAxis {
+            log: options.log_frequency,
+            low,
+            high,
         };
         // Each frame is zero-padded to twice its length: the spectrum is sampled twice
         // as finely, so a tone's side lobes read as a steady halo rather than beads
         // that come and go as it moves between bins.
         let bins = n + 1;
         let bin_hz = sample_rate / (2 * n) as f64;
-        let h = SPECTROGRAM_HEIGHT;
+        let h = layout.height;
         let rows = (0..h)
             .map(|r| {
                 let lo = axis.at((h - r - 1) as f64 / h as f64) / bin_hz;
                 let hi = axis.at((h - r) as f64 / h as f64) / bin_hz;
-                let from = lo.ceil() as usize;
-                // The top row includes the Nyquist bin itself.
+                let from = (lo.ceil() as usize).min(bins - 1);
+                // The top row includes its upper edge (the Nyquist bin, if shown).
                 let to = if r == 0 {
-                    bins
+                    (hi.floor() as usize + 1).min(bins)
                 } else {
                     (hi.ceil() as usize).min(bins)
                 };
@@ -411,10 +646,13 @@ impl SpectrogramBuilder {
             })
             .collect();
         let fft = RealFftPlanner::<f64>::new().plan_fft_forward(2 * n);
-        SpectrogramBuilder {
+        Ok(SpectrogramBuilder {
             frames,
             sample_rate,
             axis,
+            columns: layout.width,
+            hop: options.hop,
+            shortened: n < wanted,
             normalise,
             ring: vec![0.0; n],
             pushed: 0,
@@ -423,14 +661,19 @@ impl SpectrogramBuilder {
             spectrum: fft.make_output_vec(),
             fft,
             rows,
-            values: Vec::with_capacity(PLOT_WIDTH * h),
+            values: Vec::with_capacity(layout.width * h),
             hann,
-        }
+        })
     }
 
     /// First sample of column `c`'s frame (may be negative: zeros before the start).
+    /// With a hop, frames lie every `hop` samples and a column shows the nearest.
     fn frame_start(&self, c: usize) -> i64 {
-        let centre = ((c as f64 + 0.5) * self.frames as f64 / PLOT_WIDTH as f64) as i64;
+        let mut centre = ((c as f64 + 0.5) * self.frames as f64 / self.columns as f64) as i64;
+        if let Some(hop) = self.hop {
+            let hop = hop as i64;
+            centre = (centre + hop / 2).div_euclid(hop) * hop;
+        }
         centre - (self.hann.len() / 2) as i64
     }
 
@@ -438,7 +681,7 @@ impl SpectrogramBuilder {
         let n = self.hann.len();
         self.ring[(self.pushed % n as u64) as usize] = x;
         self.pushed += 1;
-        while self.next_column < PLOT_WIDTH
+        while self.next_column < self.columns
             && self.frame_start(self.next_column) + n as i64 <= self.pushed as i64
         {
             self.column();
@@ -446,13 +689,22 @@ impl SpectrogramBuilder {
         }
     }
 
-    /// Analyses the frame of `next_column`, which ends with the last sample pushed.
+    /// Analyses the frame of `next_column`, which ends with the last sample pushed
+    /// (or earlier: a frame ending before the ring's oldest sample cannot happen, as
+    /// frames only move forward).
     fn column(&mut self) {
         let n = self.hann.len();
         let start = self.frame_start(self.next_column);
         for (j, slot) in self.input[..n].iter_mut().enumerate() {
-            let i = (start + j as i64).rem_euclid(n as i64) as usize;
-            *slot = self.ring[i] * self.hann[j];
+            let i = start + j as i64;
+            // Samples of a frame that the ring no longer holds (a hop rounded the
+            // frame back) or does not yet hold are outside it: zero before the start.
+            let held = i >= 0 && i < self.pushed as i64 && i >= self.pushed as i64 - n as i64;
+            *slot = if held {
+                self.ring[i.rem_euclid(n as i64) as usize] * self.hann[j]
+            } else {
+                0.0
+            };
         }
         self.input[n..].fill(0.0);
         // Lengths come from the plan itself, so this cannot fail.
@@ -471,7 +723,7 @@ impl SpectrogramBuilder {
 
     fn finish(mut self) -> Spectrogram {
         // Frames overlapping the end see zeros after it.
-        while self.next_column < PLOT_WIDTH {
+        while self.next_column < self.columns {
             self.push(0.0);
         }
         Spectrogram {
@@ -479,30 +731,43 @@ impl SpectrogramBuilder {
             sample_rate: self.sample_rate,
             axis: self.axis,
             window: self.hann.len(),
+            shortened: self.shortened,
             values: self.values,
         }
     }
 }
 
-impl Spectrogram {
-    fn draw(&self, options: &SpectrogramOptions, note: &str) -> (Canvas, Vec<(String, String)>) {
-        let (w, h) = (PLOT_WIDTH, SPECTROGRAM_HEIGHT);
-        let (x0, y0) = (PLOT_LEFT as i64, PLOT_TOP as i64);
-        let mut canvas = Canvas::new(
-            PLOT_LEFT + w + MARGIN_RIGHT_SPECTROGRAM,
-            PLOT_TOP + h + MARGIN_BOTTOM,
-            BACKGROUND,
-        );
-        let db = |a: f32| 20.0 * f64::from(a).max(1e-30).log10();
-        let loudest = self.values.iter().copied().fold(0.0f32, f32::max);
-        let range = if options.db_range.is_finite() && options.db_range > 0.0 {
-            options.db_range
-        } else {
-            100.0
-        };
-        let high = if loudest > 0.0 { db(loudest) } else { 0.0 };
-        let low = high - range;
-        for (c, column) in self.values.chunks(h).enumerate() {
+/// Draws spectrograms as stacked panels on one colour scale, the time axis (from
+/// `t0` seconds) under the last.
+fn draw_spectrograms(
+    panels: &[Spectrogram],
+    options: &SpectrogramOptions,
+    layout: Layout,
+    t0: f64,
+    note: &str,
+) -> (Canvas, Vec<(String, String)>) {
+    let (w, h) = (layout.width, layout.height);
+    let x0 = PLOT_LEFT as i64;
+    let (width, height) = layout.picture_size();
+    let mut canvas = Canvas::new(width, height, BACKGROUND);
+    let db = |a: f32| 20.0 * f64::from(a).max(1e-30).log10();
+    let loudest = panels
+        .iter()
+        .flat_map(|p| p.values.iter().copied())
+        .fold(0.0f32, f32::max);
+    let range = if options.db_range.is_finite() && options.db_range > 0.0 {
+        options.db_range
+    } else {
+        100.0
+    };
+    let high = if loudest > 0.0 { db(loudest) } else { 0.0 };
+    let low = high - range;
+    let first = &panels[0];
+    let axis = first.axis;
+    let kilo = axis.high >= 2000.0;
+    for (k, panel) in panels.iter().enumerate() {
+        let y0 = layout.top(k);
+        for (c, column) in panel.values.chunks(h).enumerate() {
             for (r, &a) in column.iter().enumerate() {
                 let color = inferno((db(a) - low) / range);
                 canvas.set(x0 + c as i64, y0 + r as i64, color);
@@ -510,13 +775,8 @@ impl Spectrogram {
         }
         canvas.frame(x0, y0, w as i64, h as i64, INK);
 
-        let duration = self.frames as f64 / self.sample_rate;
-        time_axis(&mut canvas, h, duration);
-
         // Frequency ticks: 1-2-5 per decade on a log axis, else evenly spaced.
-        let axis = self.axis;
         let row_of = |f: f64| (h as f64 - 0.5 - axis.fraction(f) * h as f64).round();
-        let kilo = axis.high >= 2000.0;
         let mut ticks = vec![];
         if axis.log {
             let mut decade = 10f64.powf(axis.low.log10().floor());
@@ -532,78 +792,100 @@ impl Spectrogram {
             }
         } else {
             let unit = if kilo { 1000.0 } else { 1.0 };
-            let step = nice_step(axis.high / unit, 10);
-            for k in 0..=((axis.high / unit / step + 1e-9).floor() as usize) {
-                let f = k as f64 * step * unit;
-                ticks.push((row_of(f), Some(number(f / unit, step))));
+            let step = nice_step((axis.high - axis.low) / unit, (h / 50).max(2));
+            let mut f = (axis.low / unit / step).ceil() * step;
+            while f <= axis.high / unit + 1e-9 {
+                ticks.push((row_of(f * unit), Some(number(f, step))));
+                f += step;
             }
         }
-        vertical_ticks(&mut canvas, h, &ticks);
-        let title = if axis.log || !kilo {
-            "Frequency (Hz)"
-        } else {
-            "Frequency (kHz)"
-        };
-        draw_text_up(&mut canvas, 10, y0 + h as i64 / 2, title, SCALE, INK);
+        vertical_ticks(&mut canvas, y0, h, &ticks);
+        if let Some(label) = panel_label(k, panels.len()) {
+            panel_tag(&mut canvas, y0, &label);
+        }
+    }
+    let middle = (layout.top(0) + layout.bottom()) / 2;
+    let title = if axis.log || !kilo {
+        "Frequency (Hz)"
+    } else {
+        "Frequency (kHz)"
+    };
+    draw_text_up(&mut canvas, 10, middle, title, SCALE, INK);
 
-        // The colour bar, with its levels in dB.
-        let bar_x = x0 + w as i64 + 22;
-        let bar_w = 18;
-        for r in 0..h {
-            let color = inferno(1.0 - (r as f64 + 0.5) / h as f64);
-            canvas.fill(bar_x, y0 + r as i64, bar_w, 1, color);
-        }
-        canvas.frame(bar_x, y0, bar_w, h as i64, INK);
-        let step = nice_step(range, 6);
-        let mut level = (high / step).floor() * step;
-        while level >= low - 1e-9 {
-            let y = y0 + ((high - level) / range * h as f64 - 0.5).round().max(0.0) as i64;
-            canvas.fill(bar_x + bar_w + 1, y, 5, 1, INK);
-            draw_text(
-                &mut canvas,
-                bar_x + bar_w + 9,
-                y - text_height(SCALE) as i64 / 2,
-                &number(level, step),
-                SCALE,
-                Align::Left,
-                INK,
-            );
-            level -= step;
-        }
+    let duration = first.frames as f64 / first.sample_rate;
+    time_axis(&mut canvas, layout, t0, duration);
+
+    // The colour bar, with its levels in dB, beside the first panel.
+    let y0 = layout.top(0);
+    let bar_x = x0 + w as i64 + 22;
+    let bar_w = 18;
+    for r in 0..h {
+        let color = inferno(1.0 - (r as f64 + 0.5) / h as f64);
+        canvas.fill(bar_x, y0 + r as i64, bar_w, 1, color);
+    }
+    canvas.frame(bar_x, y0, bar_w, h as i64, INK);
+    let step = nice_step(range, (h / 80).max(2));
+    let mut level = (high / step).floor() * step;
+    while level >= low - 1e-9 {
+        let y = y0 + ((high - level) / range * h as f64 - 0.5).round().max(0.0) as i64;
+        canvas.fill(bar_x + bar_w + 1, y, 5, 1, INK);
         draw_text(
             &mut canvas,
-            bar_x + bar_w / 2,
-            y0 - 22,
-            "dB",
+            bar_x + bar_w + 9,
+            y - text_height(SCALE) as i64 / 2,
+            &number(level, step),
             SCALE,
-            Align::Centre,
+            Align::Left,
             INK,
         );
-
-        let info = format!(
-            "{} Hz, {}, Hann {}{note}",
-            self.sample_rate,
-            seconds(duration),
-            self.window
-        );
-        heading(&mut canvas, &options.title, &info);
-
-        let text = vec![
-            plot_area_chunk(h),
-            time_chunk(duration),
-            (
-                "timbre:frequency-axis".into(),
-                format!(
-                    "{} {} {}",
-                    if axis.log { "log" } else { "linear" },
-                    axis.low,
-                    axis.high
-                ),
-            ),
-            ("timbre:decibels".into(), format!("{low:.2} {high:.2}")),
-        ];
-        (canvas, with_software(text))
+        level -= step;
     }
+    draw_text(
+        &mut canvas,
+        bar_x + bar_w / 2,
+        y0 - 22,
+        "dB",
+        SCALE,
+        Align::Centre,
+        INK,
+    );
+
+    let short = if first.shortened { " (short file)" } else { "" };
+    let info = format!(
+        "{} Hz, {}, Hann {}{short}{note}",
+        first.sample_rate,
+        seconds(duration),
+        first.window
+    );
+    heading(&mut canvas, layout, &options.title, &info);
+
+    let text = vec![
+        plot_area_chunk(layout),
+        panels_chunk(layout),
+        time_chunk(t0, duration),
+        (
+            "timbre:frequency-axis".into(),
+            format!(
+                "{} {} {}",
+                if axis.log { "log" } else { "linear" },
+                axis.low,
+                axis.high
+            ),
+        ),
+        ("timbre:decibels".into(), format!("{low:.2} {high:.2}")),
+        ("timbre:window".into(), first.window.to_string()),
+    ];
+    (canvas, with_software(text))
+}
+
+/// A channel's name in the top left corner of its panel, on a white patch.
+fn panel_tag(canvas: &mut Canvas, y0: i64, label: &str) {
+    let x = PLOT_LEFT as i64 + 1;
+    let w = text_width(label, SCALE) as i64 + 10;
+    let h = text_height(SCALE) as i64 + 8;
+    canvas.fill(x, y0 + 1, w, h, BACKGROUND);
+    canvas.frame(x - 1, y0, w + 1, h + 1, INK);
+    draw_text(canvas, x + 5, y0 + 5, label, SCALE, Align::Left, INK);
 }
 
 /// An inferno-like colour map: black through purple, red and orange to pale yellow,
@@ -658,7 +940,7 @@ struct Wave {
 }
 
 impl WaveBuilder {
-    fn new(frames: u64, sample_rate: f64) -> Self {
+    fn new(frames: u64, sample_rate: f64, columns: usize) -> Self {
         let empty = Column {
             min: 0.0,
             max: 0.0,
@@ -671,14 +953,15 @@ impl WaveBuilder {
             sample_rate,
             pushed: 0,
             previous: 0.0,
-            columns: vec![empty; PLOT_WIDTH],
+            columns: vec![empty; columns.max(1)],
         }
     }
 
     fn push(&mut self, x: f64) {
-        let c = ((u128::from(self.pushed) * PLOT_WIDTH as u128 / u128::from(self.frames.max(1)))
+        let width = self.columns.len();
+        let c = ((u128::from(self.pushed) * width as u128 / u128::from(self.frames.max(1)))
             as usize)
-            .min(PLOT_WIDTH - 1);
+            .min(width - 1);
         let column = &mut self.columns[c];
         if !column.seen {
             // Join to the previous sample, so that a column's bar meets its neighbour's.
@@ -702,8 +985,9 @@ impl WaveBuilder {
     fn finish(mut self) -> Wave {
         // Columns without a sample of their own (fewer samples than columns): the line
         // between the neighbours' samples.
-        let seen: Vec<usize> = (0..PLOT_WIDTH).filter(|&c| self.columns[c].seen).collect();
-        for c in 0..PLOT_WIDTH {
+        let width = self.columns.len();
+        let seen: Vec<usize> = (0..width).filter(|&c| self.columns[c].seen).collect();
+        for c in 0..width {
             if self.columns[c].seen {
                 continue;
             }
@@ -734,95 +1018,154 @@ impl WaveBuilder {
     }
 }
 
-impl Wave {
-    fn draw(&self, options: &WaveOptions, note: &str) -> (Canvas, Vec<(String, String)>) {
-        let (w, h) = (PLOT_WIDTH, WAVE_HEIGHT);
-        let (x0, y0) = (PLOT_LEFT as i64, PLOT_TOP as i64);
-        let mut canvas = Canvas::new(
-            PLOT_LEFT + w + MARGIN_RIGHT_WAVE,
-            PLOT_TOP + h + MARGIN_BOTTOM,
-            BACKGROUND,
-        );
-        let row_of = |a: f64| {
-            ((1.0 - a) / 2.0 * h as f64)
-                .floor()
-                .clamp(0.0, h as f64 - 1.0) as i64
+/// Draws waveforms as stacked panels, the time axis (from `t0` seconds) under the
+/// last: the amplitude −1…1, or with `options.decibels` the level of each column in
+/// dBFS down to −`options.db_range`.
+fn draw_waves(
+    panels: &[Wave],
+    options: &WaveOptions,
+    layout: Layout,
+    t0: f64,
+    note: &str,
+) -> (Canvas, Vec<(String, String)>) {
+    let (w, h) = (layout.width, layout.height);
+    let x0 = PLOT_LEFT as i64;
+    let (width, height) = layout.picture_size();
+    let mut canvas = Canvas::new(width, height, BACKGROUND);
+    let first = &panels[0];
+    let duration = first.frames as f64 / first.sample_rate;
+    let range = if options.db_range.is_finite() && options.db_range > 0.0 {
+        options.db_range
+    } else {
+        60.0
+    };
+    // Rows: amplitude a at floor((1 − a)/2 · h); level L dBFS at floor(−L/range · h).
+    let row_of = |a: f64| {
+        ((1.0 - a) / 2.0 * h as f64)
+            .floor()
+            .clamp(0.0, h as f64 - 1.0) as i64
+    };
+    let row_of_db = |level: f64| {
+        (-level / range * h as f64)
+            .floor()
+            .clamp(0.0, h as f64 - 1.0) as i64
+    };
+    for (k, panel) in panels.iter().enumerate() {
+        let y0 = layout.top(k);
+        // Grid: the level ticks and the time ticks, faint; the zero line darker.
+        let ticks: Vec<(f64, Option<String>)> = if options.decibels {
+            let step = nice_step(range, (h / 50).max(2));
+            (0..=((range / step + 1e-9).floor() as usize))
+                .map(|i| {
+                    let level = -(i as f64) * step;
+                    (
+                        (-level / range * h as f64 - 0.5).round(),
+                        Some(number(level, step)),
+                    )
+                })
+                .collect()
+        } else {
+            [-1.0, -0.5, 0.0, 0.5, 1.0]
+                .iter()
+                .zip(["-1", "-0.5", "0", "0.5", "1"])
+                .map(|(&a, l)| {
+                    (
+                        ((1.0 - a) / 2.0 * h as f64 - 0.5).round(),
+                        Some(l.to_owned()),
+                    )
+                })
+                .collect()
         };
-        let duration = self.frames as f64 / self.sample_rate;
-
-        // Grid: the amplitude ticks and the time ticks, faint; the zero line darker.
-        let amplitudes = [-1.0, -0.5, 0.0, 0.5, 1.0];
-        for &a in &amplitudes[1..4] {
-            canvas.fill(x0, y0 + row_of(a), w as i64, 1, GRID);
+        for (row, _) in &ticks[1..ticks.len() - 1] {
+            canvas.fill(x0, y0 + *row as i64, w as i64, 1, GRID);
         }
         let step = nice_step(duration, 10);
-        for k in 1..=((duration / step + 1e-9).floor() as usize) {
-            let x = (k as f64 * step / duration * w as f64 - 0.5).round() as i64;
+        for i in 1..=((duration / step + 1e-9).floor() as usize) {
+            let x = (i as f64 * step / duration * w as f64 - 0.5).round() as i64;
             if x < w as i64 - 1 {
                 canvas.fill(x0 + x, y0, 1, h as i64, GRID);
             }
         }
-        canvas.fill(x0, y0 + row_of(0.0), w as i64, 1, ZERO_LINE);
-
-        for (c, column) in self.columns.iter().enumerate() {
+        if !options.decibels {
+            canvas.fill(x0, y0 + row_of(0.0), w as i64, 1, ZERO_LINE);
+        }
+        for (c, column) in panel.columns.iter().enumerate() {
+            let x = x0 + c as i64;
+            if options.decibels {
+                let peak = column.max.abs().max(column.min.abs());
+                if peak > 0.0 {
+                    let top = row_of_db(20.0 * peak.log10());
+                    canvas.fill(x, y0 + top, 1, h as i64 - top, WAVE);
+                }
+                if peak > 1.0 {
+                    canvas.fill(x, y0, 1, 3, CLIPPED);
+                }
+                continue;
+            }
             let (top, bottom) = (row_of(column.max), row_of(column.min));
-            canvas.fill(x0 + c as i64, y0 + top, 1, bottom - top + 1, WAVE);
+            canvas.fill(x, y0 + top, 1, bottom - top + 1, WAVE);
             if column.max > 1.0 {
-                canvas.fill(x0 + c as i64, y0, 1, 3, CLIPPED);
+                canvas.fill(x, y0, 1, 3, CLIPPED);
             }
             if column.min < -1.0 {
-                canvas.fill(x0 + c as i64, y0 + h as i64 - 3, 1, 3, CLIPPED);
+                canvas.fill(x, y0 + h as i64 - 3, 1, 3, CLIPPED);
             }
         }
         canvas.frame(x0, y0, w as i64, h as i64, INK);
-
-        time_axis(&mut canvas, h, duration);
-        let labels = ["-1", "-0.5", "0", "0.5", "1"];
-        let ticks: Vec<(f64, Option<String>)> = amplitudes
-            .iter()
-            .zip(labels)
-            .map(|(&a, l)| {
-                (
-                    ((1.0 - a) / 2.0 * h as f64 - 0.5).round(),
-                    Some(l.to_owned()),
-                )
-            })
-            .collect();
-        vertical_ticks(&mut canvas, h, &ticks);
-        draw_text_up(&mut canvas, 10, y0 + h as i64 / 2, "Amplitude", SCALE, INK);
-
-        let peak = if self.peak > 0.0 {
-            format!("peak {:.1} dBFS", 20.0 * self.peak.log10())
-        } else {
-            "silent".into()
-        };
-        let info = format!(
-            "{} Hz, {}, {peak}{note}",
-            self.sample_rate,
-            seconds(duration)
-        );
-        heading(&mut canvas, &options.title, &info);
-
-        let text = vec![
-            plot_area_chunk(h),
-            time_chunk(duration),
-            ("timbre:amplitude-axis".into(), "-1 1".into()),
-        ];
-        (canvas, with_software(text))
+        vertical_ticks(&mut canvas, y0, h, &ticks);
+        if let Some(label) = panel_label(k, panels.len()) {
+            panel_tag(&mut canvas, y0, &label);
+        }
     }
+    time_axis(&mut canvas, layout, t0, duration);
+    let middle = (layout.top(0) + layout.bottom()) / 2;
+    let axis_title = if options.decibels {
+        "Level (dBFS)"
+    } else {
+        "Amplitude"
+    };
+    draw_text_up(&mut canvas, 10, middle, axis_title, SCALE, INK);
+
+    let peak = panels.iter().fold(0.0f64, |m, p| m.max(p.peak));
+    let peak = if peak > 0.0 {
+        format!("peak {:.1} dBFS", 20.0 * peak.log10())
+    } else {
+        "silent".into()
+    };
+    let info = format!(
+        "{} Hz, {}, {peak}{note}",
+        first.sample_rate,
+        seconds(duration)
+    );
+    heading(&mut canvas, layout, &options.title, &info);
+
+    let axis = if options.decibels {
+        ("timbre:level-axis".into(), format!("{} 0", -range))
+    } else {
+        ("timbre:amplitude-axis".into(), "-1 1".into())
+    };
+    let text = vec![
+        plot_area_chunk(layout),
+        panels_chunk(layout),
+        time_chunk(t0, duration),
+        axis,
+    ];
+    (canvas, with_software(text))
 }
 
 // ---------------------------------------------------------------- axes and text
 
-/// Ticks and labels of the time axis under a plot area of height `h`, and its title.
-fn time_axis(canvas: &mut Canvas, h: usize, duration: f64) {
-    let (x0, y0) = (PLOT_LEFT as i64, PLOT_TOP as i64);
-    let w = PLOT_WIDTH as f64;
-    let bottom = y0 + h as i64 + 1;
-    let step = nice_step(duration, 10);
-    for k in 0..=((duration / step + 1e-9).floor() as usize) {
-        let t = k as f64 * step;
-        let x = x0 + (t / duration * w - 0.5).round().clamp(0.0, w - 1.0) as i64;
+/// Ticks and labels of the time axis (from `t0`, lasting `duration` seconds) under
+/// the last panel, and its title.
+fn time_axis(canvas: &mut Canvas, layout: Layout, t0: f64, duration: f64) {
+    let x0 = PLOT_LEFT as i64;
+    let w = layout.width as f64;
+    let bottom = layout.bottom() + 1;
+    let step = nice_step(duration, (layout.width / 100).max(2));
+    let mut k = (t0 / step - 1e-9).ceil();
+    while k * step <= t0 + duration + 1e-9 {
+        let t = k * step;
+        let x = x0 + ((t - t0) / duration * w - 0.5).round().clamp(0.0, w - 1.0) as i64;
         canvas.fill(x, bottom, 1, 6, INK);
         draw_text(
             canvas,
@@ -833,10 +1176,11 @@ fn time_axis(canvas: &mut Canvas, h: usize, duration: f64) {
             Align::Centre,
             INK,
         );
+        k += 1.0;
     }
     draw_text(
         canvas,
-        x0 + PLOT_WIDTH as i64 / 2,
+        x0 + layout.width as i64 / 2,
         bottom + 42,
         "Time (s)",
         SCALE,
@@ -845,10 +1189,11 @@ fn time_axis(canvas: &mut Canvas, h: usize, duration: f64) {
     );
 }
 
-/// Ticks left of a plot area of height `h`: (row in the area, label); unlabelled ones
-/// are short. A label that would overlap the one drawn before it is left out.
-fn vertical_ticks(canvas: &mut Canvas, h: usize, ticks: &[(f64, Option<String>)]) {
-    let (x0, y0) = (PLOT_LEFT as i64, PLOT_TOP as i64);
+/// Ticks left of a panel of height `h` whose top is `y0`: (row in the panel, label);
+/// unlabelled ones are short. A label that would overlap the one drawn before it is
+/// left out.
+fn vertical_ticks(canvas: &mut Canvas, y0: i64, h: usize, ticks: &[(f64, Option<String>)]) {
+    let x0 = PLOT_LEFT as i64;
     let mut last_label: Option<i64> = None;
     for (row, label) in ticks {
         let y = y0 + row.clamp(0.0, h as f64 - 1.0) as i64;
@@ -873,9 +1218,9 @@ fn vertical_ticks(canvas: &mut Canvas, h: usize, ticks: &[(f64, Option<String>)]
 
 /// The title at the top left and the facts about the sound at the top right, made to
 /// fit beside each other.
-fn heading(canvas: &mut Canvas, title: &str, info: &str) {
+fn heading(canvas: &mut Canvas, layout: Layout, title: &str, info: &str) {
     let y = 12;
-    let right = (PLOT_LEFT + PLOT_WIDTH) as i64;
+    let right = (PLOT_LEFT + layout.width) as i64;
     let info_width = text_width(info, SCALE) as i64;
     draw_text(canvas, right, y, info, SCALE, Align::Right, SOFT_INK);
     // Shorten a long title (keeping its end: the file name) to leave a gap.
@@ -930,15 +1275,24 @@ fn seconds(duration: f64) -> String {
     format!("{duration:.3} s")
 }
 
-fn plot_area_chunk(h: usize) -> (String, String) {
+/// The first panel's plot area: `X Y WIDTH HEIGHT`.
+fn plot_area_chunk(layout: Layout) -> (String, String) {
     (
         "timbre:plot-area".into(),
-        format!("{PLOT_LEFT} {PLOT_TOP} {PLOT_WIDTH} {h}"),
+        format!("{PLOT_LEFT} {PLOT_TOP} {} {}", layout.width, layout.height),
     )
 }
 
-fn time_chunk(duration: f64) -> (String, String) {
-    ("timbre:time-axis".into(), format!("0 {duration}"))
+/// `N STRIDE`: panel k's plot area is the first one moved down by k · STRIDE rows.
+fn panels_chunk(layout: Layout) -> (String, String) {
+    (
+        "timbre:panels".into(),
+        format!("{} {}", layout.panels, layout.height + PANEL_GAP),
+    )
+}
+
+fn time_chunk(t0: f64, duration: f64) -> (String, String) {
+    ("timbre:time-axis".into(), format!("{t0} {}", t0 + duration))
 }
 
 fn with_software(mut text: Vec<(String, String)>) -> Vec<(String, String)> {
@@ -979,7 +1333,10 @@ mod tests {
         let samples: Vec<f64> = (0..24_000)
             .map(|i| (std::f64::consts::TAU * 3000.0 * i as f64 / rate).sin())
             .collect();
-        let mut builder = SpectrogramBuilder::new(samples.len() as u64, rate, &Default::default());
+        let options = SpectrogramOptions::default();
+        let layout = spectrogram_layout(&options, 1);
+        let mut builder =
+            SpectrogramBuilder::new(samples.len() as u64, rate, &options, layout).unwrap();
         samples.iter().for_each(|&x| builder.push(x));
         let s = builder.finish();
         let h = SPECTROGRAM_HEIGHT;

@@ -1046,7 +1046,13 @@ fn plot(session: &Session, kind: &str, path: Option<&str>) {
         .collect();
     let (x, sr) = (&mono, session.last_rate);
     let result = match kind {
-        "wave" => crate::plot::wave_png(x, sr, &crate::plot::WaveOptions { title }, path),
+        "wave" => {
+            let options = crate::plot::WaveOptions {
+                title,
+                ..Default::default()
+            };
+            crate::plot::wave_png(x, sr, &options, path)
+        }
         "spectrogram" | "log-spectrogram" => {
             let options = crate::plot::SpectrogramOptions {
                 log_frequency: kind == "log-spectrogram",

@@ -305,44 +305,87 @@ fn the_waveform_of_a_sine_spans_its_amplitude() {
     );
 }
 
-#[test]
-fn several_channels_are_drawn_as_their_mean() {
-    let dir = tempfile::tempdir().unwrap();
-    let wav = dir.path().join("stereo.wav");
+/// Writes a stereo 16-bit file: a 440 Hz sine of amplitude 0.8 on the left, silence
+/// on the right.
+fn write_left_tone(path: &Path) {
     let spec = hound::WavSpec {
         channels: 2,
         sample_rate: 48_000,
         bits_per_sample: 16,
         sample_format: hound::SampleFormat::Int,
     };
-    let mut w = hound::WavWriter::create(&wav, spec).unwrap();
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
     for i in 0..48_000 {
         let x = (0.8 * (TAU * 440.0 * i as f64 / SR).sin() * 32767.0).round() as i16;
         w.write_sample(x).unwrap();
         w.write_sample(0i16).unwrap();
     }
     w.finalize().unwrap();
-    let png = dir.path().join("w.png");
+}
+
+impl Picture {
+    /// The number of panels and the rows from one panel's top to the next's.
+    fn panels(&self) -> (usize, usize) {
+        let v: Vec<usize> = self
+            .chunk("timbre:panels")
+            .split(' ')
+            .map(|s| s.parse().unwrap())
+            .collect();
+        (v[0], v[1])
+    }
+
+    /// The brightest pixel of panel `k`'s plot area, leaving out its label's corner.
+    fn panel_brightness(&self, k: usize) -> u32 {
+        let a = self.area();
+        let top = a.y + k * self.panels().1;
+        (top + 40..top + a.h)
+            .flat_map(|y| (a.x + 60..a.x + a.w).map(move |x| (x, y)))
+            .map(|(x, y)| self.brightness(x, y))
+            .max()
+            .unwrap()
+    }
+}
+
+#[test]
+fn each_channel_is_drawn_in_its_own_panel() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("stereo.wav");
+    write_left_tone(&wav);
+    let (wave, spectrogram) = (dir.path().join("w.png"), dir.path().join("s.png"));
     run([
         "plot".as_ref(),
         wav.as_os_str(),
         "--wave".as_ref(),
-        png.as_os_str(),
+        wave.as_os_str(),
+        "--spectrogram".as_ref(),
+        spectrogram.as_os_str(),
     ])
     .assert_success();
-    let picture = read_png(&png);
+
+    let picture = read_png(&wave);
+    assert_eq!(picture.panels().0, 2);
     let a = picture.area();
-    // The mean of 0.8 and 0 peaks at 0.4: row floor(0.3 · h).
+    // The left channel peaks at 0.8 in the top panel: row floor(0.1 · h).
+    let blue = |p: [u8; 3]| p[2] > p[0].saturating_add(60);
     let top = (0..a.h)
-        .find(|&r| {
-            let p = picture.pixel(a.x + a.w / 2, a.y + r);
-            p[2] > p[0].saturating_add(60)
-        })
+        .find(|&r| blue(picture.pixel(a.x + a.w / 2, a.y + r)))
         .unwrap();
     assert!(
-        top.abs_diff((0.3 * a.h as f64) as usize) <= 1,
+        top.abs_diff((0.1 * a.h as f64) as usize) <= 1,
         "top row {top}"
     );
+    // The right channel is silent: its panel holds only the zero line.
+    let second = a.y + picture.panels().1;
+    let inked = (0..a.h)
+        .filter(|&r| blue(picture.pixel(a.x + a.w / 2, second + r)))
+        .count();
+    assert!(inked <= 1, "{inked} rows of the silent panel inked");
+
+    // The spectrogram: energy in the top panel only.
+    let picture = read_png(&spectrogram);
+    assert_eq!(picture.panels().0, 2);
+    let (left, right) = (picture.panel_brightness(0), picture.panel_brightness(1));
+    assert!(right < 20 && left > 600, "left {left}, right {right}");
 }
 
 #[test]
@@ -481,4 +524,174 @@ fn plot_help_shows_examples() {
     assert!(run.stdout.contains("--log-frequency"), "{}", run.stdout);
     let render = common::run(["render", "--help"]);
     assert!(render.stdout.contains("--spectrogram"), "{}", render.stdout);
+}
+
+/// Runs `timbre plot FILE` with `args` and reads the picture it drew.
+fn plot_with(wav: &Path, picture: &str, args: &[&str]) -> Picture {
+    let png = wav.with_file_name(format!("{picture}.png"));
+    let mut all: Vec<std::ffi::OsString> = vec![
+        "plot".into(),
+        wav.into(),
+        format!("--{picture}").into(),
+        png.as_os_str().into(),
+    ];
+    all.extend(args.iter().map(Into::into));
+    run(all).assert_success();
+    read_png(&png)
+}
+
+#[test]
+fn a_time_range_draws_only_that_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("half.wav");
+    // Silent for the first second, a 1 kHz tone in the second.
+    let samples: Vec<f64> = (0..96_000)
+        .map(|i| {
+            if i < 48_000 {
+                0.0
+            } else {
+                0.5 * (TAU * 1000.0 * i as f64 / SR).sin()
+            }
+        })
+        .collect();
+    write_wav_f32(&wav, 48_000, &samples);
+    let first = plot_with(&wav, "spectrogram", &["--to", "0.9"]);
+    assert_eq!(first.chunk("timbre:time-axis"), "0 0.9");
+    let second = plot_with(&wav, "spectrogram", &["--from", "1.1", "--to", "2"]);
+    assert_eq!(second.chunk("timbre:time-axis"), "1.1 2");
+    let dark = first.panel_brightness(0);
+    let bright = second.panel_brightness(0);
+    assert!(dark < 20 && bright > 600, "{dark} {bright}");
+    // The waveform too.
+    let wave = plot_with(&wav, "wave", &["--to", "0.9"]);
+    let a = wave.area();
+    let blue = |p: [u8; 3]| p[2] > p[0].saturating_add(60);
+    let inked = (0..a.h)
+        .filter(|&r| blue(wave.pixel(a.x + a.w / 2, a.y + r)))
+        .count();
+    assert!(inked <= 1, "{inked}");
+    let out = run([
+        "plot".as_ref(),
+        wav.as_os_str(),
+        "--wave".as_ref(),
+        dir.path().join("x.png").as_os_str(),
+        "--from".as_ref(),
+        "1.5".as_ref(),
+        "--to".as_ref(),
+        "1".as_ref(),
+    ]);
+    out.assert_code(1)
+        .assert_stderr_has("--from 1.5 is not before");
+}
+
+#[test]
+fn a_frequency_range_puts_a_tone_on_its_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("tone.wav");
+    let samples: Vec<f64> = (0..48_000)
+        .map(|i| 0.5 * (TAU * 1000.0 * i as f64 / SR).sin())
+        .collect();
+    write_wav_f32(&wav, 48_000, &samples);
+    for args in [
+        vec!["--fmin", "500", "--fmax", "1500"],
+        vec!["--fmin", "100", "--fmax", "4000", "--log-frequency"],
+    ] {
+        let picture = plot_with(&wav, "spectrogram", &args);
+        let expected = picture.row_of_frequency(1000.0);
+        let found = picture.brightest_row(picture.area().w / 2) as f64;
+        assert!(
+            (found - expected).abs() <= 1.5,
+            "{args:?}: row {found}, expected {expected}"
+        );
+        assert!(picture
+            .chunk("timbre:frequency-axis")
+            .ends_with(&args[3].to_string()));
+    }
+    run([
+        "plot".as_ref(),
+        wav.as_os_str(),
+        "--spectrogram".as_ref(),
+        dir.path().join("x.png").as_os_str(),
+        "--fmax".as_ref(),
+        "30000".as_ref(),
+    ])
+    .assert_code(1)
+    .assert_stderr_has("above the Nyquist frequency, 24000 Hz");
+}
+
+#[test]
+fn pictures_take_the_size_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("tone.wav");
+    write_wav_f32(&wav, 48_000, &[0.25; 4800]);
+    for picture in ["wave", "spectrogram"] {
+        let p = plot_with(&wav, picture, &["--width", "640", "--height", "360"]);
+        assert_eq!((p.width, p.height), (640, 360), "{picture}");
+    }
+    let stereo = dir.path().join("stereo.wav");
+    write_left_tone(&stereo);
+    let p = plot_with(
+        &stereo,
+        "spectrogram",
+        &["--width", "800", "--height", "600"],
+    );
+    assert_eq!((p.width, p.height, p.panels().0), (800, 600, 2));
+    run([
+        "plot".as_ref(),
+        wav.as_os_str(),
+        "--wave".as_ref(),
+        dir.path().join("x.png").as_os_str(),
+        "--width".as_ref(),
+        "10".as_ref(),
+    ])
+    .assert_code(2);
+}
+
+#[test]
+fn a_very_short_file_still_has_a_spectrogram() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("short.wav");
+    let samples: Vec<f64> = (0..100)
+        .map(|i| 0.5 * (TAU * 6000.0 * i as f64 / SR).sin())
+        .collect();
+    write_wav_f32(&wav, 48_000, &samples);
+    let picture = plot_with(&wav, "spectrogram", &[]);
+    assert_eq!(picture.chunk("timbre:window"), "64");
+    // The tone is found near its row in the middle of the file.
+    let expected = picture.row_of_frequency(6000.0);
+    let found = picture.brightest_row(picture.area().w / 2) as f64;
+    assert!(
+        (found - expected).abs() <= 0.1 * picture.area().h as f64,
+        "{found} vs {expected}"
+    );
+    // A window and a hop: the window asked for is used when the file is long enough.
+    let long = dir.path().join("long.wav");
+    write_wav_f32(&long, 48_000, &[0.1; 48_000]);
+    let picture = plot_with(&long, "spectrogram", &["--window", "500", "--hop", "4800"]);
+    assert_eq!(picture.chunk("timbre:window"), "512");
+}
+
+#[test]
+fn the_decibel_waveform_puts_a_level_on_its_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("quiet.wav");
+    // −20 dBFS: amplitude 0.1.
+    let samples: Vec<f64> = (0..48_000)
+        .map(|i| 0.1 * (TAU * 440.0 * i as f64 / SR).sin())
+        .collect();
+    write_wav_f32(&wav, 48_000, &samples);
+    let picture = plot_with(&wav, "wave", &["--wave-db", "--db-range", "60"]);
+    assert_eq!(picture.chunk("timbre:level-axis"), "-60 0");
+    let a = picture.area();
+    let blue = |p: [u8; 3]| p[2] > p[0].saturating_add(60);
+    let top = (0..a.h)
+        .find(|&r| blue(picture.pixel(a.x + a.w / 2, a.y + r)))
+        .unwrap();
+    let expected = (20.0 / 60.0 * a.h as f64).floor() as usize;
+    assert!(
+        top.abs_diff(expected) <= 1,
+        "top row {top}, expected {expected}"
+    );
+    // The bar reaches the floor.
+    assert!(blue(picture.pixel(a.x + a.w / 2, a.y + a.h - 1)));
 }
