@@ -20,7 +20,10 @@ pub fn dot(program: &Program, title: &str) -> String {
         let stop = instance.stop.map_or(String::new(), |s| format!(" – {s} s"));
         roots.push((
             instance.root,
-            format!("instance {}\\n{} s{stop}", instance.name, instance.start),
+            format!(
+                "instance {}: {}\\n{} s{stop}",
+                instance.name, instance.class, instance.start
+            ),
         ));
     }
     // Every node any root needs, once, in evaluation order.
@@ -42,7 +45,7 @@ pub fn dot(program: &Program, title: &str) -> String {
         "  node [fontname=\"Helvetica\", fontsize=10, shape=box, style=rounded];"
     );
     for (id, node) in graph.nodes().filter(|(id, _)| needed[id.index()]) {
-        let (label, style) = describe(&node.op);
+        let (label, style) = describe(&node.op, program);
         let width = if node.width > 1 {
             format!("\\n{} lanes", node.width)
         } else {
@@ -70,7 +73,7 @@ pub fn dot(program: &Program, title: &str) -> String {
 }
 
 /// A node's label and extra DOT attributes.
-fn describe(op: &Op) -> (String, &'static str) {
+fn describe(op: &Op, program: &Program) -> (String, &'static str) {
     const KEYFRAME: &str = ", shape=cds, style=filled, fillcolor=\"#ffe9a8\"";
     const TIMER: &str = ", shape=octagon, style=filled, fillcolor=\"#c8e6ff\"";
     const CONSTANT: &str = ", shape=plaintext";
@@ -81,14 +84,24 @@ fn describe(op: &Op) -> (String, &'static str) {
             let more = if values.len() > 3 { ", …" } else { "" };
             (format!("[{}{more}]", shown.join(", ")), CONSTANT)
         }
-        Op::Keyframe(track) => (
-            format!(
-                "keyframe\\n{} keys, {}",
-                track.times().len(),
-                track.interpolation()
-            ),
-            KEYFRAME,
-        ),
+        Op::Keyframe(track) => {
+            // The variable's name, when the track is a named `keyframes` form.
+            let name = program
+                .variables
+                .iter()
+                .find(|(_, t)| std::sync::Arc::ptr_eq(t, track))
+                .map_or("keyframe".to_owned(), |(name, _)| {
+                    format!("{name}\\nkeyframe")
+                });
+            (
+                format!(
+                    "{name}\\n{} keys, {}",
+                    track.times().len(),
+                    track.interpolation()
+                ),
+                KEYFRAME,
+            )
+        }
         Op::Timer {
             length,
             fade_in,

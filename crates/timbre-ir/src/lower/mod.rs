@@ -109,6 +109,9 @@ pub struct Program {
     pub instances: Vec<Instance>,
     /// Lints: things that compile but are probably not what was meant.
     pub warnings: Vec<Diag>,
+    /// The keyframed variables by name (a vector's coordinates as `name.x`, `.y`,
+    /// `.z`), for tools that show a graph's keyframe nodes by name.
+    pub variables: Vec<(String, Arc<crate::keyframes::KeyframeTrack>)>,
 }
 
 impl Program {
@@ -342,6 +345,17 @@ impl<'a> Lowerer<'a> {
             .filter(|k| !self.used_bindings.contains(*k))
             .cloned()
             .collect();
+        let mut variables: Vec<(String, Arc<crate::keyframes::KeyframeTrack>)> = self
+            .keyframes
+            .iter()
+            .map(|(name, track)| (name.clone(), track.clone()))
+            .collect();
+        for (name, tracks) in &self.vector_keyframes {
+            for (axis, track) in ["x", "y", "z"].iter().zip(tracks.iter()) {
+                variables.push((format!("{name}.{axis}"), track.clone()));
+            }
+        }
+        variables.sort_by(|a, b| a.0.cmp(&b.0));
         Ok(Program {
             graph: self.graph,
             root,
@@ -350,6 +364,7 @@ impl<'a> Lowerer<'a> {
             unused_bindings,
             instances: self.instances,
             warnings: self.warnings,
+            variables,
         })
     }
 

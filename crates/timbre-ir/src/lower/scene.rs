@@ -79,6 +79,8 @@ fn is_string_list(e: &Expr) -> bool {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Instance {
     pub name: String,
+    /// The sound class it plays.
+    pub class: String,
     /// The class tree with its parameters bound, gain applied, under its timer.
     pub root: NodeId,
     /// Scene time of its first sample, in seconds.
@@ -683,6 +685,12 @@ impl Lowerer<'_> {
         };
         Ok(Instance {
             name: name.to_owned(),
+            class: call
+                .as_list()
+                .and_then(|items| items.first())
+                .and_then(Expr::as_symbol)
+                .unwrap_or_default()
+                .to_owned(),
             root,
             start,
             stop: stop.map(|(s, _)| s),
