@@ -509,6 +509,20 @@ const HELPED: &[(&str, &str, &str, &str, &str)] = &[
         "did you mean `combine`?",
     ),
     (
+        "(lowpass (white) :freqq 1000)",
+        "timbre::unknown-keyword",
+        "`lowpass` has no argument `:freqq`",
+        ":freqq",
+        "did you mean `:freq`? its arguments are :x :freq :q",
+    ),
+    (
+        "(white :sed 2)",
+        "timbre::unknown-keyword",
+        "`white` has no argument `:sed`",
+        ":sed",
+        "did you mean `:seed`?",
+    ),
+    (
         "(frobnicate 1)",
         "timbre::unknown-function",
         "unknown function `frobnicate`",

@@ -86,7 +86,18 @@ impl Lowerer<'_> {
                                 origin,
                             )
                             .label(arg.span, "unknown argument")
-                            .help(format!("its arguments are {}", names.join(" "))));
+                            .help(
+                                match super::did_you_mean(
+                                    &format!(":{key}"),
+                                    names.iter().map(String::as_str),
+                                ) {
+                                    Some(close) => format!(
+                                        "did you mean `{close}`? its arguments are {}",
+                                        names.join(" ")
+                                    ),
+                                    None => format!("its arguments are {}", names.join(" ")),
+                                },
+                            ));
                     }
                 }
                 i += 2;
