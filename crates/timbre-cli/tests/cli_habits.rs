@@ -361,6 +361,26 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
     let f = zero_crossing_frequency(&heard.samples, SR);
     assert!((f - 440.0).abs() < 1.0, "{f} Hz");
 
+    // render --play plays the file it has written.
+    std::fs::remove_file(&copy).unwrap();
+    let out = timbre()
+        .current_dir(dir.path())
+        .env("TIMBRE_PLAYER", &player)
+        .args([
+            "render", "--expr", TONE, "-d", "0.3", "--play", "-o", "r.wav",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        read_wav(&copy).samples,
+        read_wav(&dir.path().join("r.wav")).samples
+    );
+
     let out = timbre()
         .current_dir(dir.path())
         .env("TIMBRE_PLAYER", "none")

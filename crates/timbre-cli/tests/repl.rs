@@ -163,7 +163,8 @@ fn a_tweak_loop_in_a_pseudo_terminal() {
     prompt(&mut repl);
     repl.send_line("(* 0.001 (combine (sine (* t (rvector 3000 100 5000)))))")
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // A render over a second shows its progress line.
+    repl.exp_string("rendering").unwrap();
     repl.send_control('c').unwrap();
     repl.exp_string("cancelled").unwrap();
     prompt(&mut repl);
