@@ -15,7 +15,7 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 7] = [
+pub const WORKLOADS: [&str; 10] = [
     "bell-100",
     "wood-500",
     "bell-1000",
@@ -23,6 +23,9 @@ pub const WORKLOADS: [&str; 7] = [
     "bell-100-restruck",
     "scene-500",
     "space-100",
+    "peer-w1",
+    "peer-w2",
+    "peer-w3",
 ];
 
 /// The standard workload called `name` (one of [`WORKLOADS`]).
@@ -35,6 +38,9 @@ pub fn workload(name: &str) -> Option<Workload> {
         "bell-100-restruck" => bell_restruck(100),
         "scene-500" => collisions(500),
         "space-100" => moving_sources(100),
+        "peer-w1" => peer("peer-w1", include_str!("../peers/w1.tt")),
+        "peer-w2" => peer("peer-w2", include_str!("../peers/w2.tt")),
+        "peer-w3" => peer("peer-w3", include_str!("../peers/w3.tt")),
         _ => return None,
     })
 }
@@ -45,6 +51,17 @@ pub fn standard() -> Vec<Workload> {
         .iter()
         .map(|name| workload(name).expect("a standard workload"))
         .collect()
+}
+
+/// A tree the peers' benchmark kit renders with timbre, side by side with
+/// SuperCollider, Csound and Faust on the same workload (`benches/peers/`, written by
+/// its `gen_trees.py`): W1, a 100-mode bell re-struck every second; W2, 50 sawtooth
+/// bees each with smooth wander and its own white jitter; W3, W1 with 1000 modes.
+fn peer(name: &'static str, tree: &str) -> Workload {
+    Workload {
+        name,
+        source: tree.trim().to_owned(),
+    }
 }
 
 fn leak(name: String) -> &'static str {

@@ -48,6 +48,8 @@ struct Measured {
     interp: Duration,
     jit: Duration,
     compile: Duration,
+    /// Share of the JIT's time spent in interpreter callbacks (nodes not compiled).
+    callbacks: f64,
 }
 
 pub fn bench(args: BenchArgs) -> Result<(), Failure> {
@@ -81,7 +83,9 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
         CONFIG.block_size,
     );
     println!();
-    let widths = [18, 16, 13, 10, 16, 13, 9];
+    println!("callbacks = share of the JIT's time spent in the interpreter, on nodes it does not compile");
+    println!();
+    let widths = [18, 16, 13, 10, 16, 13, 9, 9];
     print_row(
         &widths,
         &[
@@ -92,6 +96,7 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
             "interp real-time",
             "jit real-time",
             "compile",
+            "callbacks",
         ],
     );
     let mut buffer = vec![0.0; CHUNK];
@@ -110,6 +115,7 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
                 &format_factor(interp / CONFIG.sample_rate),
                 &format_factor(jit / CONFIG.sample_rate),
                 &format_ms(m.compile),
+                &format!("{:.0} %", 100.0 * m.callbacks),
             ],
         );
     }
@@ -153,6 +159,7 @@ fn measure(
 ) -> Result<Measured, Failure> {
     let program = compile(workload);
     let (mut interp, mut jit, mut compile) = (vec![], vec![], vec![]);
+    let mut in_callbacks: Vec<f64> = vec![];
     let Some(root) = program.root else {
         // A scene: its instances through the scene renderer, with both engines.
         let first = program
@@ -169,9 +176,17 @@ fn measure(
                     .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
                 // `samples` frames of every channel.
                 let values = samples * scene.channels() as u64;
-                times.push(time_render(values, buffer, |out| {
+                let profiled = engine == SceneEngine::Jit;
+                timbre_jit::profile::enable(profiled);
+                let _ = timbre_jit::profile::take();
+                let time = time_render(values, buffer, |out| {
                     scene.render(out).expect("kernels of a benchmark compile")
-                }));
+                });
+                timbre_jit::profile::enable(false);
+                if profiled {
+                    in_callbacks.push(timbre_jit::profile::take().as_secs_f64() / seconds_of(time));
+                }
+                times.push(time);
             }
             let voice = fresh_jit()?
                 .voice(&program.graph, first, CONFIG)
@@ -182,6 +197,7 @@ fn measure(
             interp: median(&mut interp),
             jit: median(&mut jit),
             compile: median(&mut compile),
+            callbacks: median_share(&mut in_callbacks),
         });
     };
     for _ in 0..runs {
@@ -192,13 +208,25 @@ fn measure(
             .voice(&program.graph, root, CONFIG)
             .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
         compile.push(voice.kernel().compile_time);
-        jit.push(time_render(samples, buffer, |out| voice.render(out)));
+        timbre_jit::profile::enable(true);
+        let _ = timbre_jit::profile::take();
+        let time = time_render(samples, buffer, |out| voice.render(out));
+        timbre_jit::profile::enable(false);
+        in_callbacks.push(timbre_jit::profile::take().as_secs_f64() / seconds_of(time));
+        jit.push(time);
     }
     Ok(Measured {
         interp: median(&mut interp),
         jit: median(&mut jit),
         compile: median(&mut compile),
+        callbacks: median_share(&mut in_callbacks),
     })
+}
+
+/// The median of shares (fractions of a time).
+fn median_share(shares: &mut [f64]) -> f64 {
+    shares.sort_by(f64::total_cmp);
+    shares.get(shares.len() / 2).copied().unwrap_or(0.0)
 }
 
 fn fresh_jit() -> Result<Jit, Failure> {

@@ -18,7 +18,13 @@ fn quick_bench_of_one_workload_reports_both_engines() {
     let out = &run.stdout;
     assert!(out.starts_with("timbre bench: "), "{out}");
     assert!(out.contains("single thread"), "{out}");
-    for column in ["interp samples/s", "jit samples/s", "jit/interp", "compile"] {
+    for column in [
+        "interp samples/s",
+        "jit samples/s",
+        "jit/interp",
+        "compile",
+        "callbacks",
+    ] {
         assert!(out.contains(column), "no `{column}` column:\n{out}");
     }
     let row: Vec<&str> = out
@@ -28,8 +34,8 @@ fn quick_bench_of_one_workload_reports_both_engines() {
         .split_whitespace()
         .collect();
     // bell-100, interp rate + prefix, jit rate + prefix, ratio, two real-time
-    // factors, compile time + unit.
-    assert_eq!(row.len(), 10, "{row:?}");
+    // factors, compile time + unit, the callbacks' share + %.
+    assert_eq!(row.len(), 12, "{row:?}");
     for rate in [row[1], row[3]] {
         assert!(rate.parse::<f64>().is_ok(), "{row:?}");
     }
@@ -37,6 +43,8 @@ fn quick_bench_of_one_workload_reports_both_engines() {
         assert!(is_number_with(factor, "×"), "{row:?}");
     }
     assert!(row[8].parse::<f64>().is_ok() && row[9] == "ms", "{row:?}");
+    let share: f64 = row[10].parse().unwrap();
+    assert!((0.0..=100.0).contains(&share) && row[11] == "%", "{row:?}");
     // Only the workload asked for.
     assert!(!out.contains("swarm-50"), "{out}");
     // The compile-time table, one row per tree size.
@@ -68,4 +76,26 @@ fn quick_conflicts_with_explicit_durations() {
     run(["bench", "--quick", "--seconds", "2", "bell-100"]).assert_code(2);
     run(["bench", "--seconds", "0", "bell-100"]).assert_code(2);
     run(["bench", "--runs", "0", "bell-100"]).assert_code(2);
+}
+
+/// The share of time in callbacks tells a compiled tree from one the JIT hands back
+/// to the interpreter: a swarm of smooth noises is compiled, the peers' W2 (a white
+/// jitter per bee, which has no lanes) is not all compiled.
+#[test]
+fn the_callback_share_shows_what_is_not_compiled() {
+    let run = run(["bench", "--quick", "swarm-50", "peer-w2"]);
+    run.assert_success();
+    let share = |name: &str| -> f64 {
+        let row: Vec<&str> = run
+            .stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("{name} ")))
+            .unwrap_or_else(|| panic!("no {name} row:\n{}", run.stdout))
+            .split_whitespace()
+            .collect();
+        row[row.len() - 2].parse().unwrap()
+    };
+    let (compiled, called_back) = (share("swarm-50"), share("peer-w2"));
+    assert!(compiled < 5.0, "swarm-50: {compiled} % in callbacks");
+    assert!(called_back > 10.0, "peer-w2: {called_back} % in callbacks");
 }

@@ -522,5 +522,36 @@ fn splatted_steps(plan: &[PlanStep], steps: usize) -> Vec<bool> {
 extern "C" fn step_callback(interp: *mut Interpreter, step: u64, n: u64) {
     // SAFETY: kernels pass the interpreter they were called with.
     let interp = unsafe { &mut *interp };
-    interp.eval_step(step as usize, n as usize);
+    if profile::ENABLED.load(Ordering::Relaxed) {
+        let start = Instant::now();
+        interp.eval_step(step as usize, n as usize);
+        profile::record(start.elapsed());
+    } else {
+        interp.eval_step(step as usize, n as usize);
+    }
+}
+
+/// How much of a kernel's time goes to interpreter callbacks: the nodes it does not
+/// compile. Off unless a benchmark turns it on; then every callback (one per step and
+/// block) is timed, process-wide.
+pub mod profile {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::time::Duration;
+
+    pub(crate) static ENABLED: AtomicBool = AtomicBool::new(false);
+    static CALLBACK_NANOS: AtomicU64 = AtomicU64::new(0);
+
+    /// Starts (or stops) timing callbacks.
+    pub fn enable(on: bool) {
+        ENABLED.store(on, Ordering::Relaxed);
+    }
+
+    /// The time spent in callbacks since the last call, and resets it.
+    pub fn take() -> Duration {
+        Duration::from_nanos(CALLBACK_NANOS.swap(0, Ordering::Relaxed))
+    }
+
+    pub(crate) fn record(time: Duration) {
+        CALLBACK_NANOS.fetch_add(time.as_nanos() as u64, Ordering::Relaxed);
+    }
 }
