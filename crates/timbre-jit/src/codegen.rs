@@ -161,6 +161,8 @@ impl KernelBuilder<'_, '_> {
             for &(s, table) in &state_tables {
                 let state = match steps[s].op {
                     Op::Phasor => InlineState::load(b, table, lane, &[types::F64]),
+                    // Only its seed, read where it is used.
+                    Op::White { .. } => InlineState::load(b, table, lane, &[]),
                     // The cached slots; the seed is read where it is used.
                     _ => InlineState::load(b, table, lane, &[types::F64; NOISE_SEED]),
                 };
@@ -213,6 +215,13 @@ impl KernelBuilder<'_, '_> {
                                 offset: (8 * NOISE_SEED) as i32,
                             };
                             gradient_noise(b, seed, &state.vars, args[0], scale)
+                        }
+                        Op::White { .. } => {
+                            let seed = SeedSlot {
+                                address: states[&node].address,
+                                offset: 0,
+                            };
+                            white(b, seed, t0, i)
                         }
                         Op::Phasor => phasor(
                             b,
@@ -572,7 +581,12 @@ impl KernelBuilder<'_, '_> {
             .nodes
             .iter()
             .copied()
-            .filter(|&s| matches!(self.steps[s].op, Op::Phasor | Op::Noise { .. }))
+            .filter(|&s| {
+                matches!(
+                    self.steps[s].op,
+                    Op::Phasor | Op::Noise { .. } | Op::White { .. }
+                )
+            })
             .collect();
         RegionInputs {
             outside,
@@ -919,7 +933,8 @@ impl InlineState {
     }
 }
 
-/// The gradient at lattice point `i` (scalar i64): a hash mapped to [−1, 1).
+/// The gradient at lattice point `i` (scalar i64): a hash mapped to [−1, 1), as
+/// `dsp::noise` maps it (also white noise's value at sample `i`).
 fn gradient(b: &mut FunctionBuilder, mixed_seed: Value, i: Value) -> Value {
     let key = b.ins().bxor(i, mixed_seed);
     let h = mix64(b, key);
@@ -929,6 +944,18 @@ fn gradient(b: &mut FunctionBuilder, mixed_seed: Value, i: Value) -> Value {
     let x = b.ins().fmul(x, scale);
     let one = b.ins().f64const(1.0);
     b.ins().fsub(x, one)
+}
+
+/// `timbre_ir::dsp::noise::white` of samples t0+i and t0+i+1: the uniform value of
+/// the hash of each sample's index and the seed (loaded from `seed`, mixed as the
+/// interpreter mixes it), bit for bit the interpreter's.
+fn white(b: &mut FunctionBuilder, seed: SeedSlot, t0: Value, i: Value) -> Value {
+    let mixed_seed = seed.load(b);
+    let first = b.ins().iadd(t0, i);
+    let second = b.ins().iadd_imm_s(first, 1);
+    let x0 = gradient(b, mixed_seed, first);
+    let x1 = gradient(b, mixed_seed, second);
+    pair(b, x0, x1)
 }
 
 /// Slots of a noise's state per lane: the floor of the last lattice cell (NaN before

@@ -374,7 +374,8 @@ impl Jit {
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
         // floor of the last lattice cell (none yet: NaN equals nothing), its five
-        // polynomial coefficients and the seed per lane of each noise; two partial sums
+        // polynomial coefficients and the seed per lane of each noise; the seed of each
+        // white noise; two partial sums
         // per sample of each combine (used when its argument is summed in a lane
         // region).
         let no_cell = f64::NAN;
@@ -392,6 +393,10 @@ impl Jit {
                     let mixed = f64::from_bits(timbre_ir::dsp::noise::mix64(seed));
                     state[NOISE_SEED * lanes..(NOISE_SEED + 1) * lanes].fill(mixed);
                     state
+                }
+                // The bits of the mixed seed, as for a noise.
+                Op::White { seed } => {
+                    vec![f64::from_bits(timbre_ir::dsp::noise::mix64(seed)); s.width]
                 }
                 Op::Combine => vec![0.0; 2 * config.block_size],
                 _ => vec![],

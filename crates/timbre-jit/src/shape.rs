@@ -23,6 +23,9 @@ pub(crate) enum Kind {
     Ternary(TernaryOp),
     /// Gradient noise; its seed is in the voice's state.
     Noise,
+    /// White noise (one lane): a hash of the sample index; its seed is in the voice's
+    /// state.
+    White,
     Phasor,
     /// Summed in its argument's region, or called back.
     Combine,
@@ -42,12 +45,12 @@ impl Kind {
             Op::Binary(op) => Kind::Binary(*op),
             Op::Ternary(op) => Kind::Ternary(*op),
             Op::Noise { seed: _ } => Kind::Noise,
+            Op::White { seed: _ } => Kind::White,
             Op::Phasor => Kind::Phasor,
             Op::Combine => Kind::Combine,
             Op::Env
             | Op::Index
             | Op::Concat
-            | Op::White { .. }
             | Op::Conv(_)
             | Op::Stateful(_)
             | Op::Variable(_)
@@ -61,7 +64,12 @@ impl Kind {
     /// plan asks this, so only a kind of its own can be compiled inline.
     pub(crate) fn is_inline(self) -> bool {
         match self {
-            Kind::Time | Kind::Binary(_) | Kind::Ternary(_) | Kind::Noise | Kind::Phasor => true,
+            Kind::Time
+            | Kind::Binary(_)
+            | Kind::Ternary(_)
+            | Kind::Noise
+            | Kind::White
+            | Kind::Phasor => true,
             // The interpreter's own tangent: its poles are not worth an approximation.
             Kind::Unary(op) => op != UnaryOp::Tan,
             Kind::Const | Kind::Combine | Kind::Interpreted => false,
@@ -180,7 +188,12 @@ mod tests {
     /// Every element-wise op compiled inline has its own kind.
     #[test]
     fn inline_ops_have_distinct_kinds() {
-        let mut ops: Vec<Op> = vec![Op::Time, Op::Noise { seed: 0 }, Op::Phasor];
+        let mut ops: Vec<Op> = vec![
+            Op::Time,
+            Op::Noise { seed: 0 },
+            Op::White { seed: 0 },
+            Op::Phasor,
+        ];
         ops.extend(UnaryOp::ALL.iter().map(|op| Op::Unary(*op)));
         ops.extend(BinaryOp::ALL.iter().map(|op| Op::Binary(*op)));
         ops.extend([TernaryOp::Clamp, TernaryOp::If].map(Op::Ternary));

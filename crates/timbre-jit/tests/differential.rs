@@ -221,6 +221,36 @@ fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
     }
 }
 
+/// White noise is compiled inline: the interpreter's hash of the sample index, bit
+/// for bit, alone, in arithmetic, read by a lane region, through a filter, and as the
+/// peers' 50 jitters; and nothing of it is left to callbacks.
+#[test]
+fn compiled_white_noise_is_the_interpreters_bit_for_bit() {
+    let mut jit = Jit::new().unwrap();
+    let jitters: Vec<String> = (1..=50).map(|k| format!("(white :seed {k})")).collect();
+    let peers = format!(
+        "(* 0.02 (combine (sawtooth (phasor (+ (rvector 50 180 260) (* 2 (vector {})))))))",
+        jitters.join(" ")
+    );
+    for text in [
+        "(white)",
+        "(white :seed 7)",
+        "(* 0.5 (+ (white) (white :seed 2)))",
+        "(combine (* (rvector 4 0.1 0.9) (white :seed 3)))",
+        "(lowpass (white) 1000)",
+        peers.as_str(),
+    ] {
+        if let Err(e) = compare(&mut jit, &compile_text(text), 20_000, 0.0) {
+            panic!("{text}: {e}");
+        }
+    }
+    let program = compile_text("(* 0.5 (+ (white) (white :seed 2)))");
+    let voice = jit
+        .voice(&program.graph, program.root.unwrap(), config())
+        .unwrap();
+    assert_eq!(voice.kernel().callback_nodes, 0, "{:?}", voice.kernel());
+}
+
 #[test]
 fn odd_block_lengths_and_split_renders_match() {
     // One-lane, and lanes with values computed a sample ahead, noise caches and a
