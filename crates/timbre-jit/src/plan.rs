@@ -38,6 +38,12 @@ pub(crate) struct Region {
     pub splatted: Vec<usize>,
 }
 
+/// The most nodes fused into one region. The register allocator's time grows faster
+/// than linearly with the length of a loop body, so a longer run of inline nodes is
+/// split into several regions (their values crossing over go through buffers),
+/// which keeps compile time linear in the number of nodes.
+pub(crate) const MAX_REGION_NODES: usize = 64;
+
 /// Whether a step is computed inline in a region (see [`Kind::is_inline`]).
 pub(crate) fn is_inline(op: &Op) -> bool {
     Kind::of(op).is_inline()
@@ -59,9 +65,10 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
         }
         let earliest = step.args.iter().map(|a| ready[*a]).max().unwrap_or(0);
         if is_inline(&step.op) {
-            let region = (earliest..plan.len())
-                .rev()
-                .find(|j| matches!(&plan[*j], PlanStep::Region(r) if r.width == step.width));
+            let region = (earliest..plan.len()).rev().find(|j| {
+                matches!(&plan[*j], PlanStep::Region(r)
+                    if r.width == step.width && r.nodes.len() < MAX_REGION_NODES)
+            });
             let j = match region {
                 Some(j) => j,
                 None => {
