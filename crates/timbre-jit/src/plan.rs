@@ -145,3 +145,48 @@ fn mark_stored(steps: &[Step], plan: &mut [PlanStep], home: &[Option<usize>], at
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use timbre_ir::op::UnaryOp;
+
+    /// A chain of `n` inline steps after `t`: t, −t, −(−t), …
+    fn chain(n: usize) -> Vec<Step> {
+        let mut steps = vec![Step {
+            op: Op::Time,
+            args: vec![],
+            width: 1,
+            constant: false,
+        }];
+        for i in 0..n {
+            steps.push(Step {
+                op: Op::Unary(UnaryOp::Neg),
+                args: vec![i],
+                width: 1,
+                constant: false,
+            });
+        }
+        steps
+    }
+
+    #[test]
+    fn long_runs_of_inline_nodes_are_split_into_bounded_regions() {
+        let steps = chain(200);
+        let plan = plan(&steps);
+        let regions: Vec<&Region> = plan
+            .iter()
+            .map(|p| match p {
+                PlanStep::Region(r) => r,
+                PlanStep::Callback(i) => panic!("step {i} called back"),
+            })
+            .collect();
+        assert_eq!(regions.len(), 201usize.div_ceil(MAX_REGION_NODES));
+        assert!(regions.iter().all(|r| r.nodes.len() <= MAX_REGION_NODES));
+        // Every step is in one region, and a value read by the next region is stored.
+        let total: usize = regions.iter().map(|r| r.nodes.len()).sum();
+        assert_eq!(total, 201);
+        let last_of_first = *regions[0].nodes.last().unwrap();
+        assert!(regions[0].stored.contains(&last_of_first));
+    }
+}

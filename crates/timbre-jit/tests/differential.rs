@@ -251,6 +251,26 @@ fn compiled_white_noise_is_the_interpreters_bit_for_bit() {
     assert_eq!(voice.kernel().callback_nodes, 0, "{:?}", voice.kernel());
 }
 
+/// A tree longer than one fused region is split into several (see
+/// `plan::MAX_REGION_NODES`) and renders as the interpreter does.
+#[test]
+fn trees_split_into_several_regions_render_the_same() {
+    let mut jit = Jit::new().unwrap();
+    // A chain of 150 named steps, each three nodes (nesting them would be too deep).
+    let mut text = "(define x0 (* t 110))\n".to_owned();
+    for k in 1..=150 {
+        text += &format!("(define x{k} (* 0.99 (+ {}.5 (tanh x{}))))\n", k % 7, k - 1);
+    }
+    let program = compile_text(&format!("{text}(sine x150)"));
+    if let Err(e) = compare(&mut jit, &program, 4_800, 1e-9) {
+        panic!("{e}");
+    }
+    let voice = jit
+        .voice(&program.graph, program.root.unwrap(), config())
+        .unwrap();
+    assert!(voice.kernel().inline_nodes > 300, "{:?}", voice.kernel());
+}
+
 #[test]
 fn odd_block_lengths_and_split_renders_match() {
     // One-lane, and lanes with values computed a sample ahead, noise caches and a
