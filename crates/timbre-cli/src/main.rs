@@ -730,7 +730,12 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         plot::draw_pictures(&args.output, &args.pictures, plan.quiet).map_err(Failure::Message)?;
     }
     if args.play && !to_stdout {
-        let samples = read_back(&args.output)?;
+        // What was written, as written; a FLAC file is rendered again instead of
+        // decoded (the same samples before they were made integers).
+        let samples = match container {
+            Container::Wav => read_back(&args.output)?,
+            Container::Flac => render_to_memory(&plan, length, scale, &interrupted)?,
+        };
         play_samples(&samples, plan.channels, plan.sample_rate, &interrupted)?;
     }
     Ok(())
@@ -813,22 +818,8 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
     let plan = plan(&program, &args.sound)?;
     let interrupted = interrupt_flag();
     let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;
-    let mut pass = Pass::new(&plan, length, scale)?;
-    let mut samples = vec![0.0; length as usize * plan.channels];
-    let mut done = 0usize;
-    for chunk in samples.chunks_mut(8192 * plan.channels) {
-        if interrupted.load(Ordering::Relaxed) {
-            return Err(Failure::Interrupted);
-        }
-        let n = chunk.len() / plan.channels;
-        let last = pass.next(chunk).map_err(Failure::Message)?;
-        done += last.map_or(n, |k| k.min(n));
-        if last.is_some() {
-            break;
-        }
-    }
-    drop(pass);
-    samples.truncate(done * plan.channels);
+    let samples = render_to_memory(&plan, length, scale, &interrupted)?;
+    let done = samples.len() / plan.channels;
     let peak = samples.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if !plan.quiet {
         eprintln!(
@@ -872,6 +863,31 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
             Ok(())
         }
     }
+}
+
+/// Renders the whole of `plan` into memory (for playing), interleaved.
+fn render_to_memory(
+    plan: &Plan<'_>,
+    length: u64,
+    scale: f64,
+    interrupted: &AtomicBool,
+) -> Result<Vec<f64>, Failure> {
+    let mut pass = Pass::new(plan, length, scale)?;
+    let mut samples = vec![0.0; length as usize * plan.channels];
+    let mut done = 0usize;
+    for chunk in samples.chunks_mut(8192 * plan.channels) {
+        if interrupted.load(Ordering::Relaxed) {
+            return Err(Failure::Interrupted);
+        }
+        let n = chunk.len() / plan.channels;
+        let last = pass.next(chunk).map_err(Failure::Message)?;
+        done += last.map_or(n, |k| k.min(n));
+        if last.is_some() {
+            break;
+        }
+    }
+    samples.truncate(done * plan.channels);
+    Ok(samples)
 }
 
 /// The samples of a WAV file just written, interleaved.
