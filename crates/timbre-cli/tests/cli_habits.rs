@@ -380,6 +380,23 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
         read_wav(&copy).samples,
         read_wav(&dir.path().join("r.wav")).samples
     );
+    // A FLAC output is played too.
+    let out = timbre()
+        .current_dir(dir.path())
+        .env("TIMBRE_PLAYER", &player)
+        .args([
+            "render", "--expr", TONE, "-d", "0.3", "--play", "-o", "r.flac",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let heard = read_wav(&copy);
+    assert_eq!(heard.samples.len(), 14_400);
+    assert!((zero_crossing_frequency(&heard.samples, SR) - 440.0).abs() < 1.0);
 
     let out = timbre()
         .current_dir(dir.path())
