@@ -325,6 +325,10 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (listener) (instance x (a :f 1) :at (0 1 0) :pan 0)", "timbre::bad-instance", "an instance placed in space is panned by its place", "0"),
     ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (instance x (a :f 1) :channel 2)", "timbre::bad-instance", "channel 2 is not one of the scene's 2", "2"),
     ("(scene :channels 0)", "timbre::bad-scene", "0 is not a number of channels", "0"),
+    // Habits from other languages.
+    ("(sine (* t 440))\n  # it's \"loud\"", "timbre::syntax::wrong-comment", "comments start with `;`", "#"),
+    ("(define f (x)\n  (* x 2)\n(f 1)", "timbre::syntax::unclosed-list", "unclosed list", "("),
+    ("(define (f) (sine t)) (f)", "timbre::bad-define", "timbre writes a definition as `(define name (param …) body)`", "(f)"),
 ];
 
 #[test]

@@ -98,80 +98,60 @@ fn span_of(range: std::ops::Range<usize>) -> Span {
     Span::new(range.start, range.end)
 }
 
-/// Lines that begin (after blanks) with `//` or `#`: comments written in another
-/// language's way. The span of the marker and the byte range of the line.
-fn wrong_comments(source: &str) -> Vec<(Span, std::ops::Range<usize>)> {
-    let mut found = vec![];
-    let mut start = 0;
-    for line in source.split_inclusive('\n') {
-        let text = line.trim_start_matches([' ', '\t']);
-        let at = start + (line.len() - text.len());
-        let marker = if text.starts_with("//") {
-            2
-        } else if text.starts_with('#') {
-            1
-        } else {
-            0
-        };
-        if marker > 0 {
-            found.push((Span::new(at, at + marker), start..start + line.len()));
-        }
-        start += line.len();
-    }
-    found
-}
-
 /// Splits the source into tokens with their spans. Errors come back as
-/// [`Token::Error`] tokens in source order; nothing is dropped silently. A line that
-/// starts with `//` or `#` gives one error and is otherwise skipped, as a comment.
+/// [`Token::Error`] tokens in source order; nothing is dropped silently.
+///
+/// A line that starts (after blanks) with `//` or `#` is a comment written in
+/// another language's way: one error at the marker, and the rest of the line is
+/// skipped as a comment would be. This is decided token by token, so a line inside
+/// a string is never taken for one, and a quote inside such a line starts no string.
 pub(crate) fn lex(source: &str) -> Vec<(Token<'_>, Span)> {
-    let comments = wrong_comments(source);
-    let tokens = lex_tokens(source);
-    if comments.is_empty() {
-        return tokens;
-    }
-    let mut kept = Vec::with_capacity(tokens.len());
-    let mut next = comments.iter().peekable();
-    for (token, span) in tokens {
-        while let Some((marker, _)) = next.next_if(|(_, line)| line.end <= span.start) {
-            kept.push((
-                Token::Error(SyntaxError::WrongComment { span: *marker }),
-                *marker,
-            ));
-        }
-        let in_comment = next
-            .peek()
-            .is_some_and(|(_, line)| line.contains(&span.start));
-        if !in_comment {
-            kept.push((token, span));
-        }
-    }
-    for (marker, _) in next {
-        kept.push((
-            Token::Error(SyntaxError::WrongComment { span: *marker }),
-            *marker,
-        ));
-    }
-    kept
-}
-
-fn lex_tokens(source: &str) -> Vec<(Token<'_>, Span)> {
     let mut lexer = Token::lexer(source);
     let mut tokens = Vec::new();
     while let Some(result) = lexer.next() {
+        let span = span_of(lexer.span());
+        if let Some(marker) = wrong_comment_marker(source, span.start) {
+            let rest = lexer.remainder();
+            lexer.bump(rest.find('\n').unwrap_or(rest.len()));
+            let marker = Span::new(span.start, span.start + marker);
+            tokens.push((
+                Token::Error(SyntaxError::WrongComment { span: marker }),
+                marker,
+            ));
+            continue;
+        }
         // Errors inside a string that still yields a usable value (bad escapes)
         // are left in `extras`; emit them before the string itself.
         for error in lexer.extras.drain(..) {
             let span = error.span();
             tokens.push((Token::Error(error), span));
         }
-        let span = span_of(lexer.span());
         match result {
             Ok(token) => tokens.push((token, span)),
             Err(LexError(error)) => tokens.push((Token::Error(error), span)),
         }
     }
     tokens
+}
+
+/// The length of the `//` or `#` a token at `at` starts with, when it is the first
+/// thing on its line.
+fn wrong_comment_marker(source: &str, at: usize) -> Option<usize> {
+    let text = &source[at..];
+    let marker = if text.starts_with("//") {
+        2
+    } else if text.starts_with('#') {
+        1
+    } else {
+        return None;
+    };
+    // Only blanks may come before it on its line. The scan stops at the first
+    // other byte, so it costs no more than the blanks it passes.
+    let before = source.as_bytes()[..at]
+        .iter()
+        .rev()
+        .find(|byte| !matches!(byte, b' ' | b'\t'));
+    matches!(before, None | Some(b'\n')).then_some(marker)
 }
 
 /// Checks a number-like word against the number grammar

@@ -68,10 +68,18 @@ pub fn parse(source: &str) -> Parse {
 ///
 /// Returns the tokens that form complete, shallow-enough expressions, and the
 /// errors (not yet sorted: unclosed lists are only known at the end).
+///
+/// A list that is never closed is closed where indentation says it was meant to
+/// be: before the first later line that starts with `(` at or left of the
+/// indentation of the unclosed list's line. Only lists that really are never
+/// closed are treated so: a form whose lines are not indented is still read as
+/// written when its parentheses balance.
 fn check_structure<'src>(
     tokens: Vec<(Token<'src>, Span)>,
     source: &str,
 ) -> (Vec<(Token<'src>, Span)>, Vec<SyntaxError>) {
+    let lines = Lines::new(source);
+    let lowest_depth_ahead = lowest_depth_ahead(&tokens);
     let mut kept = Vec::with_capacity(tokens.len());
     let mut errors = Vec::new();
     // Open lists: where each `(` went in `kept`, and its span. At most MAX_DEPTH long.
@@ -81,29 +89,32 @@ fn check_structure<'src>(
     let mut skip_depth = 0usize;
     // The last token kept, after which a missing `)` would go.
     let mut last: Option<Span> = None;
+    // Net depth change of the tokens before the current one.
+    let mut depth_so_far = 0isize;
 
-    for (token, span) in tokens {
-        // A `(` that starts a line at or left of the column of the outermost open
-        // list begins a new form: the open lists were meant to close before it.
+    for (index, (token, span)) in tokens.into_iter().enumerate() {
         if token == Token::LParen
             && skip_depth == 0
             && !open.is_empty()
-            && starts_line(source, span.start)
-            && column(source, span.start) <= column(source, open[0].1.start)
+            && lines.starts_line(span.start)
+            && lines.indentation(span.start) <= lines.indentation(open[0].1.start)
+            // The outermost open list is closed later iff the depth ever falls by
+            // as many levels as are open now.
+            && lowest_depth_ahead[index] > depth_so_far - open.len() as isize
         {
             let after = last.unwrap_or(span);
-            let missing = open.len();
-            let line = source[..after.end].matches('\n').count() + 1;
+            let line = lines.line_of(after.end.saturating_sub(1)) + 1;
             errors.push(SyntaxError::UnclosedList {
                 span: open[0].1,
                 missing: Some(after),
-                help: format!("add `{}` at the end of line {line}", ")".repeat(missing)),
+                help: format!("add `{}` at the end of line {line}", ")".repeat(open.len())),
             });
             // The unclosed form is left out (as at the end of the input), and the
             // forms after it read as written.
             kept.truncate(open[0].0);
             open.clear();
         }
+        depth_so_far += depth_change(&token);
         if !matches!(token, Token::Error(_)) && skip_depth == 0 {
             last = Some(span);
         }
@@ -147,20 +158,76 @@ fn check_structure<'src>(
     (kept, errors)
 }
 
-/// Whether only blanks precede `at` on its line.
-fn starts_line(source: &str, at: usize) -> bool {
-    source[..at]
-        .rsplit('\n')
-        .next()
-        .is_some_and(|before| before.chars().all(|c| c == ' ' || c == '\t'))
+fn depth_change(token: &Token) -> isize {
+    match token {
+        Token::LParen => 1,
+        Token::RParen => -1,
+        _ => 0,
+    }
 }
 
-/// The column of `at` on its line, in characters.
-fn column(source: &str, at: usize) -> usize {
-    source[..at]
-        .rsplit('\n')
-        .next()
-        .map_or(0, |before| before.chars().count())
+/// For each token, the lowest net depth (counted from the start of the input)
+/// reached at or after it. Which lists close later is then known in constant time,
+/// so the whole check stays linear.
+///
+/// While any list is open, `check_structure` moves its depth (open lists plus
+/// too-deep ones being skipped) exactly as these counts do; they differ only for a
+/// stray `)`, which needs every list closed first.
+fn lowest_depth_ahead(tokens: &[(Token, Span)]) -> Vec<isize> {
+    let total: isize = tokens.iter().map(|(token, _)| depth_change(token)).sum();
+    let mut lowest = vec![0; tokens.len()];
+    let mut depth_after = total;
+    let mut lowest_after = total;
+    for (index, (token, _)) in tokens.iter().enumerate().rev() {
+        lowest_after = lowest_after.min(depth_after);
+        lowest[index] = lowest_after;
+        depth_after -= depth_change(token);
+    }
+    lowest
+}
+
+/// Where each line of the source starts, and where its text starts after blanks.
+struct Lines {
+    starts: Vec<usize>,
+    text_starts: Vec<usize>,
+}
+
+impl Lines {
+    fn new(source: &str) -> Self {
+        let starts: Vec<usize> = std::iter::once(0)
+            .chain(source.match_indices('\n').map(|(at, _)| at + 1))
+            .collect();
+        let text_starts = starts
+            .iter()
+            .map(|&start| {
+                let blanks = source[start..]
+                    .bytes()
+                    .take_while(|byte| matches!(byte, b' ' | b'\t'))
+                    .count();
+                start + blanks
+            })
+            .collect();
+        Lines {
+            starts,
+            text_starts,
+        }
+    }
+
+    /// The line holding byte `at`, counted from 0.
+    fn line_of(&self, at: usize) -> usize {
+        self.starts.partition_point(|&start| start <= at) - 1
+    }
+
+    /// Whether only blanks precede `at` on its line.
+    fn starts_line(&self, at: usize) -> bool {
+        self.text_starts[self.line_of(at)] == at
+    }
+
+    /// How many blanks (one column each) start the line holding `at`.
+    fn indentation(&self, at: usize) -> usize {
+        let line = self.line_of(at);
+        self.text_starts[line] - self.starts[line]
+    }
 }
 
 /// Step 2: the grammar, `expr* EOI` with `expr = atom | "(" expr* ")"`.

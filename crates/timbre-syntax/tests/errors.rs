@@ -315,3 +315,99 @@ fn a_million_balanced_parens_do_not_crash() {
     assert_eq!(parse.exprs.len(), 2);
     drop(parse); // Dropping the tree must not overflow either.
 }
+
+#[test]
+fn a_comment_written_the_c_or_shell_way_is_one_error() {
+    expect![[r#"
+        List @0..8
+          Symbol "sine" @1..5
+          Symbol "t" @6..7
+        List @39..46
+          Symbol "saw" @40..43
+          Symbol "t" @44..45
+        error @9..11 wrong-comment: comments start with `;`
+        error @32..33 wrong-comment: comments start with `;`
+    "#]]
+    .assert_eq(&render(
+        "(sine t)\n// it's (very) \"loud\n  # hush\n(saw t)",
+    ));
+    let help = parse("# x").errors[0].help().unwrap().to_string();
+    assert!(help.contains("a comment runs from `;`"), "{help}");
+}
+
+#[test]
+fn a_line_inside_a_string_is_never_a_wrong_comment() {
+    let parse = parse("(f \"first\n# second\n// third\")");
+    assert_eq!(parse.errors, vec![]);
+    assert_eq!(parse.exprs.len(), 1);
+}
+
+#[test]
+fn an_unclosed_list_is_closed_where_indentation_says() {
+    let source = "(define f (x)\n  (* x 2)\n\n(g 1)";
+    let parse = parse(source);
+    let [SyntaxError::UnclosedList {
+        span,
+        missing: Some(missing),
+        help,
+    }] = parse.errors.as_slice()
+    else {
+        panic!("{:?}", parse.errors);
+    };
+    assert_eq!(*span, Span::new(0, 1));
+    // The last token before the dedented line: the `)` ending line 2.
+    assert_eq!(*missing, Span::new(22, 23));
+    assert_eq!(help, "add `)` at the end of line 2");
+    // Both labels are drawn: the `(` and where the `)` goes.
+    let labels: Vec<_> = parse.errors[0].labels().unwrap().collect();
+    assert_eq!(labels.len(), 2);
+    // The form after it reads as written.
+    assert_eq!(parse.exprs.len(), 1);
+    assert_eq!(parse.exprs[0].to_string(), "(g 1)");
+}
+
+#[test]
+fn nested_unclosed_lists_need_as_many_parens() {
+    let parse = parse("  (a\n    (b 1\n  (c)");
+    assert_eq!(parse.errors.len(), 1, "{:?}", parse.errors);
+    assert_eq!(
+        parse.errors[0].help().unwrap().to_string(),
+        "add `))` at the end of line 2"
+    );
+    assert_eq!(parse.exprs[0].to_string(), "(c)");
+}
+
+#[test]
+fn unindented_forms_that_balance_are_read_as_written() {
+    // Ugly but valid: the body starts at the margin.
+    let unindented = parse("(define f (x)\n(* x 2))\n(define g (y)\n(+ y 1))");
+    assert_eq!(unindented.errors, vec![]);
+    assert_eq!(unindented.exprs.len(), 2);
+    // Only the list that is never closed is closed at the margin, not the valid
+    // unindented form after it.
+    let second_unclosed = parse("(define f (x)\n  (* x 2)\n(define g (y)\n(+ y 1))");
+    assert_eq!(
+        second_unclosed.errors.len(),
+        1,
+        "{:?}",
+        second_unclosed.errors
+    );
+    assert_eq!(second_unclosed.errors[0].span(), Span::new(0, 1));
+    assert_eq!(second_unclosed.exprs.len(), 1);
+    assert_eq!(
+        second_unclosed.exprs[0].to_string(),
+        "(define g (y) (+ y 1))"
+    );
+}
+
+#[test]
+fn many_unclosed_forms_are_checked_in_linear_time() {
+    // Each line is a form missing its `)`: each closes at the next line.
+    let source = "(a 1\n".repeat(200_000);
+    let start = std::time::Instant::now();
+    assert_eq!(parse(&source).errors.len(), 200_000);
+    // A long line of lists inside one that is never closed.
+    let long_line = format!("(a{}", " (b)".repeat(200_000));
+    assert_eq!(parse(&long_line).errors.len(), 1);
+    assert!(start.elapsed().as_secs() < 10, "{:?}", start.elapsed());
+}

@@ -539,6 +539,10 @@ impl Lowerer<'_> {
                         "declare it with (define-sound {class} (params…) body)"
                     )))
             }
+            // A class from a failed include or definition: that error explains it.
+            None if self.names_incomplete || self.failed_names.contains(class) => {
+                return Err(self.follow_on(class, call.span, origin));
+            }
             None => {
                 let classes = self
                     .definitions

@@ -833,6 +833,9 @@ impl Lowerer<'_> {
             if self.keyframes.contains_key(name) {
                 return Err(wrong_length(self, 1, e.span));
             }
+            if self.names_incomplete || self.failed_names.contains(name) {
+                return Err(self.follow_on(name, e.span, origin));
+            }
             let names = self.vector_keyframes.keys().map(String::as_str);
             let hint = match super::did_you_mean(name, names) {
                 Some(close) => format!("did you mean `{close}`?"),
