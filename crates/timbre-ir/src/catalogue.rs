@@ -503,7 +503,14 @@ pub static NODES: &[NodeSpec] = &[
     ),
     // Noises.
     NodeSpec::new("noise", X, NOISES, Build::Args(noise), "(noise (* t 440))").random(),
-    NodeSpec::new("white", &[], NOISES, Build::Args(white), "(white :seed 3)").random(),
+    NodeSpec::new(
+        "white",
+        &[opt("lanes", 1.0)],
+        NOISES,
+        Build::Args(white),
+        "(white :seed 3)",
+    )
+    .random(),
     NodeSpec::new("pink", &[], NOISES, Build::Args(pink), "(pink)")
         .random()
         .stateful(),
@@ -809,8 +816,9 @@ fn noise(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
 }
 
 fn white(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let lanes = l.const_count(&b.args[0], "the number of lanes", b.origin)?;
     let seed = l.random_seed("white", b.seed, &[]);
-    Ok(l.graph.add(Op::White { seed }, vec![]))
+    Ok(l.graph.add(Op::White { seed, lanes }, vec![]))
 }
 
 fn pink(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {

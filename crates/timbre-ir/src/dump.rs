@@ -58,8 +58,11 @@ fn describe(op: &Op) -> String {
             }
             text
         }
-        Op::Noise { seed } | Op::White { seed } => {
+        Op::Noise { seed } | Op::White { seed, lanes: 1 } => {
             format!("{}(seed={seed:#018x})", op.name())
+        }
+        Op::White { seed, lanes } => {
+            format!("{}(seed={seed:#018x}, lanes={lanes})", op.name())
         }
         Op::Stateful(kernel) => match kernel.detail() {
             detail if detail.is_empty() => kernel.name().into(),
@@ -107,7 +110,7 @@ mod tests {
     #[test]
     fn lines_in_id_order_with_widths_and_roots() {
         let mut g = Graph::new();
-        let unused = g.add(Op::White { seed: 7 }, vec![]);
+        let unused = g.add(Op::White { seed: 7, lanes: 1 }, vec![]);
         let t = g.add(Op::Time, vec![]);
         let f = g.constant(440.0);
         let phase = g.add(Op::Binary(BinaryOp::Mul), vec![t, f]);

@@ -182,7 +182,8 @@ impl Graph {
         let widths = args.iter().map(|a| self.width(*a));
         match op {
             Op::Const(values) => values.len(),
-            Op::Time | Op::White { .. } | Op::Variable(_) => 1,
+            Op::White { lanes, .. } => *lanes,
+            Op::Time | Op::Variable(_) => 1,
             Op::Combine | Op::Index => 1,
             Op::Concat => widths.sum(),
             Op::Conv(_) | Op::Timer { .. } => self.width(args[0]),
@@ -461,7 +462,7 @@ mod tests {
     #[test]
     fn schedule_is_post_order_of_reachable_nodes() {
         let mut g = Graph::new();
-        let unused = g.add(Op::White { seed: 1 }, vec![]);
+        let unused = g.add(Op::White { seed: 1, lanes: 1 }, vec![]);
         let t = g.add(Op::Time, vec![]);
         let s = g.add(Op::Unary(UnaryOp::Sine), vec![t]);
         assert_eq!(g.schedule(s), vec![t, s]);

@@ -321,9 +321,10 @@ impl Interpreter {
                         first += w;
                     }
                 }
-                (Op::White { seed }, _) => {
+                (Op::White { seed, .. }, _) => {
+                    let seed = seed.wrapping_add(lane as u64);
                     for (k, y) in o.iter_mut().enumerate() {
-                        *y = white(*seed, n0 + k as u64);
+                        *y = white(seed, n0 + k as u64);
                     }
                 }
                 (Op::Phasor, State::Phase(phases)) => {

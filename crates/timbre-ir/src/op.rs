@@ -44,9 +44,11 @@ pub enum Op {
     Index,
     /// Lanes of all arguments, one after the other.
     Concat,
-    /// Per-sample uniform white noise in [-1, 1): a function of the sample index.
+    /// Per-sample uniform white noise in [-1, 1): a function of the sample index;
+    /// lane k hashes with `seed + k`.
     White {
         seed: u64,
+        lanes: usize,
     },
     /// Integrated frequency in cycles, wrapped to [0, 1); arguments: frequency, start phase.
     Phasor,
@@ -228,8 +230,11 @@ impl Op {
             Op::Const(values) => {
                 d.f64s(values);
             }
-            Op::Noise { seed } | Op::White { seed } => {
+            Op::Noise { seed } | Op::White { seed, lanes: 1 } => {
                 d.u64(*seed);
+            }
+            Op::White { seed, lanes } => {
+                d.u64(*seed).u64(*lanes as u64);
             }
             Op::Conv(ImpulseResponse::Wav { data, .. }) => {
                 d.str("wav").u64(data.content_hash);

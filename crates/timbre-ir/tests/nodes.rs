@@ -162,6 +162,31 @@ fn white_noise_is_uniform_and_seeded() {
     assert_ne!(a, b);
 }
 
+/// `(white :lanes n)`: n independent white noises; lane 0 is `(white)` itself.
+#[test]
+fn white_noise_has_lanes() {
+    let lane = |k: usize, seed: u64| {
+        render_seeded(&format!("(index (white :lanes 4) {k})"), &[], 1.0, seed)
+    };
+    assert_eq!(lane(0, 3), render_seeded("(white)", &[], 1.0, 3));
+    let lanes: Vec<Vec<f64>> = (0..4).map(|k| lane(k, 3)).collect();
+    for (a, x) in lanes.iter().enumerate() {
+        let var = x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64;
+        assert!(approx(var, 1.0 / 3.0, 0.01), "lane {a}: var {var}");
+        for y in &lanes[a + 1..] {
+            let corr = x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>() / x.len() as f64 * 3.0;
+            assert!(corr.abs() < 0.03, "lanes correlate: {corr}");
+        }
+    }
+    // `(white 4)` is the same node; a number of lanes must be a whole number ≥ 1.
+    assert_eq!(
+        render("(combine (white 4))", &[], 0.1),
+        render("(combine (white :lanes 4))", &[], 0.1)
+    );
+    let err = compile_with("(white :lanes 0)", &[], 0).unwrap_err();
+    assert!(err.0[0].message.contains("lanes"), "{:?}", err.0[0]);
+}
+
 #[test]
 fn pink_noise_falls_3_db_per_octave() {
     let x = render("(pink)", &[], 8.0);

@@ -404,7 +404,7 @@ impl Jit {
                     state
                 }
                 // The bits of the mixed seed, as for a noise.
-                Op::White { seed } => {
+                Op::White { seed, .. } => {
                     vec![f64::from_bits(timbre_ir::dsp::noise::mix64(seed)); s.width]
                 }
                 Op::Combine => vec![0.0; 2 * config.block_size],

@@ -45,7 +45,9 @@ impl Kind {
             Op::Binary(op) => Kind::Binary(*op),
             Op::Ternary(op) => Kind::Ternary(*op),
             Op::Noise { seed: _ } => Kind::Noise,
-            Op::White { seed: _ } => Kind::White,
+            // One lane is compiled inline; lanes are called back for now.
+            Op::White { lanes: 1, .. } => Kind::White,
+            Op::White { .. } => Kind::Interpreted,
             Op::Phasor => Kind::Phasor,
             Op::Combine => Kind::Combine,
             Op::Env
@@ -191,7 +193,7 @@ mod tests {
         let mut ops: Vec<Op> = vec![
             Op::Time,
             Op::Noise { seed: 0 },
-            Op::White { seed: 0 },
+            Op::White { seed: 0, lanes: 1 },
             Op::Phasor,
         ];
         ops.extend(UnaryOp::ALL.iter().map(|op| Op::Unary(*op)));

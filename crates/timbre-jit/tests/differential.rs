@@ -238,6 +238,7 @@ fn compiled_white_noise_is_the_interpreters_bit_for_bit() {
         "(* 0.5 (+ (white) (white :seed 2)))",
         "(combine (* (rvector 4 0.1 0.9) (white :seed 3)))",
         "(lowpass (white) 1000)",
+        "(combine (* (rvector 6 0.1 0.9) (white :lanes 6 :seed 4)))",
         peers.as_str(),
     ] {
         if let Err(e) = compare(&mut jit, &compile_text(text), 20_000, 0.0) {
