@@ -305,6 +305,7 @@ impl KernelBuilder<'_, '_> {
         let scaled = scaled_noises(steps, region);
         let fused = fused_multiplications(&scaled);
         let splatted_inputs = &self.splatted;
+        let t0 = self.t0;
 
         // The body for the lanes `first` and `second` (equal when one lane is left).
         // Buffer and state pointers are loaded here, per pair of lanes, rather than
@@ -353,10 +354,17 @@ impl KernelBuilder<'_, '_> {
             }
             let mut states: HashMap<usize, LaneState> = HashMap::new();
             let mut noise_rows: HashMap<usize, NoiseRows> = HashMap::new();
+            // A white noise's two lanes' mixed seeds, loaded once for the sample loop.
+            let mut white_seeds: HashMap<usize, [Value; 2]> = HashMap::new();
             for &s in &stateful {
                 // A phasor's phase, a noise's cell: one vector variable. A noise's
                 // coefficients stay in its state table, loaded where they are used.
                 let state = LaneState::load(b, state_table, s, [first, second], 1);
+                if matches!(steps[s].op, Op::White { .. }) {
+                    let lanes = state.addresses(b, 1);
+                    let seeds = lanes.map(|address| b.ins().load(I64, mem(), address, 0));
+                    white_seeds.insert(s, seeds);
+                }
                 if matches!(steps[s].op, Op::Noise { .. }) {
                     // Slot 0 of each lane; the coefficients are rows further on.
                     let lanes = state.addresses(b, 1);
@@ -474,6 +482,14 @@ impl KernelBuilder<'_, '_> {
                         }
                         Op::Noise { .. } => {
                             lane_noise(b, states[&node].vars[0], &noise_rows[&node], args[0])
+                        }
+                        Op::White { .. } => {
+                            // Both lanes at sample t0 + k, each with its own seed.
+                            let [s0, s1] = white_seeds[&node];
+                            let index = b.ins().iadd(t0, k);
+                            let x0 = gradient(b, s0, index);
+                            let x1 = gradient(b, s1, index);
+                            pair(b, x0, x1)
                         }
                         Op::Phasor => {
                             // out = frac(phase + offset), or phase without an offset;

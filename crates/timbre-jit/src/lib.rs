@@ -404,9 +404,10 @@ impl Jit {
                     state
                 }
                 // The bits of the mixed seed, as for a noise.
-                Op::White { seed, .. } => {
-                    vec![f64::from_bits(timbre_ir::dsp::noise::mix64(seed)); s.width]
-                }
+                // Lane l hashes with seed + l.
+                Op::White { seed, .. } => (0..s.width as u64)
+                    .map(|l| f64::from_bits(timbre_ir::dsp::noise::mix64(seed.wrapping_add(l))))
+                    .collect(),
                 Op::Combine => vec![0.0; 2 * config.block_size],
                 _ => vec![],
             })

@@ -45,9 +45,7 @@ impl Kind {
             Op::Binary(op) => Kind::Binary(*op),
             Op::Ternary(op) => Kind::Ternary(*op),
             Op::Noise { seed: _ } => Kind::Noise,
-            // One lane is compiled inline; lanes are called back for now.
-            Op::White { lanes: 1, .. } => Kind::White,
-            Op::White { .. } => Kind::Interpreted,
+            Op::White { .. } => Kind::White,
             Op::Phasor => Kind::Phasor,
             Op::Combine => Kind::Combine,
             Op::Env

@@ -221,9 +221,9 @@ fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
     }
 }
 
-/// White noise is compiled inline: the interpreter's hash of the sample index, bit
-/// for bit, alone, in arithmetic, read by a lane region, through a filter, and as the
-/// peers' 50 jitters; and nothing of it is left to callbacks.
+/// White noise is compiled inline, with one lane or many: the interpreter's hash of
+/// the sample index, bit for bit, alone, in arithmetic, read by a lane region, through
+/// a filter, and as the peers' 50 jitters; and nothing of it is left to callbacks.
 #[test]
 fn compiled_white_noise_is_the_interpreters_bit_for_bit() {
     let mut jit = Jit::new().unwrap();
@@ -245,11 +245,25 @@ fn compiled_white_noise_is_the_interpreters_bit_for_bit() {
             panic!("{text}: {e}");
         }
     }
-    let program = compile_text("(* 0.5 (+ (white) (white :seed 2)))");
-    let voice = jit
-        .voice(&program.graph, program.root.unwrap(), config())
-        .unwrap();
-    assert_eq!(voice.kernel().callback_nodes, 0, "{:?}", voice.kernel());
+    for text in [
+        "(* 0.5 (+ (white) (white :seed 2)))",
+        // Lanes, an odd number of them: the last pair holds one lane twice.
+        "(* 0.1 (combine (white :lanes 5)))",
+    ] {
+        let program = compile_text(text);
+        let voice = jit
+            .voice(&program.graph, program.root.unwrap(), config())
+            .unwrap();
+        assert_eq!(
+            voice.kernel().callback_nodes,
+            0,
+            "{text}: {:?}",
+            voice.kernel()
+        );
+        if let Err(e) = compare(&mut jit, &program, 20_000, 0.0) {
+            panic!("{text}: {e}");
+        }
+    }
 }
 
 /// A tree longer than one fused region is split into several (see
