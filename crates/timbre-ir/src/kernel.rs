@@ -2,6 +2,7 @@
 //! `dsp/`, and its catalogue entry makes the op. The interpreter creates the state
 //! and calls the kernel a block at a time; nothing else names it (compiled engines
 //! call back into the interpreter for it), so a new stateful node touches no engine.
+//! (One exception: the JIT compiles the optimiser's modal bank itself.)
 
 use std::any::Any;
 use std::fmt;
@@ -100,6 +101,9 @@ pub trait DynKernel: fmt::Debug + Send + Sync + 'static {
     fn width(&self, args: &[usize]) -> usize;
     fn new_state(&self, ctx: &StateContext) -> Box<dyn Any + Send>;
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>);
+    /// The kernel itself, for an engine that compiles some kernels of its own (the
+    /// JIT's modal bank) to recognise them.
+    fn as_any(&self) -> &dyn Any;
 }
 
 impl<K: StatefulKernel> DynKernel for K {
@@ -129,5 +133,9 @@ impl<K: StatefulKernel> DynKernel for K {
         if let Some(state) = state.downcast_mut::<K::State>() {
             StatefulKernel::process(self, state, inputs, out);
         }
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
     }
 }

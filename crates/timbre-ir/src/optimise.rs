@@ -11,6 +11,11 @@
 //!   multiply per sample instead of a sine and an exponential. A lone
 //!   `(sine (* τ F))` becomes `DampedSine(τ, F, 0)`. This is the modal tree's inner
 //!   loop.
+//! - **Modal banks.** `(combine P)` where P is such a product whose other factors are
+//!   constants or one-lane values is rewritten to `ModalBank(τ, F, D, A)` times the
+//!   one-lane factors, A the product of the constants: the sum Σ A·sin(2π·F·τ)·e^(−D·τ)
+//!   as one node, which the JIT compiles to a kernel of its own (the one-lane factors
+//!   are the same for every mode, so they multiply the sum).
 //!
 //! Every analysis is a single pass in id order (a node's arguments have smaller ids),
 //! each node's facts computed from its arguments' facts, so the passes use no
@@ -22,7 +27,7 @@
 
 use std::sync::Arc;
 
-use crate::dsp::rotator::DampedSine;
+use crate::dsp::rotator::{DampedSine, ModalBank};
 use crate::graph::{Graph, NodeId};
 use crate::op::{BinaryOp, Op, UnaryOp};
 
@@ -41,10 +46,11 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
         if !needed[id.index()] {
             continue;
         }
-        let new = match facts.damped_sine(graph, &mut out, &map, id, &mut parts) {
-            Some(rewritten) => rewritten,
-            None => out.copy_node(node, &map),
+        let rewritten = match node.op {
+            Op::Combine => facts.modal_bank(graph, &mut out, &map, node.args[0], &mut parts),
+            _ => facts.damped_sine(graph, &mut out, &map, id, &mut parts),
         };
+        let new = rewritten.unwrap_or_else(|| out.copy_node(node, &map));
         map[id.index()] = new;
     }
     (out, map[root.index()])
@@ -135,25 +141,17 @@ impl Facts {
         }
     }
 
-    /// `id` rewritten with a rotator, if it is a product with a factor
-    /// `(sine (* τ F))` of at most [`MAX_FACTORS`] factors, or such a sine alone.
-    fn damped_sine(
+    /// Takes the factor `(sine (* τ F))` out of a product's factors, and a factor
+    /// `(damp (* τ D))` of the same τ if there is one: τ, F and D (0 if undamped).
+    fn take_damped_sine(
         &self,
         graph: &Graph,
-        out: &mut Graph,
-        map: &[NodeId],
-        id: NodeId,
         parts: &mut Vec<NodeId>,
-    ) -> Option<NodeId> {
-        if !self.has_sine[id.index()] || self.factor_count[id.index()] as usize > MAX_FACTORS {
-            return None;
-        }
-        factors(graph, id, parts);
+    ) -> Option<(NodeId, Vec<f64>, Vec<f64>)> {
         let sine = parts
             .iter()
             .position(|f| self.time_coefficient(graph, *f, UnaryOp::Sine).is_some())?;
         let (time, freq) = self.time_coefficient(graph, parts.remove(sine), UnaryOp::Sine)?;
-        // A damping factor of the same time, if there is one.
         let same_time = |f: &NodeId| {
             self.time_coefficient(graph, *f, UnaryOp::Damp)
                 .is_some_and(|(t, _)| t == time)
@@ -165,11 +163,76 @@ impl Facts {
                 .to_vec(),
             None => vec![0.0],
         };
+        Some((time, freq.to_vec(), damping))
+    }
+
+    /// The factors of `id` if it is a product with a factor `(sine (* τ F))` of at
+    /// most [`MAX_FACTORS`] factors, or such a sine alone.
+    fn damped_sine_factors(&self, graph: &Graph, id: NodeId, parts: &mut Vec<NodeId>) -> bool {
+        if !self.has_sine[id.index()] || self.factor_count[id.index()] as usize > MAX_FACTORS {
+            return false;
+        }
+        factors(graph, id, parts);
+        true
+    }
+
+    /// `id` rewritten with a rotator, if it is a product with a factor
+    /// `(sine (* τ F))` of at most [`MAX_FACTORS`] factors, or such a sine alone.
+    fn damped_sine(
+        &self,
+        graph: &Graph,
+        out: &mut Graph,
+        map: &[NodeId],
+        id: NodeId,
+        parts: &mut Vec<NodeId>,
+    ) -> Option<NodeId> {
+        if !self.damped_sine_factors(graph, id, parts) {
+            return None;
+        }
+        let (time, freq, damping) = self.take_damped_sine(graph, parts)?;
         let freq = out.add(Op::Const(Arc::from(freq)), vec![]);
         let damping = out.add(Op::Const(Arc::from(damping)), vec![]);
         let damped_sine = Op::Stateful(Arc::new(DampedSine));
         let mut product = out.add(damped_sine, vec![map[time.index()], freq, damping]);
         for factor in parts.drain(..) {
+            product = out.add(
+                Op::Binary(BinaryOp::Mul),
+                vec![product, map[factor.index()]],
+            );
+        }
+        Some(product)
+    }
+
+    /// `(combine summed)` rewritten as a modal bank, if `summed` is a damped-sine
+    /// product whose other factors are constants or one lane wide.
+    fn modal_bank(
+        &self,
+        graph: &Graph,
+        out: &mut Graph,
+        map: &[NodeId],
+        summed: NodeId,
+        parts: &mut Vec<NodeId>,
+    ) -> Option<NodeId> {
+        if !self.damped_sine_factors(graph, summed, parts) {
+            return None;
+        }
+        let (time, freq, damping) = self.take_damped_sine(graph, parts)?;
+        let mut amplitude = vec![1.0];
+        let mut common = vec![];
+        for &factor in parts.iter() {
+            if let Some(c) = graph.const_value(factor) {
+                amplitude = broadcast(&amplitude, c, |x, y| x * y);
+            } else if graph.width(factor) == 1 {
+                common.push(factor);
+            } else {
+                return None;
+            }
+        }
+        let [freq, damping, amplitude] =
+            [freq, damping, amplitude].map(|v| out.add(Op::Const(Arc::from(v)), vec![]));
+        let bank = Op::Stateful(Arc::new(ModalBank));
+        let mut product = out.add(bank, vec![map[time.index()], freq, damping, amplitude]);
+        for factor in common {
             product = out.add(
                 Op::Binary(BinaryOp::Mul),
                 vec![product, map[factor.index()]],

@@ -9,7 +9,8 @@ use timbre_ir::{Interpreter, RenderConfig};
 use timbre_testkit::assert_close;
 
 /// Renders `text` as written and optimised, asserts that the two agree within `tol`
-/// at every sample, and returns the number of damped-sine nodes the optimiser made.
+/// at every sample, and returns the number of rotator nodes (damped sines and modal
+/// banks) the optimiser made.
 #[track_caller]
 fn compare(text: &str, seconds: f64, tol: f64) -> usize {
     let program = compile_with(text, &[], 5).unwrap();
@@ -26,7 +27,7 @@ fn compare(text: &str, seconds: f64, tol: f64) -> usize {
     let rotators = graph
         .schedule(new_root)
         .iter()
-        .filter(|n| graph.node(**n).op.kind() == "damped-sine")
+        .filter(|n| ["damped-sine", "modal-bank"].contains(&graph.node(**n).op.kind()))
         .count();
     assert_close(
         &plain,
@@ -45,6 +46,41 @@ fn the_modal_tree_becomes_rotators() {
         1e-9,
     );
     assert_eq!(rotators, 1);
+}
+
+/// Kinds of the optimised tree's nodes.
+fn optimised_kinds(text: &str) -> Vec<&'static str> {
+    let program = compile_with(text, &[], 5).unwrap();
+    let (graph, root) = optimise(&program.graph, program.root.unwrap());
+    graph
+        .schedule(root)
+        .iter()
+        .map(|n| graph.node(*n).op.kind())
+        .collect()
+}
+
+#[test]
+fn a_sum_of_damped_sines_becomes_one_modal_bank() {
+    // Constant amplitudes (per mode and overall) join the bank; a one-lane envelope,
+    // the same for every mode, multiplies its sum.
+    for text in [
+        "(combine (* (sine (* t (rvector 100 200 8000))) (damp (* t 3))))",
+        "(combine (* (rvector 8 0 1) 0.5 (sine (* (mod t 0.3) (rvector 8 200 800))) (damp (* (mod t 0.3) 0.01 (rvector 8 200 800)))))",
+        "(combine (* (sine (* t (vector 300 500 700))) (vector 0.2 0.3 0.1) (- 1 (* 0.5 t)) (damp (* t 2))))",
+    ] {
+        assert_eq!(compare(text, 1.0, 1e-9), 1, "{text}");
+        let kinds = optimised_kinds(text);
+        assert!(kinds.contains(&"modal-bank"), "{text}: {kinds:?}");
+        assert!(!kinds.contains(&"combine"), "{text}: {kinds:?}");
+    }
+    // A factor that differs between modes and is not constant stays a product.
+    let text = "(combine (* (sine (* t (vector 300 500))) (vector t (* t t))))";
+    compare(text, 0.5, 1e-9);
+    let kinds = optimised_kinds(text);
+    assert!(
+        !kinds.contains(&"modal-bank") && kinds.contains(&"damped-sine"),
+        "{kinds:?}"
+    );
 }
 
 #[test]

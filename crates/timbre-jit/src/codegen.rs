@@ -41,6 +41,9 @@ pub(crate) struct Helpers {
     pub step: FuncRef,
     pub unary: FuncRef,
     pub binary: FuncRef,
+    pub modal_begin: FuncRef,
+    pub modal_piece: FuncRef,
+    pub modal_end: FuncRef,
 }
 
 /// A region's inputs; see [`KernelBuilder::region_inputs`].
@@ -77,6 +80,8 @@ pub(crate) struct KernelBuilder<'a, 'b> {
     /// Per step: whether a one-lane region keeps splatted copies of it
     /// ([`Region::splatted`]).
     pub splatted: Vec<bool>,
+    /// Whether the host has fused multiply-add (used by modal banks).
+    pub fma: bool,
 }
 
 impl KernelBuilder<'_, '_> {
@@ -89,6 +94,7 @@ impl KernelBuilder<'_, '_> {
                         .ins()
                         .call(self.helpers.step, &[self.interp, index, self.n]);
                 }
+                PlanStep::ModalBank(i) => self.emit_modal_bank(*i),
                 PlanStep::Region(region) if region.width >= 2 => self.emit_lane_region(region),
                 PlanStep::Region(region) => self.emit_region(region),
             }
@@ -96,13 +102,13 @@ impl KernelBuilder<'_, '_> {
     }
 
     /// The state table entry of a step.
-    fn state_pointer(&mut self, step: usize) -> Value {
+    pub(crate) fn state_pointer(&mut self, step: usize) -> Value {
         self.b
             .ins()
             .load(I64, mem(), self.states, (step * 8) as i32)
     }
 
-    fn buffer(&mut self, step: usize) -> Value {
+    pub(crate) fn buffer(&mut self, step: usize) -> Value {
         self.b
             .ins()
             .load(I64, mem(), self.buffers, (step * 8) as i32)

@@ -15,6 +15,7 @@
 
 mod approx;
 mod codegen;
+mod modal;
 mod plan;
 mod shape;
 
@@ -125,7 +126,7 @@ struct Generation {
     /// it is freed.
     module: Mutex<Option<JITModule>>,
     /// The helper functions kernels call, declared in this module.
-    helpers: [FuncId; 3],
+    helpers: [FuncId; 6],
     live: Arc<AtomicUsize>,
 }
 
@@ -136,18 +137,18 @@ impl Generation {
         builder.symbol("timbre_step", step_callback as *const u8);
         builder.symbol("timbre_unary", codegen::call_unary as *const u8);
         builder.symbol("timbre_binary", codegen::call_binary as *const u8);
+        builder.symbol("timbre_modal_begin", modal::modal_begin as *const u8);
+        builder.symbol("timbre_modal_piece", modal::modal_piece as *const u8);
+        builder.symbol("timbre_modal_end", modal::modal_end as *const u8);
         let mut module = JITModule::new(builder);
         let call_conv = module.target_config().default_call_conv;
-        let signature = |params: &[cranelift_codegen::ir::Type], returns: bool| {
+        use cranelift_codegen::ir::types::{F64, I64};
+        let signature = |params: &[cranelift_codegen::ir::Type], returns: Option<_>| {
             let mut sig = Signature::new(call_conv);
             sig.params.extend(params.iter().map(|t| AbiParam::new(*t)));
-            if returns {
-                sig.returns
-                    .push(AbiParam::new(cranelift_codegen::ir::types::F64));
-            }
+            sig.returns.extend(returns.map(AbiParam::new));
             sig
         };
-        use cranelift_codegen::ir::types::{F64, I64};
         let declare = |module: &mut JITModule, name: &str, sig: Signature| {
             module
                 .declare_function(name, Linkage::Import, &sig)
@@ -157,13 +158,32 @@ impl Generation {
             declare(
                 &mut module,
                 "timbre_step",
-                signature(&[I64, I64, I64], false),
+                signature(&[I64, I64, I64], None),
             )?,
-            declare(&mut module, "timbre_unary", signature(&[I64, F64], true))?,
+            declare(
+                &mut module,
+                "timbre_unary",
+                signature(&[I64, F64], Some(F64)),
+            )?,
             declare(
                 &mut module,
                 "timbre_binary",
-                signature(&[I64, F64, F64], true),
+                signature(&[I64, F64, F64], Some(F64)),
+            )?,
+            declare(
+                &mut module,
+                "timbre_modal_begin",
+                signature(&[I64, I64, I64, I64], Some(I64)),
+            )?,
+            declare(
+                &mut module,
+                "timbre_modal_piece",
+                signature(&[I64, I64, I64], Some(I64)),
+            )?,
+            declare(
+                &mut module,
+                "timbre_modal_end",
+                signature(&[I64, I64, I64], None),
             )?,
         ];
         live.fetch_add(1, Ordering::Relaxed);
@@ -287,10 +307,16 @@ impl Jit {
             b.append_block_params_for_function_params(entry);
             b.switch_to_block(entry);
             let params = b.block_params(entry).to_vec();
+            let [step, unary, binary, modal_begin, modal_piece, modal_end] = generation
+                .helpers
+                .map(|helper| module.declare_func_in_func(helper, b.func));
             let helpers = Helpers {
-                step: module.declare_func_in_func(generation.helpers[0], b.func),
-                unary: module.declare_func_in_func(generation.helpers[1], b.func),
-                binary: module.declare_func_in_func(generation.helpers[2], b.func),
+                step,
+                unary,
+                binary,
+                modal_begin,
+                modal_piece,
+                modal_end,
             };
             let param = |b: &mut FunctionBuilder, k: i32| {
                 b.ins().load(
@@ -315,6 +341,7 @@ impl Jit {
                 sample_rate,
                 sample_period,
                 splatted: splatted.clone(),
+                fma: self.isa.has_native_fma(),
             };
             kb.emit(&plan);
             b.ins().return_(&[]);
@@ -335,6 +362,7 @@ impl Jit {
         let code = module.get_finalized_function(id);
         let (inline_nodes, callback_nodes) = plan.iter().fold((0, 0), |(i, c), step| match step {
             PlanStep::Region(r) => (i + r.nodes.len() + r.combines.len(), c),
+            PlanStep::ModalBank(_) => (i + 1, c),
             PlanStep::Callback(_) => (i, c + 1),
         });
         let splatted = splatted
@@ -420,12 +448,27 @@ impl Jit {
             copies[s] = vec![0.0; 2 * (config.block_size + 1)];
         }
         states.extend(copies);
-        let state_pointers = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
+        let mut state_pointers: Vec<*mut f64> = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
+        // Modal banks keep a state of their own (see `modal::ModalState`).
+        let mut modal_banks: Vec<(usize, modal::ModalState)> = interp
+            .steps()
+            .iter()
+            .enumerate()
+            .filter(|(_, step)| modal::is_modal_bank(interp.steps(), step))
+            .map(|(i, step)| {
+                let state = modal::ModalState::new(interp.steps(), step, config.sample_rate);
+                (i, state)
+            })
+            .collect();
+        for (i, bank) in &mut modal_banks {
+            state_pointers[*i] = (bank as *mut modal::ModalState).cast();
+        }
         Ok(JitVoice {
             interp,
             kernel,
             buffers,
             _states: states,
+            _modal_banks: modal_banks,
             state_pointers,
             // The interpreter's own sample period, bit for bit.
             params: vec![config.sample_rate, 1.0 / config.sample_rate],
@@ -459,6 +502,7 @@ pub struct JitVoice {
     /// State of nodes computed inline, owned here and reached by the kernel through
     /// `state_pointers`.
     _states: Vec<Vec<f64>>,
+    _modal_banks: Vec<(usize, modal::ModalState)>,
     state_pointers: Vec<*mut f64>,
     params: Vec<f64>,
 }

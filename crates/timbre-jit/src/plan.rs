@@ -7,7 +7,8 @@
 //! something outside its region reads it. `combine` of a region's node is summed
 //! inside that region. `phasor`, `noise` and `white` are computed inline
 //! too, their state (a phase, a lattice cell, a seed) kept in the voice's state
-//! table. Every other node is a *callback*:
+//! table. Modal banks have code of their own (`modal`). Every other node is a
+//! *callback*:
 //! the kernel calls back into the interpreter, which computes that node exactly as it
 //! always does.
 
@@ -21,6 +22,8 @@ pub(crate) enum PlanStep {
     Region(Region),
     /// Computed by the interpreter (`Interpreter::eval_step`).
     Callback(usize),
+    /// A modal bank, compiled by `modal`.
+    ModalBank(usize),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -101,7 +104,11 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
                 }
             }
         }
-        plan.push(PlanStep::Callback(i));
+        if Kind::of_step(steps, step) == Kind::ModalBank {
+            plan.push(PlanStep::ModalBank(i));
+        } else {
+            plan.push(PlanStep::Callback(i));
+        }
         ready[i] = plan.len();
     }
     mark_stored(steps, &mut plan, &home, &attached);
@@ -178,7 +185,7 @@ mod tests {
             .iter()
             .map(|p| match p {
                 PlanStep::Region(r) => r,
-                PlanStep::Callback(i) => panic!("step {i} called back"),
+                PlanStep::Callback(i) | PlanStep::ModalBank(i) => panic!("step {i} not inline"),
             })
             .collect();
         assert_eq!(regions.len(), 201usize.div_ceil(MAX_REGION_NODES));

@@ -29,6 +29,8 @@ pub(crate) enum Kind {
     Phasor,
     /// Summed in its argument's region, or called back.
     Combine,
+    /// A modal bank of constant modes, compiled by `modal`.
+    ModalBank,
     /// Called back: `Interpreter::eval_step` runs the step's own op.
     Interpreted,
 }
@@ -60,6 +62,16 @@ impl Kind {
         }
     }
 
+    /// The kind of a step: that of its op, except for the modal banks `modal`
+    /// compiles.
+    pub(crate) fn of_step(steps: &[Step], step: &Step) -> Kind {
+        if crate::modal::is_modal_bank(steps, step) {
+            Kind::ModalBank
+        } else {
+            Kind::of(&step.op)
+        }
+    }
+
     /// Whether a step of this kind is computed inline, in a region (see `plan`). The
     /// plan asks this, so only a kind of its own can be compiled inline.
     pub(crate) fn is_inline(self) -> bool {
@@ -72,7 +84,7 @@ impl Kind {
             | Kind::Phasor => true,
             // The interpreter's own tangent: its poles are not worth an approximation.
             Kind::Unary(op) => op != UnaryOp::Tan,
-            Kind::Const | Kind::Combine | Kind::Interpreted => false,
+            Kind::Const | Kind::Combine | Kind::ModalBank | Kind::Interpreted => false,
         }
     }
 }
@@ -105,7 +117,7 @@ impl Shape {
                     arity: step.args.len(),
                     width: step.width,
                     constant: step.constant,
-                    kind: Kind::of(&step.op),
+                    kind: Kind::of_step(steps, step),
                 })
                 .collect(),
             args: steps.iter().flat_map(|s| s.args.iter().copied()).collect(),

@@ -316,6 +316,55 @@ fn odd_block_lengths_and_split_renders_match() {
     }
 }
 
+/// Modal banks are compiled (no callback), agree with the interpreter, and do not
+/// depend on how the render is split into blocks: re-struck at times that are not
+/// multiples of a tile, with an envelope and amplitudes, a thousand modes, two, and
+/// re-struck every few samples.
+#[test]
+fn modal_banks_are_compiled_and_agree_at_every_split() {
+    let bells = [
+        "(let ((tau (mod t 0.3137))) (* 0.001 (combine (* (damp (* 0.02 (rvector 1000 200 2000) tau)) (sine (* (rvector 1000 200 2000) tau))))))",
+        "(* (exp (* -2 t)) (combine (* (rvector 70 0 0.01) 0.5 (sine (* (- t 0.0123) (rvector 70 80 9000))) (damp (* (- t 0.0123) 3)))))",
+        "(combine (* (vector 0.5 0.25) (sine (* t (vector 440 660)))))",
+        // τ jumps every 14.4 samples: blocks of 512 take several rounds of pieces.
+        "(let ((tau (mod t 0.0003))) (combine (* (sine (* tau (vector 3000 5000))) (damp (* tau 100)))))",
+    ];
+    let samples = 30_011;
+    for text in bells {
+        let program = compile_text(text);
+        let root = program.root.unwrap();
+        let mut jit = Jit::new().unwrap();
+        let mut whole = vec![0.0; samples];
+        let mut voice = jit.voice(&program.graph, root, config()).unwrap();
+        assert_eq!(
+            voice.kernel().callback_nodes,
+            0,
+            "{text}: {:?}",
+            voice.kernel()
+        );
+        voice.render(&mut whole);
+        assert!(whole.iter().any(|x| x.abs() > 1e-3), "{text}: silent");
+        for (block, chunk) in [(64, 37), (100, 4_096), (2, 1), (512, 333)] {
+            let config = RenderConfig {
+                block_size: block,
+                ..config()
+            };
+            let mut voice = jit.voice(&program.graph, root, config).unwrap();
+            let mut parts = vec![0.0; samples];
+            for part in parts.chunks_mut(chunk) {
+                voice.render(part);
+            }
+            assert!(
+                whole == parts,
+                "{text}: blocks of {block}, renders of {chunk} differ"
+            );
+        }
+        let mut reference = vec![0.0; samples];
+        Interpreter::new(&program.graph, root, config()).render(&mut reference);
+        assert_close(&reference, &whole, TOLERANCE, text);
+    }
+}
+
 #[test]
 fn instances_of_one_shape_share_one_kernel() {
     let mut jit = Jit::new().unwrap();

@@ -22,7 +22,8 @@
 //!   [`sample`]: the sample player.
 //! - [`control`]: sample and hold (`latch`) and smoothing (`lag`).
 //! - [`blep`]: band-limited sawtooth, square and triangle (PolyBLEP / PolyBLAMP).
-//! - [`rotator`]: damped sines as complex rotators (made by `optimise`).
+//! - [`rotator`]: damped sines as complex rotators, and banks of them summed (made by
+//!   `optimise`).
 //!
 //! The stateful nodes' kernels ([`crate::kernel::StatefulKernel`]) live beside
 //! the building blocks they use.

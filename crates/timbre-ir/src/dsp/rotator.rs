@@ -1,7 +1,11 @@
-//! The damped-sine node made by [`crate::optimise`]: sin(2π·F·τ)·e^(−D·τ) as a
-//! complex rotator per lane, re-anchored exactly wherever τ jumps and every
-//! [`ANCHOR_INTERVAL`] samples. It is never written by a user: it is the faster form
-//! of `(* (sine (* τ F)) (damp (* τ D)))` that compiled engines render.
+//! The damped-sine and modal-bank nodes made by [`crate::optimise`]:
+//! sin(2π·F·τ)·e^(−D·τ) as a complex rotator per lane, re-anchored exactly wherever τ
+//! jumps and every [`ANCHOR_INTERVAL`] samples. They are never written by a user: a
+//! damped sine is the faster form of `(* (sine (* τ F)) (damp (* τ D)))` that compiled
+//! engines render, and a modal bank is the sum of a whole bank of them with constant
+//! amplitudes, `(combine (* A (sine (* τ F)) (damp (* τ D))))`, which the JIT compiles
+//! to a kernel of its own (`timbre-jit`'s `modal` module). The exact values both
+//! engines anchor to are [`exact`] and [`step_power`].
 
 use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
 use crate::op::frac;
@@ -43,6 +47,87 @@ impl StatefulKernel for DampedSine {
     }
 }
 
+/// Lanes of a modal bank: the modes F, D and A give (the widest; the others broadcast).
+#[derive(Debug)]
+pub struct ModalBank;
+
+/// A modal bank's rotators and a block of each mode's samples.
+#[derive(Debug, Default)]
+pub struct ModalBankState {
+    bank: Option<RotatorBank>,
+    modes: Vec<f64>,
+}
+
+impl StatefulKernel for ModalBank {
+    type State = ModalBankState;
+
+    fn name(&self) -> &'static str {
+        "modal-bank"
+    }
+
+    /// One lane: the sum of the modes.
+    fn width(&self, _args: &[usize]) -> usize {
+        1
+    }
+
+    fn new_state(&self, _ctx: &StateContext) -> ModalBankState {
+        ModalBankState::default()
+    }
+
+    /// Renders every mode as a damped sine, then sums them weighted by A, in mode order.
+    fn process(&self, state: &mut ModalBankState, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let modes = (1..4).map(|a| inputs.width(a)).max().unwrap_or(1);
+        let n = out.n;
+        let bank = state.bank.get_or_insert_with(|| RotatorBank {
+            lanes: vec![Rotator::default(); modes],
+            last_time: None,
+        });
+        state.modes.resize(modes * n, 0.0);
+        let freq = |l: usize| inputs.lane(1, l)[0];
+        let damping = |l: usize| inputs.lane(2, l)[0];
+        let block = BlockOut {
+            samples: &mut state.modes,
+            stride: n,
+            n,
+        };
+        let time = inputs.lane(0, 0);
+        bank.render(
+            time,
+            &freq,
+            &damping,
+            inputs.first_sample,
+            inputs.sample_rate,
+            block,
+        );
+        let sum = out.lane(0);
+        sum.fill(0.0);
+        for (m, samples) in state.modes.chunks_exact(n).enumerate() {
+            let amplitude = inputs.lane(3, m)[0];
+            for (s, x) in sum.iter_mut().zip(samples) {
+                *s += amplitude * x;
+            }
+        }
+    }
+}
+
+/// e^(−D·τ)·e^(2πi·F·τ), the rotator's exact value at time τ: sin(2π·F·τ)·e^(−D·τ)
+/// is its imaginary part. F·τ is wrapped to one cycle before it is multiplied by 2π,
+/// as the plain tree's `sine` wraps its argument.
+pub fn exact(freq: f64, damping: f64, time: f64) -> (f64, f64) {
+    let amplitude = (-(time * damping)).exp();
+    let angle = std::f64::consts::TAU * frac(time * freq);
+    (amplitude * angle.cos(), amplitude * angle.sin())
+}
+
+/// e^(k·(−D + 2πi·F)/sr): what the rotator is multiplied by to advance k samples,
+/// computed exactly (not as k multiplications).
+pub fn step_power(freq: f64, damping: f64, sample_rate: f64, k: u64) -> (f64, f64) {
+    let k = k as f64;
+    let decay = (-(damping * k) / sample_rate).exp();
+    let angle = std::f64::consts::TAU * frac(freq * k / sample_rate);
+    (decay * angle.cos(), decay * angle.sin())
+}
+
 /// Samples between exact re-anchorings of a rotator. Anchors sit at fixed sample
 /// positions, so output does not depend on how a render is split into blocks.
 const ANCHOR_INTERVAL: u64 = 512;
@@ -63,18 +148,14 @@ impl Rotator {
         if self.key == Some((freq, damping, sr)) {
             return false;
         }
-        let decay = (-damping / sr).exp();
-        let angle = std::f64::consts::TAU * frac(freq / sr);
-        self.step = (decay * angle.cos(), decay * angle.sin());
+        self.step = step_power(freq, damping, sr, 1);
         self.key = Some((freq, damping, sr));
         true
     }
 
     /// Sets z exactly as the plain tree computes it at time τ.
     fn anchor(&mut self, freq: f64, damping: f64, time: f64) {
-        let amplitude = (-(time * damping)).exp();
-        let angle = std::f64::consts::TAU * frac(time * freq);
-        self.z = (amplitude * angle.cos(), amplitude * angle.sin());
+        self.z = exact(freq, damping, time);
     }
 }
 
@@ -95,8 +176,9 @@ struct BlockOut<'a> {
     n: usize,
 }
 
-/// Whether time moved from `previous` to `next` by one sample period.
-fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
+/// Whether time moved from `previous` to `next` by one sample period: if not, a
+/// rotator is anchored again.
+pub fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
     previous.is_some_and(|p| ((next - p) * sr - 1.0).abs() <= 1e-6)
 }
 
