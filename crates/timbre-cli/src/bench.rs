@@ -2,7 +2,8 @@
 //! engines in this process and prints their throughput, the JIT's compile time, and
 //! how compile time grows with the size of a tree.
 //!
-//! Wall-clock timing with `Instant`, one thread, median of several runs. Each JIT
+//! Wall-clock timing with `Instant`, one thread (and, for scenes, a column with every
+//! core), median of several runs. Each JIT
 //! measurement uses a fresh compiler, so its kernel is compiled from an empty cache.
 //! Audio is rendered in chunks into one reused buffer, so memory does not grow with
 //! the duration.
@@ -50,6 +51,8 @@ struct Measured {
     compile: Duration,
     /// Share of the JIT's time spent in interpreter callbacks (nodes not compiled).
     callbacks: f64,
+    /// A scene's JIT render with every core rendering instances.
+    threaded: Option<Duration>,
 }
 
 pub fn bench(args: BenchArgs) -> Result<(), Failure> {
@@ -84,8 +87,12 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
     );
     println!();
     println!("callbacks = share of the JIT's time spent in the interpreter, on nodes it does not compile");
+    println!(
+        "jit {threads} threads = a scene's instances rendered on {threads} threads (bit for bit the same output)",
+        threads = cores()
+    );
     println!();
-    let widths = [18, 16, 13, 10, 16, 13, 9, 9];
+    let widths = [18, 16, 13, 10, 16, 13, 9, 9, 15];
     print_row(
         &widths,
         &[
@@ -97,6 +104,7 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
             "jit real-time",
             "compile",
             "callbacks",
+            &format!("jit {} threads", cores()),
         ],
     );
     let mut buffer = vec![0.0; CHUNK];
@@ -116,6 +124,7 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
                 &format_factor(jit / CONFIG.sample_rate),
                 &format_ms(m.compile),
                 &format!("{:.0} %", 100.0 * m.callbacks),
+                &m.threaded.map_or("-".into(), |d| format_si(rate(d))),
             ],
         );
     }
@@ -158,7 +167,7 @@ fn measure(
     buffer: &mut [f64],
 ) -> Result<Measured, Failure> {
     let program = compile(workload);
-    let (mut interp, mut jit, mut compile) = (vec![], vec![], vec![]);
+    let (mut interp, mut jit, mut compile, mut threaded) = (vec![], vec![], vec![], vec![]);
     let mut in_callbacks: Vec<f64> = vec![];
     let Some(root) = program.root else {
         // A scene: its instances through the scene renderer, with both engines.
@@ -188,6 +197,15 @@ fn measure(
                 }
                 times.push(time);
             }
+            let mut scene = SceneRenderer::new(&program, CONFIG, SceneEngine::Jit)
+                .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
+            scene
+                .set_threads(cores())
+                .map_err(|e| Failure::Message(format!("threads: {e}")))?;
+            let values = samples * scene.channels() as u64;
+            threaded.push(time_render(values, buffer, |out| {
+                scene.render(out).expect("kernels of a benchmark compile")
+            }));
             let voice = fresh_jit()?
                 .voice(&program.graph, first, CONFIG)
                 .map_err(|e| Failure::Message(format!("{}: {e}", workload.name)))?;
@@ -198,6 +216,7 @@ fn measure(
             jit: median(&mut jit),
             compile: median(&mut compile),
             callbacks: median_share(&mut in_callbacks),
+            threaded: Some(median(&mut threaded)),
         });
     };
     for _ in 0..runs {
@@ -220,7 +239,13 @@ fn measure(
         jit: median(&mut jit),
         compile: median(&mut compile),
         callbacks: median_share(&mut in_callbacks),
+        threaded: None,
     })
+}
+
+/// The threads this process may use.
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// The median of shares (fractions of a time).

@@ -229,6 +229,11 @@ struct SoundArgs {
     #[arg(long, value_enum, default_value_t = Engine::Jit)]
     engine: Engine,
 
+    /// Threads rendering a scene's instances (default: every core). The output is the
+    /// same, bit for bit, whatever the number.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+
     /// Print nothing but errors.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -463,6 +468,7 @@ struct Plan<'p> {
     fade_frames: u64,
     config: timbre_ir::RenderConfig,
     engine: timbre_scene::Engine,
+    threads: usize,
     quiet: bool,
 }
 
@@ -520,6 +526,10 @@ fn plan<'p>(program: &'p Program, args: &SoundArgs) -> Result<Plan<'p>, Failure>
             block_size: args.block_size as usize,
         },
         engine,
+        threads: args.threads.map_or_else(
+            || std::thread::available_parallelism().map_or(1, |n| n.get()),
+            |n| n as usize,
+        ),
         quiet: args.quiet,
     })
 }
@@ -540,8 +550,13 @@ struct Pass<'p> {
 
 impl<'p> Pass<'p> {
     fn new(plan: &'p Plan<'p>, length: u64, scale: f64) -> Result<Self, Failure> {
-        let scene = timbre_scene::SceneRenderer::new(plan.program, plan.config, plan.engine)
+        let mut scene = timbre_scene::SceneRenderer::new(plan.program, plan.config, plan.engine)
             .map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?;
+        if plan.program.instances.len() > 1 {
+            scene.set_threads(plan.threads).map_err(|e| {
+                Failure::Message(format!("cannot start {} threads: {e}", plan.threads))
+            })?;
+        }
         Ok(Pass {
             plan,
             scene,

@@ -1399,3 +1399,30 @@ fn long_renders_show_progress_on_a_terminal_only() {
         .unwrap();
     assert!(!String::from_utf8_lossy(&quiet.stdout).contains("ETA"));
 }
+
+/// `--threads` changes how fast a scene renders, not what it renders.
+#[test]
+fn threads_do_not_change_the_bytes() {
+    let cubes = example("cubes");
+    let renders: Vec<timbre_testkit::Wav> = ["1", "2", "3"]
+        .iter()
+        .map(|n| render_wav([cubes.as_os_str(), "--threads".as_ref(), n.as_ref()]))
+        .collect();
+    assert!(renders[0].samples.iter().any(|x| x.abs() > 0.01), "silent");
+    for (n, wav) in renders.iter().enumerate().skip(1) {
+        assert!(
+            wav.samples == renders[0].samples,
+            "{} threads differ",
+            n + 1
+        );
+    }
+    run([
+        "render",
+        cubes.to_str().unwrap(),
+        "--threads",
+        "0",
+        "-o",
+        "x.wav",
+    ])
+    .assert_code(2);
+}

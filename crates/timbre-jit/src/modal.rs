@@ -189,39 +189,42 @@ impl ModalState {
             self.cursor = 0;
             return 0;
         }
-        for (k, &tau) in time.iter().enumerate().skip(self.cursor) {
-            let q = t0 + k as u64;
-            let anchor = q.is_multiple_of(ANCHOR_INTERVAL)
-                || !rotator::advances(self.last_time, tau, self.sample_rate);
+        let sr = self.sample_rate;
+        let mut k = self.cursor;
+        while k < time.len() {
+            let (q, tau) = (t0 + k as u64, time[k]);
+            let anchor =
+                q.is_multiple_of(ANCHOR_INTERVAL) || !rotator::advances(self.last_time, tau, sr);
             let tile = anchor || q.is_multiple_of(TILE as u64);
-            if (tile || k == self.cursor) && self.pieces.len() == MAX_PIECES {
+            if self.pieces.len() == MAX_PIECES {
                 self.cursor = k;
                 return MAX_PIECES;
             }
+            let (start, offset) = if anchor {
+                (Start::Anchor(tau), 0)
+            } else if tile {
+                (Start::Advance(q - self.tile_start), 0)
+            } else {
+                (Start::Continue, (q - self.tile_start) as usize)
+            };
             if tile {
-                let start = if anchor {
-                    Start::Anchor(tau)
-                } else {
-                    Start::Advance(q - self.tile_start)
-                };
                 self.tile_start = q;
-                self.pieces.push(Piece {
-                    start,
-                    offset: 0,
-                    at: k,
-                    len: 1,
-                });
-            } else if k == self.cursor {
-                self.pieces.push(Piece {
-                    start: Start::Continue,
-                    offset: (q - self.tile_start) as usize,
-                    at: k,
-                    len: 1,
-                });
-            } else if let Some(piece) = self.pieces.last_mut() {
-                piece.len += 1;
             }
-            self.last_time = Some(tau);
+            // The piece runs to the end of its tile, of the block, or to a jump.
+            let tile_end = k + (TILE - (q % TILE as u64) as usize);
+            let limit = tile_end.min(time.len());
+            let mut end = k + 1;
+            while end < limit && rotator::advances(Some(time[end - 1]), time[end], sr) {
+                end += 1;
+            }
+            self.pieces.push(Piece {
+                start,
+                offset,
+                at: k,
+                len: end - k,
+            });
+            self.last_time = Some(time[end - 1]);
+            k = end;
         }
         self.cursor = time.len();
         self.pieces.len()

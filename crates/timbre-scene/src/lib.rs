@@ -9,6 +9,7 @@
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
 use timbre_jit::{Jit, JitError, JitVoice};
 
@@ -142,6 +143,84 @@ struct Active {
     fade_from: Option<u64>,
     /// For an instance that ends once it has decayed (no stop): when it has.
     decay: Option<DecayWatch>,
+    /// Its part of the block, when voices render on several threads.
+    buffer: Vec<f64>,
+}
+
+impl Active {
+    /// The scene samples of the block [position, end) this instance plays, if any.
+    /// Sample-accurate start: the first block of a voice may begin mid-block.
+    fn window(&self, position: u64, end: u64) -> Option<(u64, u64)> {
+        let from = self.next.max(position);
+        let until = self.end.map_or(end, |e| e.min(end));
+        (until > from).then_some((from, until))
+    }
+
+    /// Adds the frames `rendered` (samples `from..until` of the scene) into the
+    /// block `out` starting at scene sample `position`, fading out after a stop, and
+    /// ends the instance where it has decayed.
+    #[allow(clippy::too_many_arguments)]
+    fn mix(
+        &mut self,
+        rendered: &[f64],
+        from: u64,
+        until: u64,
+        out: &mut [f64],
+        position: u64,
+        channels: usize,
+        fade: u64,
+    ) {
+        let offset = (from - position) as usize;
+        let n = (until - from) as usize;
+        let width = self.voice.width();
+        let rendered = &rendered[..n * width];
+        let mut next = until;
+        if width == 1 && channels == 1 && self.fade_from.is_none() {
+            // The common case, mono and no fade, in a tight loop.
+            let mixed = &mut out[offset..offset + n];
+            for (k, (y, x)) in mixed.iter_mut().zip(rendered).enumerate() {
+                *y += x;
+                if self.decay.as_mut().is_some_and(|d| d.push(x.abs())) {
+                    next = from + k as u64 + 1;
+                    self.end = Some(next);
+                    break;
+                }
+            }
+            self.next = next;
+            return;
+        }
+        for (k, lanes) in rendered.chunks_exact(width).enumerate() {
+            let gain = match self.fade_from {
+                Some(f) => {
+                    let s = from + k as u64;
+                    if s < f {
+                        1.0
+                    } else {
+                        (1.0 - (s - f) as f64 / fade as f64).max(0.0)
+                    }
+                }
+                None => 1.0,
+            };
+            let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
+            if width == 1 {
+                for y in frame.iter_mut() {
+                    *y += lanes[0] * gain;
+                }
+            } else {
+                for (y, x) in frame.iter_mut().zip(lanes) {
+                    *y += x * gain;
+                }
+            }
+            let loudest = lanes.iter().fold(0.0f64, |m, x| m.max(x.abs())) * gain;
+            if self.decay.as_mut().is_some_and(|d| d.push(loudest)) {
+                // Decayed: this is its last sample, whatever the block.
+                next = from + k as u64 + 1;
+                self.end = Some(next);
+                break;
+            }
+        }
+        self.next = next;
+    }
 }
 
 /// Renders a scene: the sum of its instances, in interleaved frames of `channels`.
@@ -160,6 +239,8 @@ pub struct SceneRenderer {
     scratch: Vec<f64>,
     fade_samples: u64,
     next_id: u64,
+    /// Threads rendering voices, if more than one (see [`SceneRenderer::set_threads`]).
+    pool: Option<rayon::ThreadPool>,
 }
 
 impl SceneRenderer {
@@ -187,6 +268,7 @@ impl SceneRenderer {
             scratch: vec![0.0; config.block_size.max(1)],
             fade_samples: (DECLICK_OUT * sr).round().max(1.0) as u64,
             next_id: 0,
+            pool: None,
         })
     }
 
@@ -232,6 +314,30 @@ impl SceneRenderer {
 
     pub fn config(&self) -> RenderConfig {
         self.config
+    }
+
+    /// Renders the instances' voices on `threads` threads (1: on the caller's thread
+    /// only, the default). The voices of a block are shared out among the threads and
+    /// mixed in instance order afterwards, so the output is the same, bit for bit,
+    /// whatever the number. With more than one, a block waits for its slowest thread:
+    /// not for a real-time audio callback.
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), rayon::ThreadPoolBuildError> {
+        self.pool = if threads > 1 {
+            Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|k| format!("timbre-voices-{k}"))
+                    .build()?,
+            )
+        } else {
+            None
+        };
+        Ok(())
+    }
+
+    /// Threads rendering voices (see [`SceneRenderer::set_threads`]).
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
     }
 
     /// Output channels: `render` writes frames of this many interleaved samples.
@@ -361,53 +467,54 @@ impl SceneRenderer {
                     .then(|| DecayWatch::new(self.config.sample_rate)),
                 end: p.end,
                 fade_from: None,
+                buffer: vec![],
             });
         }
         let fade = self.fade_samples;
-        for active in &mut self.active {
-            // Sample-accurate start: the first block of a voice may begin mid-block.
-            let from = active.next.max(self.position);
-            let until = active.end.map_or(end, |e| e.min(end));
-            if until <= from {
-                continue;
-            }
-            let offset = (from - self.position) as usize;
-            let n = (until - from) as usize;
-            let width = active.voice.width();
-            let scratch = &mut self.scratch[..n * width];
-            active.voice.render(scratch);
-            let mut next = until;
-            for (k, lanes) in scratch.chunks_exact(width).enumerate() {
-                let gain = match active.fade_from {
-                    Some(f) => {
-                        let s = from + k as u64;
-                        if s < f {
-                            1.0
-                        } else {
-                            (1.0 - (s - f) as f64 / fade as f64).max(0.0)
+        let position = self.position;
+        match &self.pool {
+            // Each voice renders into its own buffer on some thread; then they are
+            // mixed here in instance order, so the sums (and the bytes) are the same
+            // whatever the number of threads.
+            Some(pool) => {
+                // One run of consecutive voices per thread: a voice's block is too
+                // little work to share out one by one.
+                let per_thread = self
+                    .active
+                    .len()
+                    .div_ceil(pool.current_num_threads())
+                    .max(1);
+                pool.install(|| {
+                    self.active.par_chunks_mut(per_thread).for_each(|run| {
+                        for active in run {
+                            if let Some((from, until)) = active.window(position, end) {
+                                let n = ((until - from) as usize) * active.voice.width();
+                                let mut buffer = std::mem::take(&mut active.buffer);
+                                buffer.resize(n, 0.0);
+                                active.voice.render(&mut buffer);
+                                active.buffer = buffer;
+                            }
                         }
+                    })
+                });
+                for active in &mut self.active {
+                    if let Some((from, until)) = active.window(position, end) {
+                        let rendered = std::mem::take(&mut active.buffer);
+                        active.mix(&rendered, from, until, out, position, channels, fade);
+                        active.buffer = rendered;
                     }
-                    None => 1.0,
-                };
-                let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
-                if width == 1 {
-                    for y in frame.iter_mut() {
-                        *y += lanes[0] * gain;
-                    }
-                } else {
-                    for (y, x) in frame.iter_mut().zip(lanes) {
-                        *y += x * gain;
-                    }
-                }
-                let loudest = lanes.iter().fold(0.0f64, |m, x| m.max(x.abs())) * gain;
-                if active.decay.as_mut().is_some_and(|d| d.push(loudest)) {
-                    // Decayed: this is its last sample, whatever the block.
-                    next = from + k as u64 + 1;
-                    active.end = Some(next);
-                    break;
                 }
             }
-            active.next = next;
+            None => {
+                for active in &mut self.active {
+                    if let Some((from, until)) = active.window(position, end) {
+                        let n = ((until - from) as usize) * active.voice.width();
+                        let rendered = &mut self.scratch[..n];
+                        active.voice.render(rendered);
+                        active.mix(rendered, from, until, out, position, channels, fade);
+                    }
+                }
+            }
         }
         for a in &self.active {
             if a.end.is_some_and(|e| a.next >= e) {

@@ -388,3 +388,50 @@ fn a_tree_too_large_to_compile_is_interpreted() {
     let interp = render_with(&program, 1000, 64, Engine::Interpreter);
     assert_same_bits(&jit, &interp, "the JIT engine's fallback");
 }
+
+/// Instances rendered on 1, 2 or 3 threads give the same samples, bit for bit: a
+/// scene of instances that start, decay, are stopped and fade, in stereo and mono.
+#[test]
+fn the_output_does_not_depend_on_the_number_of_threads() {
+    let mut text = String::from(
+        "(scene :channels 2)
+         (define-sound bell (base) (* 0.05 (combine (* (sine (* t (rvector 12 base 4000))) (damp (* t 0.004 (rvector 12 base 4000)))))))
+         (define-sound hum (f) (* 0.02 (sawtooth (phasor (+ f (* 3 (noise (* t 5))))))))\n",
+    );
+    for k in 0..40 {
+        let start = 0.013 * k as f64;
+        text += &format!(
+            "(instance b{k} (bell :base {}) :start {start})\n",
+            200 + 17 * k
+        );
+        if k % 5 == 0 {
+            text += &format!(
+                "(instance h{k} (hum :f {}) :start {start} :stop {})\n",
+                90 + k,
+                start + 0.2
+            );
+        }
+    }
+    let program = scene(&text);
+    let render_on = |threads: usize| {
+        let mut renderer = SceneRenderer::new(&program, config(), Engine::Jit).unwrap();
+        renderer.set_threads(threads).unwrap();
+        assert_eq!(renderer.threads(), threads);
+        let mut out = vec![0.0; 2 * 48_000];
+        // Calls of several lengths, none a whole number of blocks.
+        for chunk in out.chunks_mut(2 * 1_001) {
+            renderer.render(chunk).unwrap();
+        }
+        out
+    };
+    let one = render_on(1);
+    assert!(one.iter().any(|x| x.abs() > 0.01), "a silent test");
+    for threads in [2, 3] {
+        let many = render_on(threads);
+        let same = one
+            .iter()
+            .zip(&many)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "{threads} threads differ from one");
+    }
+}

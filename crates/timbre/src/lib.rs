@@ -228,7 +228,31 @@ impl Scene {
         self.renderer.stop(id, at)
     }
 
-    /// Renders the next `out.len()` samples. Allocates nothing, takes no lock.
+    /// Renders instances on `threads` threads (1, the default: on the calling thread
+    /// only). The samples are the same, bit for bit, whatever the number; with more
+    /// than one, a block waits for the slowest thread and [`Scene::render`] may
+    /// allocate, so keep the default on a real-time audio thread and use threads for
+    /// offline renders.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0);
+    /// let library = engine.load_library("(define-sound tone (f) (* 0.1 (sine (* t f))))").unwrap();
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// scene.set_threads(2).unwrap();
+    /// for k in 0..8 {
+    ///     scene.start("tone", &[("f", (200.0 * (k + 1) as f64).into())], 0.0).unwrap();
+    /// }
+    /// let samples = scene.render_offline(0.5).unwrap();
+    /// assert_eq!(samples.len(), 24_000);
+    /// ```
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), std::io::Error> {
+        self.renderer
+            .set_threads(threads)
+            .map_err(std::io::Error::other)
+    }
+
+    /// Renders the next `out.len()` samples. Allocates nothing, takes no lock (with
+    /// one thread, the default: see [`Scene::set_threads`]).
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {
         Ok(self.renderer.render(out)?)
     }
