@@ -437,6 +437,11 @@ impl Jit {
                     .map(|l| f64::from_bits(timbre_ir::dsp::noise::mix64(seed.wrapping_add(l))))
                     .collect(),
                 Op::Combine => vec![0.0; 2 * config.block_size],
+                Op::Timer {
+                    length,
+                    fade_in,
+                    fade_out,
+                } => vec![length.unwrap_or(f64::INFINITY), fade_in, fade_out],
                 _ => vec![],
             })
             .collect();

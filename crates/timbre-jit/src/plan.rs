@@ -5,12 +5,11 @@
 //! lanes, and inside it one loop over pairs of samples, in which every node of the
 //! region is an SSA value in registers. A node is written to its buffer only when
 //! something outside its region reads it. `combine` of a region's node is summed
-//! inside that region. `phasor`, `noise` and `white` are computed inline
-//! too, their state (a phase, a lattice cell, a seed) kept in the voice's state
-//! table. Modal banks have code of their own (`modal`). Every other node is a
-//! *callback*:
-//! the kernel calls back into the interpreter, which computes that node exactly as it
-//! always does.
+//! inside that region. `phasor`, `noise`, `white` and an instance's timer are
+//! computed inline too, their state (a phase, a lattice cell, a seed, a length and
+//! fades) kept in the voice's state table. Modal banks have code of their own
+//! (`modal`). Every other node is a *callback*: the kernel calls back into the
+//! interpreter, which computes that node exactly as it always does.
 
 use timbre_ir::op::Op;
 use timbre_ir::Step;

@@ -31,6 +31,8 @@ pub(crate) enum Kind {
     Combine,
     /// A modal bank of constant modes, compiled by `modal`.
     ModalBank,
+    /// An instance's timer; its length and fades are in the voice's state.
+    Timer,
     /// Called back: `Interpreter::eval_step` runs the step's own op.
     Interpreted,
 }
@@ -50,6 +52,7 @@ impl Kind {
             Op::White { .. } => Kind::White,
             Op::Phasor => Kind::Phasor,
             Op::Combine => Kind::Combine,
+            Op::Timer { .. } => Kind::Timer,
             Op::Env
             | Op::Index
             | Op::Concat
@@ -57,7 +60,6 @@ impl Kind {
             | Op::Stateful(_)
             | Op::Variable(_)
             | Op::Keyframe(_)
-            | Op::Timer { .. }
             | Op::Custom(_) => Kind::Interpreted,
         }
     }
@@ -81,6 +83,7 @@ impl Kind {
             | Kind::Ternary(_)
             | Kind::Noise
             | Kind::White
+            | Kind::Timer
             | Kind::Phasor => true,
             // The interpreter's own tangent: its poles are not worth an approximation.
             Kind::Unary(op) => op != UnaryOp::Tan,
@@ -205,6 +208,11 @@ mod tests {
             Op::Noise { seed: 0 },
             Op::White { seed: 0, lanes: 1 },
             Op::Phasor,
+            Op::Timer {
+                length: None,
+                fade_in: 0.0,
+                fade_out: 0.0,
+            },
         ];
         ops.extend(UnaryOp::ALL.iter().map(|op| Op::Unary(*op)));
         ops.extend(BinaryOp::ALL.iter().map(|op| Op::Binary(*op)));

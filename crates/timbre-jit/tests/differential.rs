@@ -448,3 +448,47 @@ mod random_trees {
         }
     }
 }
+
+/// An instance's timer is compiled inline and gives the interpreter's gain bit for
+/// bit: its fade-in, a stop with its fade-out, and silence after; one lane, and a
+/// lane per channel.
+#[test]
+fn instance_timers_are_compiled_bit_for_bit() {
+    let program = compile_text(
+        "(scene :channels 2)
+         (define-sound tone (f) (* 0.3 (frac (* t f))))
+         (define-sound wide (f) (* 0.3 (frac (* t (vector f (* 1.5 f))))))
+         (instance a (tone :f 440) :start 0.1 :stop 0.3)
+         (instance b (tone :f 300) :start 0)
+         (instance c (wide :f 200) :start 0.05 :stop 0.2)",
+    );
+    let mut jit = Jit::new().unwrap();
+    for instance in &program.instances {
+        let voice = jit.voice(&program.graph, instance.root, config()).unwrap();
+        assert_eq!(voice.kernel().callback_nodes, 0, "{}", instance.name);
+        let timers = program
+            .graph
+            .schedule(instance.root)
+            .iter()
+            .filter(|n| program.graph.node(**n).op.kind() == "timer")
+            .count();
+        assert_eq!(timers, 1, "{}", instance.name);
+        let lanes = program.graph.width(instance.root);
+        let samples = 24_000;
+        let mut reference = vec![0.0; samples * lanes];
+        Interpreter::new(&program.graph, instance.root, config()).render_frames(&mut reference);
+        let mut compiled = vec![0.0; samples * lanes];
+        let mut voice = voice;
+        voice.render_frames(&mut compiled);
+        // Sounds the JIT computes exactly, so the gains must agree to the bit.
+        for (k, (a, b)) in reference.iter().zip(&compiled).enumerate() {
+            assert_eq!(
+                a.to_bits(),
+                b.to_bits(),
+                "{}: sample {k}: {a} vs {b}",
+                instance.name
+            );
+        }
+        assert!(reference.iter().any(|x| x.abs() > 0.1), "{}", instance.name);
+    }
+}
