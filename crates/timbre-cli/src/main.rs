@@ -552,11 +552,9 @@ impl<'p> Pass<'p> {
     fn new(plan: &'p Plan<'p>, length: u64, scale: f64) -> Result<Self, Failure> {
         let mut scene = timbre_scene::SceneRenderer::new(plan.program, plan.config, plan.engine)
             .map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?;
-        if plan.program.instances.len() > 1 {
-            scene.set_threads(plan.threads).map_err(|e| {
-                Failure::Message(format!("cannot start {} threads: {e}", plan.threads))
-            })?;
-        }
+        scene
+            .set_threads(plan.threads)
+            .map_err(|e| Failure::Message(format!("cannot start {} threads: {e}", plan.threads)))?;
         Ok(Pass {
             plan,
             scene,

@@ -41,9 +41,9 @@ pub(crate) struct Helpers {
     pub step: FuncRef,
     pub unary: FuncRef,
     pub binary: FuncRef,
-    pub modal_begin: FuncRef,
-    pub modal_piece: FuncRef,
-    pub modal_end: FuncRef,
+    pub modal_block: FuncRef,
+    /// `modal::define_tile_function`'s loop, whose address kernels pass on.
+    pub modal_tile: FuncRef,
 }
 
 /// A region's inputs; see [`KernelBuilder::region_inputs`].
@@ -80,8 +80,6 @@ pub(crate) struct KernelBuilder<'a, 'b> {
     /// Per step: whether a one-lane region keeps splatted copies of it
     /// ([`Region::splatted`]).
     pub splatted: Vec<bool>,
-    /// Whether the host has fused multiply-add (used by modal banks).
-    pub fma: bool,
 }
 
 impl KernelBuilder<'_, '_> {

@@ -126,7 +126,7 @@ struct Generation {
     /// it is freed.
     module: Mutex<Option<JITModule>>,
     /// The helper functions kernels call, declared in this module.
-    helpers: [FuncId; 6],
+    helpers: [FuncId; 5],
     live: Arc<AtomicUsize>,
 }
 
@@ -137,9 +137,7 @@ impl Generation {
         builder.symbol("timbre_step", step_callback as *const u8);
         builder.symbol("timbre_unary", codegen::call_unary as *const u8);
         builder.symbol("timbre_binary", codegen::call_binary as *const u8);
-        builder.symbol("timbre_modal_begin", modal::modal_begin as *const u8);
-        builder.symbol("timbre_modal_piece", modal::modal_piece as *const u8);
-        builder.symbol("timbre_modal_end", modal::modal_end as *const u8);
+        builder.symbol("timbre_modal_block", modal::modal_block as *const u8);
         let mut module = JITModule::new(builder);
         let call_conv = module.target_config().default_call_conv;
         use cranelift_codegen::ir::types::{F64, I64};
@@ -172,18 +170,15 @@ impl Generation {
             )?,
             declare(
                 &mut module,
-                "timbre_modal_begin",
-                signature(&[I64, I64, I64, I64], Some(I64)),
+                "timbre_modal_block",
+                signature(&[I64; 6], None),
             )?,
-            declare(
+            // Every modal bank's tile loop, compiled once per generation.
+            modal::define_tile_function(
                 &mut module,
-                "timbre_modal_piece",
-                signature(&[I64, I64, I64], Some(I64)),
-            )?,
-            declare(
-                &mut module,
-                "timbre_modal_end",
-                signature(&[I64, I64, I64], None),
+                &mut Context::new(),
+                &mut FunctionBuilderContext::new(),
+                isa.has_native_fma(),
             )?,
         ];
         live.fetch_add(1, Ordering::Relaxed);
@@ -307,16 +302,15 @@ impl Jit {
             b.append_block_params_for_function_params(entry);
             b.switch_to_block(entry);
             let params = b.block_params(entry).to_vec();
-            let [step, unary, binary, modal_begin, modal_piece, modal_end] = generation
+            let [step, unary, binary, modal_block, modal_tile] = generation
                 .helpers
                 .map(|helper| module.declare_func_in_func(helper, b.func));
             let helpers = Helpers {
                 step,
                 unary,
                 binary,
-                modal_begin,
-                modal_piece,
-                modal_end,
+                modal_block,
+                modal_tile,
             };
             let param = |b: &mut FunctionBuilder, k: i32| {
                 b.ins().load(
@@ -341,7 +335,6 @@ impl Jit {
                 sample_rate,
                 sample_period,
                 splatted: splatted.clone(),
-                fma: self.isa.has_native_fma(),
             };
             kb.emit(&plan);
             b.ins().return_(&[]);
@@ -473,7 +466,7 @@ impl Jit {
             kernel,
             buffers,
             _states: states,
-            _modal_banks: modal_banks,
+            modal_banks,
             state_pointers,
             // The interpreter's own sample period, bit for bit.
             params: vec![config.sample_rate, 1.0 / config.sample_rate],
@@ -507,7 +500,7 @@ pub struct JitVoice {
     /// State of nodes computed inline, owned here and reached by the kernel through
     /// `state_pointers`.
     _states: Vec<Vec<f64>>,
-    _modal_banks: Vec<(usize, modal::ModalState)>,
+    modal_banks: Vec<(usize, modal::ModalState)>,
     state_pointers: Vec<*mut f64>,
     params: Vec<f64>,
 }
@@ -519,6 +512,15 @@ unsafe impl Send for JitVoice {}
 impl JitVoice {
     pub fn kernel(&self) -> &Kernel {
         &self.kernel
+    }
+
+    /// Shares the modes of its large modal banks out among `pool`'s threads (or not,
+    /// with `None`). Each group of modes is summed apart and the groups are added in
+    /// order, so the samples are the same, bit for bit, whatever the threads.
+    pub fn set_threads(&mut self, pool: Option<Arc<rayon::ThreadPool>>) {
+        for (_, bank) in &mut self.modal_banks {
+            bank.set_pool(pool.clone());
+        }
     }
 
     /// Lanes of the root: the frames [`JitVoice::render_frames`] writes.

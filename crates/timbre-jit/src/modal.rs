@@ -5,30 +5,39 @@
 //! Each mode is a rotator z = A·e^(−D·τ)·e^(2πi·F·τ), and with p = e^((−D + 2πiF)/sr),
 //! sample k of a *tile* that starts with z is Im(z·p^k) = Re z·Im p^k + Im z·Re p^k:
 //! two multiply-adds per mode and sample against a per-mode table of p^k for
-//! k < [`TILE`], with no recurrence from one sample to the next. The kernel's code
-//! holds a tile of 32 samples in eight `F32X4` accumulators and runs every mode of a
-//! group through them (two FMAs per mode and four samples when the host has FMA); a
-//! group's tables ([`GROUP`] modes, 16 KB) stay in L1 while it is run over every
-//! tile of the block. The sum of each group is kept apart and the groups are added
-//! in order at the end, so the order of the additions is fixed.
+//! k < [`TILE`], with no recurrence from one sample to the next. The compiled loop
+//! ([`define_tile_function`], one per generation of code) holds a tile of 32 samples
+//! in eight `F32X4` accumulators and runs every mode of a group through them (two FMAs
+//! per mode and four samples when the host has FMA). A group's tables ([`GROUP`]
+//! modes, 16 KB) stay in L1 while it is run over every tile of the block.
 //!
-//! The rest is done here, in Rust, once per tile and mode or less: z at each tile's
-//! start is the last tile's z times p^32 in `f64`, set exactly from τ
+//! The kernel calls [`modal_block`] once per block, which does the rest, once per
+//! tile and mode or less: it cuts the block into pieces of tiles; moves each mode's z
+//! from tile to tile by p^32 in `f64`, or sets it exactly from τ
 //! ([`rotator::exact`]) wherever τ does not advance by one sample period (a
-//! re-strike), every [`ANCHOR_INTERVAL`] samples and at the start, and rounded to
-//! `f32` only for the multiply-adds. Tiles start at fixed sample positions (multiples
-//! of 32, anchors and jumps), and a tile cut by the end of a block is computed whole
-//! and continued from its start in the next, so the output does not depend on the
-//! block size.
+//! re-strike), every [`ANCHOR_INTERVAL`] samples and at the start; rounds it to `f32`
+//! for the multiply-adds; and adds the groups' sums in group order. Tiles start at
+//! fixed sample positions (multiples of 32, anchors and jumps), and a tile cut by the
+//! end of a block is computed whole and continued from its start in the next, so the
+//! output does not depend on the block size. Groups are independent until they are
+//! added, so a voice with threads shares them out (`JitVoice::set_threads`) without
+//! changing a bit.
+
+use std::sync::Arc;
 
 use cranelift_codegen::ir::condcodes::IntCC;
-use cranelift_codegen::ir::{types, InstBuilder, MemFlagsData, Value};
-use cranelift_frontend::FunctionBuilder;
+use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, Signature, Value};
+use cranelift_codegen::Context;
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
+use cranelift_jit::JITModule;
+use cranelift_module::{FuncId, Linkage, Module};
+use rayon::prelude::*;
 use timbre_ir::dsp::rotator::{self, ModalBank};
 use timbre_ir::op::Op;
 use timbre_ir::Step;
 
 use crate::codegen::KernelBuilder;
+use crate::JitError;
 
 /// Samples in a tile: eight vectors of four `f32`.
 pub(crate) const TILE: usize = 32;
@@ -55,7 +64,7 @@ pub(crate) fn is_modal_bank(steps: &[Step], step: &Step) -> bool {
 /// p^k for k < [`TILE`] as `f32`, imaginary parts first; 64-byte aligned.
 #[derive(Clone, Copy)]
 #[repr(C, align(64))]
-struct ModeTable {
+pub(crate) struct ModeTable {
     im: [f32; TILE],
     re: [f32; TILE],
 }
@@ -89,24 +98,39 @@ struct Piece {
     len: usize,
 }
 
-/// A voice's modal bank. The kernel reads the first three fields (see the offsets
-/// below); the rest is for the helpers.
-#[repr(C)]
-pub(crate) struct ModalState {
-    tables: *const ModeTable,
-    /// Per mode, Re z and Im z rounded to `f32`, for the current piece.
-    coefficients: *mut f32,
-    modes: u64,
-    table_store: Vec<ModeTable>,
-    coefficient_store: Vec<f32>,
+/// What every group of a bank reads: the modes and their tables.
+struct Modes {
+    tables: Vec<ModeTable>,
     freq: Vec<f64>,
     damping: Vec<f64>,
     amplitude: Vec<f64>,
-    /// Per mode: z at the start of the current tile, amplitude included.
-    z: Vec<(f64, f64)>,
     /// Per mode: p^TILE.
-    tile_power: Vec<(f64, f64)>,
+    tile_re: Vec<f64>,
+    tile_im: Vec<f64>,
     sample_rate: f64,
+}
+
+/// A group of at most [`GROUP`] consecutive modes: their rotators, and their sum over
+/// each tile of the current round.
+struct Group {
+    first: usize,
+    /// Per mode: z at the start of the current tile, amplitude included.
+    re: Vec<f64>,
+    im: Vec<f64>,
+    /// Re z of every mode rounded to `f32`, then Im z, for the current piece.
+    coefficients: Vec<f32>,
+    /// Per piece of the round, the group's sum over the tile's 32 samples.
+    tiles: Vec<[f32; TILE]>,
+}
+
+/// The compiled tile loop: `tile(tables, coefficients, modes, sums)` (see
+/// [`define_tile_function`]).
+pub(crate) type TileFn = unsafe extern "C" fn(*const ModeTable, *const f32, u64, *mut f32);
+
+/// A voice's modal bank.
+pub(crate) struct ModalState {
+    modes: Modes,
+    groups: Vec<Group>,
     /// Absolute index of the current tile's first sample.
     tile_start: u64,
     /// τ at the last sample rendered; None before the first.
@@ -115,16 +139,13 @@ pub(crate) struct ModalState {
     pieces: Vec<Piece>,
     /// The block's first sample not yet in `pieces`.
     cursor: usize,
-    /// Per group and piece, the group's sum over the tile's 32 samples.
-    tiles: Vec<[f32; TILE]>,
+    /// Threads the groups are shared out among, if the voice has them.
+    pool: Option<Arc<rayon::ThreadPool>>,
 }
 
-const TABLES: i32 = 0;
-const COEFFICIENTS: i32 = 8;
-const MODES: i32 = 16;
-
-// SAFETY: the raw pointers point into the state's own vectors.
-unsafe impl Send for ModalState {}
+/// Banks of fewer groups than this run on one thread: a group's block is a few
+/// microseconds of work, about what handing it to another thread costs.
+const GROUPS_FOR_THREADS: usize = 4;
 
 impl ModalState {
     /// The state of modal-bank step `step`, whose constants are steps of `steps`.
@@ -134,12 +155,12 @@ impl ModalState {
             _ => unreachable!("is_modal_bank checks that F, D and A are constants"),
         };
         let (freq, damping, amplitude) = (constant(1), constant(2), constant(3));
-        let modes = freq.len().max(damping.len()).max(amplitude.len());
+        let count = freq.len().max(damping.len()).max(amplitude.len());
         let lane = |v: &[f64], m: usize| if v.len() == 1 { v[0] } else { v[m] };
-        let freq: Vec<f64> = (0..modes).map(|m| lane(&freq, m)).collect();
-        let damping: Vec<f64> = (0..modes).map(|m| lane(&damping, m)).collect();
-        let amplitude: Vec<f64> = (0..modes).map(|m| lane(&amplitude, m)).collect();
-        let table_store: Vec<ModeTable> = (0..modes)
+        let freq: Vec<f64> = (0..count).map(|m| lane(&freq, m)).collect();
+        let damping: Vec<f64> = (0..count).map(|m| lane(&damping, m)).collect();
+        let amplitude: Vec<f64> = (0..count).map(|m| lane(&amplitude, m)).collect();
+        let tables = (0..count)
             .map(|m| {
                 let mut table = ModeTable {
                     im: [0.0; TILE],
@@ -153,31 +174,71 @@ impl ModalState {
                 table
             })
             .collect();
-        let tile_power = (0..modes)
+        let (tile_re, tile_im) = (0..count)
             .map(|m| rotator::step_power(freq[m], damping[m], sample_rate, TILE as u64))
+            .unzip();
+        let groups = (0..count)
+            .step_by(GROUP)
+            .map(|first| {
+                let len = GROUP.min(count - first);
+                Group {
+                    first,
+                    re: vec![0.0; len],
+                    im: vec![0.0; len],
+                    coefficients: vec![0.0; 2 * len],
+                    tiles: vec![[0.0; TILE]; MAX_PIECES],
+                }
+            })
             .collect();
-        let mut state = ModalState {
-            tables: std::ptr::null(),
-            coefficients: std::ptr::null_mut(),
-            modes: modes as u64,
-            table_store,
-            coefficient_store: vec![0.0; 2 * modes],
-            freq,
-            damping,
-            amplitude,
-            z: vec![(0.0, 0.0); modes],
-            tile_power,
-            sample_rate,
+        ModalState {
+            modes: Modes {
+                tables,
+                freq,
+                damping,
+                amplitude,
+                tile_re,
+                tile_im,
+                sample_rate,
+            },
+            groups,
             tile_start: 0,
             last_time: None,
             pieces: Vec::with_capacity(MAX_PIECES),
             cursor: 0,
-            tiles: vec![[0.0; TILE]; modes.div_ceil(GROUP) * MAX_PIECES],
-        };
-        // The vectors' heap storage stays put when the state is moved.
-        state.tables = state.table_store.as_ptr();
-        state.coefficients = state.coefficient_store.as_mut_ptr();
-        state
+            pool: None,
+        }
+    }
+
+    /// Shares the groups of later blocks out among `pool`'s threads (if it has
+    /// enough of them: see [`GROUPS_FOR_THREADS`]), or not.
+    pub(crate) fn set_pool(&mut self, pool: Option<Arc<rayon::ThreadPool>>) {
+        self.pool = pool.filter(|_| self.groups.len() >= GROUPS_FOR_THREADS);
+    }
+
+    /// Renders a block: `n` samples of the sum into `out`, τ from `time`.
+    fn render(&mut self, time: &[f64], t0: u64, out: &mut [f64], tile: TileFn) {
+        while self.begin(time, t0) > 0 {
+            let (modes, pieces) = (&self.modes, &self.pieces[..]);
+            match &self.pool {
+                Some(pool) => {
+                    // One run of consecutive groups per thread.
+                    let per_thread = self.groups.len().div_ceil(pool.current_num_threads());
+                    pool.install(|| {
+                        self.groups.par_chunks_mut(per_thread).for_each(|run| {
+                            for group in run {
+                                group.render(modes, pieces, tile);
+                            }
+                        })
+                    })
+                }
+                None => {
+                    for group in &mut self.groups {
+                        group.render(modes, pieces, tile);
+                    }
+                }
+            }
+            self.end(out);
+        }
     }
 
     /// The next at most [`MAX_PIECES`] pieces of a block (see [`Piece`]), from where
@@ -189,7 +250,7 @@ impl ModalState {
             self.cursor = 0;
             return 0;
         }
-        let sr = self.sample_rate;
+        let sr = self.modes.sample_rate;
         let mut k = self.cursor;
         while k < time.len() {
             let (q, tau) = (t0 + k as u64, time[k]);
@@ -230,77 +291,90 @@ impl ModalState {
         self.pieces.len()
     }
 
-    /// Moves the modes of the group starting at `first` to piece `piece` and writes
-    /// their coefficients; returns where the group's sum over the tile goes.
-    fn piece(&mut self, first: usize, piece: usize) -> *mut f32 {
-        let modes = first..(first + GROUP).min(self.modes as usize);
-        let start = self.pieces[piece].start;
-        for m in modes.clone() {
-            let z = &mut self.z[m];
-            match start {
-                Start::Continue => {}
-                Start::Anchor(tau) => {
-                    let (re, im) = rotator::exact(self.freq[m], self.damping[m], tau);
-                    *z = (self.amplitude[m] * re, self.amplitude[m] * im);
-                }
-                Start::Advance(samples) => {
-                    let p = if samples == TILE as u64 {
-                        self.tile_power[m]
-                    } else {
-                        let (f, d, sr) = (self.freq[m], self.damping[m], self.sample_rate);
-                        rotator::step_power(f, d, sr, samples)
-                    };
-                    *z = (z.0 * p.0 - z.1 * p.1, z.0 * p.1 + z.1 * p.0);
-                }
-            }
-            self.coefficient_store[2 * m] = z.0 as f32;
-            self.coefficient_store[2 * m + 1] = z.1 as f32;
-        }
-        let group = first / GROUP;
-        self.tiles[group * self.pieces.len() + piece].as_mut_ptr()
-    }
-
-    /// Writes the block: each sample the sum of its tile's groups, in group order.
+    /// Writes the round's samples: each the sum of its tile's groups, in group order.
     fn end(&self, out: &mut [f64]) {
-        let pieces = self.pieces.len();
-        let groups = (self.modes as usize).div_ceil(GROUP);
         for (p, piece) in self.pieces.iter().enumerate() {
             for k in 0..piece.len {
                 let sample = piece.offset + k;
-                out[piece.at + k] = (0..groups)
-                    .map(|g| self.tiles[g * pieces + p][sample] as f64)
-                    .sum();
+                out[piece.at + k] = self.groups.iter().map(|g| g.tiles[p][sample] as f64).sum();
             }
         }
     }
 }
 
-/// `modal_begin(state, time, n, t0) -> pieces`: called by kernels.
-pub(crate) extern "C" fn modal_begin(
+impl Group {
+    /// Computes the group's sum over the tile of every piece of the round, moving its
+    /// rotators from tile to tile.
+    fn render(&mut self, modes: &Modes, pieces: &[Piece], tile: TileFn) {
+        let len = self.re.len();
+        let all = self.first..self.first + len;
+        for (p, piece) in pieces.iter().enumerate() {
+            match piece.start {
+                Start::Continue => {}
+                Start::Anchor(tau) => {
+                    for (k, m) in all.clone().enumerate() {
+                        let (re, im) = rotator::exact(modes.freq[m], modes.damping[m], tau);
+                        self.re[k] = modes.amplitude[m] * re;
+                        self.im[k] = modes.amplitude[m] * im;
+                    }
+                }
+                Start::Advance(samples) if samples == TILE as u64 => {
+                    // The common case, in a loop the compiler vectorises.
+                    let (p_re, p_im) = (&modes.tile_re[all.clone()], &modes.tile_im[all.clone()]);
+                    for k in 0..len {
+                        let (a, b) = (self.re[k], self.im[k]);
+                        self.re[k] = a * p_re[k] - b * p_im[k];
+                        self.im[k] = a * p_im[k] + b * p_re[k];
+                    }
+                }
+                Start::Advance(samples) => {
+                    for (k, m) in all.clone().enumerate() {
+                        let (f, d, sr) = (modes.freq[m], modes.damping[m], modes.sample_rate);
+                        let (p_re, p_im) = rotator::step_power(f, d, sr, samples);
+                        let (a, b) = (self.re[k], self.im[k]);
+                        self.re[k] = a * p_re - b * p_im;
+                        self.im[k] = a * p_im + b * p_re;
+                    }
+                }
+            }
+            let (re, im) = self.coefficients.split_at_mut(len);
+            for k in 0..len {
+                re[k] = self.re[k] as f32;
+                im[k] = self.im[k] as f32;
+            }
+            // SAFETY: `tile` is the compiled loop of `define_tile_function`; it reads
+            // `len` tables and the group's `2·len` coefficients, and writes one tile.
+            unsafe {
+                tile(
+                    modes.tables[self.first..].as_ptr(),
+                    self.coefficients.as_ptr(),
+                    len as u64,
+                    self.tiles[p].as_mut_ptr(),
+                )
+            };
+        }
+    }
+}
+
+/// `modal_block(state, time, n, t0, out, tile)`: called by kernels.
+pub(crate) extern "C" fn modal_block(
     state: *mut ModalState,
     time: *const f64,
     n: u64,
     t0: u64,
-) -> u64 {
-    // SAFETY: kernels pass the step's state and its time argument's buffer of `n`
-    // samples.
-    let (state, time) = unsafe { (&mut *state, std::slice::from_raw_parts(time, n as usize)) };
-    state.begin(time, t0) as u64
-}
-
-/// `modal_piece(state, first_mode, piece) -> tile`: called by kernels.
-pub(crate) extern "C" fn modal_piece(state: *mut ModalState, first: u64, piece: u64) -> *mut f32 {
-    // SAFETY: kernels pass the step's state, a group's first mode and a piece of this
-    // block.
-    let state = unsafe { &mut *state };
-    state.piece(first as usize, piece as usize)
-}
-
-/// `modal_end(state, out, n)`: called by kernels.
-pub(crate) extern "C" fn modal_end(state: *const ModalState, out: *mut f64, n: u64) {
-    // SAFETY: kernels pass the step's state and its output buffer of `n` samples.
-    let (state, out) = unsafe { (&*state, std::slice::from_raw_parts_mut(out, n as usize)) };
-    state.end(out);
+    out: *mut f64,
+    tile: TileFn,
+) {
+    // SAFETY: kernels pass the step's state, its time argument's buffer and its own
+    // buffer, of at least `n` samples each, and the tile function of their module.
+    let (state, time, out) = unsafe {
+        (
+            &mut *state,
+            std::slice::from_raw_parts(time, n as usize),
+            std::slice::from_raw_parts_mut(out, n as usize),
+        )
+    };
+    state.render(time, t0, out, tile);
 }
 
 fn aligned() -> MemFlagsData {
@@ -308,96 +382,91 @@ fn aligned() -> MemFlagsData {
 }
 
 impl KernelBuilder<'_, '_> {
-    /// The code of modal-bank step `i` (see the module documentation).
+    /// The code of modal-bank step `i`: a call to [`modal_block`].
     pub(crate) fn emit_modal_bank(&mut self, i: usize) {
         let state = self.state_pointer(i);
         let time = self.buffer(self.steps[i].args[0]);
         let out = self.buffer(i);
-        let helpers = self.helpers;
-        let (n, t0, fma) = (self.n, self.t0, self.fma);
-        let b = &mut *self.b;
-        let flags = MemFlagsData::new().with_notrap();
-        let modes = b.ins().load(I64, flags, state, MODES);
-        let tables = b.ins().load(I64, flags, state, TABLES);
-        let coefficients = b.ins().load(I64, flags, state, COEFFICIENTS);
-        // Rounds of at most MAX_PIECES pieces, until `modal_begin` says the block is done.
-        let round = b.create_block();
-        let body = b.create_block();
-        let done = b.create_block();
-        b.ins().jump(round, &[]);
-        b.switch_to_block(round);
-        let call = b.ins().call(helpers.modal_begin, &[state, time, n, t0]);
-        let pieces = b.inst_results(call)[0];
-        b.ins().brif(pieces, body, &[], done, &[]);
-        b.switch_to_block(body);
-        loop_up_to(b, modes, GROUP as i64, |b, first| {
-            let last = b.ins().iadd_imm_s(first, GROUP as i64);
-            let last = b.ins().umin(last, modes);
-            loop_up_to(b, pieces, 1, |b, piece| {
-                let call = b.ins().call(helpers.modal_piece, &[state, first, piece]);
-                let tile = b.inst_results(call)[0];
-                let zero = b.ins().f32const(0.0);
-                let zero = b.ins().splat(F32X4, zero);
-                let sums: Vec<_> = (0..TILE / 4)
-                    .map(|_| {
-                        let var = b.declare_var(F32X4);
-                        b.def_var(var, zero);
-                        var
-                    })
-                    .collect();
-                // Every group has at least one mode.
-                do_while(b, first, last, |b, m| {
-                    let table = b.ins().ishl_imm_u(m, TABLE_BITS);
-                    let table = b.ins().iadd(tables, table);
-                    let coefficient = b.ins().ishl_imm_u(m, 3);
-                    let coefficient = b.ins().iadd(coefficients, coefficient);
-                    let [re_z, im_z] = [0, 4].map(|at| {
-                        let x = b.ins().load(types::F32, flags, coefficient, at);
-                        b.ins().splat(F32X4, x)
-                    });
-                    for (v, &sum) in sums.iter().enumerate() {
-                        let mut acc = b.use_var(sum);
-                        for (z, part) in [(re_z, 0), (im_z, 4 * TILE as i32)] {
-                            let offset = part + 16 * v as i32;
-                            let power = b.ins().load(F32X4, aligned(), table, offset);
-                            acc = if fma {
-                                b.ins().fma(power, z, acc)
-                            } else {
-                                let product = b.ins().fmul(power, z);
-                                b.ins().fadd(acc, product)
-                            };
-                        }
-                        b.def_var(sum, acc);
-                    }
-                });
-                for (v, &sum) in sums.iter().enumerate() {
-                    let x = b.use_var(sum);
-                    b.ins().store(flags, x, tile, 16 * v as i32);
-                }
-            });
-        });
-        b.ins().call(helpers.modal_end, &[state, out, n]);
-        b.ins().jump(round, &[]);
-        b.switch_to_block(done);
+        let tile = self.b.ins().func_addr(I64, self.helpers.modal_tile);
+        let args = [state, time, self.n, self.t0, out, tile];
+        self.b.ins().call(self.helpers.modal_block, &args);
     }
 }
 
-/// `for i in (0..end).step_by(step) { body(i) }`; `end` may be 0.
-fn loop_up_to(
-    b: &mut FunctionBuilder,
-    end: Value,
-    step: i64,
-    body: impl FnOnce(&mut FunctionBuilder, Value),
-) {
-    let zero = b.ins().iconst(I64, 0);
-    let any = b.ins().icmp(IntCC::UnsignedLessThan, zero, end);
-    let block = b.create_block();
-    let exit = b.create_block();
-    b.ins().brif(any, block, &[], exit, &[]);
-    b.switch_to_block(block);
-    do_while_from(b, zero, end, step, body);
-    b.ins().jump(exit, &[]);
-    b.switch_to_block(exit);
+/// Defines `modal_tile(tables, coefficients, modes, sums)` in `module`: for each of
+/// the 32 samples k of a tile, sums[k] = Σ_m Re z_m·Im p_m^k + Im z_m·Re p_m^k over
+/// `modes ≥ 1` modes, in mode order (the coefficients are every Re z, then every
+/// Im z), with the tile in eight `F32X4` accumulators (FMA
+/// if `fma`). Every group of every modal bank runs this loop.
+pub(crate) fn define_tile_function(
+    module: &mut JITModule,
+    context: &mut Context,
+    builder_context: &mut FunctionBuilderContext,
+    fma: bool,
+) -> Result<FuncId, JitError> {
+    let mut sig = Signature::new(module.target_config().default_call_conv);
+    sig.params.extend([AbiParam::new(I64); 4]);
+    context.func.signature = sig.clone();
+    {
+        let mut b = FunctionBuilder::new(&mut context.func, builder_context);
+        let entry = b.create_block();
+        b.append_block_params_for_function_params(entry);
+        b.switch_to_block(entry);
+        let [tables, coefficients, modes, sums] =
+            <[Value; 4]>::try_from(b.block_params(entry)).expect("four parameters");
+        let flags = MemFlagsData::new().with_notrap();
+        let zero = b.ins().f32const(0.0);
+        let zero = b.ins().splat(F32X4, zero);
+        let accumulators: Vec<_> = (0..TILE / 4)
+            .map(|_| {
+                let var = b.declare_var(F32X4);
+                b.def_var(var, zero);
+                var
+            })
+            .collect();
+        // Re z of the modes, then Im z.
+        let im_offset = b.ins().ishl_imm_u(modes, 2);
+        let im_coefficients = b.ins().iadd(coefficients, im_offset);
+        let first = b.ins().iconst(I64, 0);
+        do_while(&mut b, first, modes, |b, m| {
+            let table = b.ins().ishl_imm_u(m, TABLE_BITS);
+            let table = b.ins().iadd(tables, table);
+            let coefficient = b.ins().ishl_imm_u(m, 2);
+            let re_z = b.ins().iadd(coefficients, coefficient);
+            let im_z = b.ins().iadd(im_coefficients, coefficient);
+            let [re_z, im_z] = [re_z, im_z].map(|at| {
+                let x = b.ins().load(types::F32, flags, at, 0);
+                b.ins().splat(F32X4, x)
+            });
+            for (v, &sum) in accumulators.iter().enumerate() {
+                let mut acc = b.use_var(sum);
+                for (z, part) in [(re_z, 0), (im_z, 4 * TILE as i32)] {
+                    let power = b.ins().load(F32X4, aligned(), table, part + 16 * v as i32);
+                    acc = if fma {
+                        b.ins().fma(power, z, acc)
+                    } else {
+                        let product = b.ins().fmul(power, z);
+                        b.ins().fadd(acc, product)
+                    };
+                }
+                b.def_var(sum, acc);
+            }
+        });
+        for (v, &sum) in accumulators.iter().enumerate() {
+            let x = b.use_var(sum);
+            b.ins().store(flags, x, sums, 16 * v as i32);
+        }
+        b.ins().return_(&[]);
+        b.seal_all_blocks();
+        b.finalize(module.target_config());
+    }
+    let id = module
+        .declare_function("timbre_modal_tile", Linkage::Local, &sig)
+        .map_err(|e| JitError::Codegen(e.to_string()))?;
+    let defined = module.define_function(id, context);
+    module.clear_context(context);
+    defined.map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+    Ok(id)
 }
 
 /// `for i in start..end { body(i) }` for `start < end`: tested at the bottom.
@@ -405,16 +474,6 @@ fn do_while(
     b: &mut FunctionBuilder,
     start: Value,
     end: Value,
-    body: impl FnOnce(&mut FunctionBuilder, Value),
-) {
-    do_while_from(b, start, end, 1, body);
-}
-
-fn do_while_from(
-    b: &mut FunctionBuilder,
-    start: Value,
-    end: Value,
-    step: i64,
     body: impl FnOnce(&mut FunctionBuilder, Value),
 ) {
     let counter = b.declare_var(I64);
@@ -425,7 +484,7 @@ fn do_while_from(
     b.switch_to_block(block);
     let i = b.use_var(counter);
     body(b, i);
-    let next = b.ins().iadd_imm_s(i, step);
+    let next = b.ins().iadd_imm_s(i, 1);
     b.def_var(counter, next);
     let more = b.ins().icmp(IntCC::UnsignedLessThan, next, end);
     b.ins().brif(more, block, &[], exit, &[]);

@@ -319,7 +319,7 @@ fn odd_block_lengths_and_split_renders_match() {
 /// Modal banks are compiled (no callback), agree with the interpreter, and do not
 /// depend on how the render is split into blocks: re-struck at times that are not
 /// multiples of a tile, with an envelope and amplitudes, a thousand modes, two, and
-/// re-struck every few samples.
+/// re-struck every few samples; and with its groups of modes on several threads.
 #[test]
 fn modal_banks_are_compiled_and_agree_at_every_split() {
     let bells = [
@@ -358,6 +358,20 @@ fn modal_banks_are_compiled_and_agree_at_every_split() {
                 whole == parts,
                 "{text}: blocks of {block}, renders of {chunk} differ"
             );
+        }
+        // The groups of modes shared out among threads: the same bits.
+        for threads in [2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut voice = jit.voice(&program.graph, root, config()).unwrap();
+            voice.set_threads(Some(std::sync::Arc::new(pool)));
+            let mut parts = vec![0.0; samples];
+            for part in parts.chunks_mut(4_000) {
+                voice.render(part);
+            }
+            assert!(whole == parts, "{text}: {threads} threads differ");
         }
         let mut reference = vec![0.0; samples];
         Interpreter::new(&program.graph, root, config()).render(&mut reference);

@@ -110,6 +110,13 @@ impl Voice {
             Voice::Jit(v) => v.render_frames(out),
         }
     }
+
+    /// Threads for the voice's own work (a JIT voice's large modal banks).
+    fn set_threads(&mut self, pool: Option<Arc<rayon::ThreadPool>>) {
+        if let Voice::Jit(v) = self {
+            v.set_threads(pool);
+        }
+    }
 }
 
 /// Where a pending instance's voice comes from.
@@ -240,7 +247,7 @@ pub struct SceneRenderer {
     fade_samples: u64,
     next_id: u64,
     /// Threads rendering voices, if more than one (see [`SceneRenderer::set_threads`]).
-    pool: Option<rayon::ThreadPool>,
+    pool: Option<Arc<rayon::ThreadPool>>,
 }
 
 impl SceneRenderer {
@@ -323,15 +330,17 @@ impl SceneRenderer {
     /// not for a real-time audio callback.
     pub fn set_threads(&mut self, threads: usize) -> Result<(), rayon::ThreadPoolBuildError> {
         self.pool = if threads > 1 {
-            Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .thread_name(|k| format!("timbre-voices-{k}"))
-                    .build()?,
-            )
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|k| format!("timbre-voices-{k}"))
+                .build()?;
+            Some(Arc::new(pool))
         } else {
             None
         };
+        for active in &mut self.active {
+            active.voice.set_threads(self.pool.clone());
+        }
         Ok(())
     }
 
@@ -452,13 +461,14 @@ impl SceneRenderer {
         let end = self.position + (out.len() / channels) as u64;
         while self.pending.last().is_some_and(|p| p.start < end) {
             let Some(p) = self.pending.pop() else { break };
-            let voice = match p.source {
+            let mut voice = match p.source {
                 Source::Voice(voice) => voice,
                 Source::Root(root) => {
                     let graph = self.graph.clone();
                     self.voice(&graph, root)?
                 }
             };
+            voice.set_threads(self.pool.clone());
             self.active.push(Active {
                 id: p.id,
                 voice,
