@@ -482,7 +482,10 @@ impl SceneRenderer {
         }
         let fade = self.fade_samples;
         let position = self.position;
-        match &self.pool {
+        // One voice renders on this thread (its own large modal banks may still use
+        // the threads): handing a lone voice to another thread only adds latency.
+        let pool = self.pool.as_ref().filter(|_| self.active.len() > 1);
+        match pool {
             // Each voice renders into its own buffer on some thread; then they are
             // mixed here in instance order, so the sums (and the bytes) are the same
             // whatever the number of threads.
