@@ -477,18 +477,20 @@ pub fn timer_gain(t: f64, length: Option<f64>, fade_in: f64, fade_out: f64) -> f
     if t < 0.0 {
         return 0.0;
     }
+    // The fades as rates (1 / duration): a multiplication per sample, not a division.
     let mut gain = if fade_in > 0.0 {
-        (t / fade_in).min(1.0)
+        (t * (1.0 / fade_in)).min(1.0)
     } else {
         1.0
     };
     if let Some(length) = length {
-        if t >= length + fade_out {
+        let end = length + fade_out;
+        if t >= end {
             return 0.0;
         }
         if t >= length {
             gain = gain.min(if fade_out > 0.0 {
-                (length + fade_out - t) / fade_out
+                (end - t) * (1.0 / fade_out)
             } else {
                 0.0
             });

@@ -42,6 +42,7 @@ pub(crate) struct Helpers {
     pub unary: FuncRef,
     pub binary: FuncRef,
     pub modal_block: FuncRef,
+    pub timer_block: FuncRef,
     /// `modal::define_tile_function`'s loop, whose address kernels pass on.
     pub modal_tile: FuncRef,
 }
@@ -93,6 +94,7 @@ impl KernelBuilder<'_, '_> {
                         .call(self.helpers.step, &[self.interp, index, self.n]);
                 }
                 PlanStep::ModalBank(i) => self.emit_modal_bank(*i),
+                PlanStep::Timer(i) => self.emit_timer(*i),
                 PlanStep::Region(region) if region.width >= 2 => self.emit_lane_region(region),
                 PlanStep::Region(region) => self.emit_region(region),
             }
@@ -155,7 +157,7 @@ impl KernelBuilder<'_, '_> {
         // The lane loop.
         let steps = self.steps;
         let helpers = self.helpers;
-        let (t0, n, state_table) = (self.t0, self.n, self.states);
+        let (t0, n) = (self.t0, self.n);
         counted_loop(self.b, 0, end_lane, 1, |b, lane| {
             let lane_offset = b.ins().imul_imm_s(lane, lane_bytes);
             // State of inline nodes for this lane, carried through the sample loop in
@@ -226,7 +228,6 @@ impl KernelBuilder<'_, '_> {
                             };
                             white(b, seed, t0, i)
                         }
-                        Op::Timer { .. } => timer(b, state_table, node, args[0], args[1]),
                         Op::Phasor => phasor(
                             b,
                             states[&node].vars[0],
@@ -487,7 +488,6 @@ impl KernelBuilder<'_, '_> {
                         Op::Noise { .. } => {
                             lane_noise(b, states[&node].vars[0], &noise_rows[&node], args[0])
                         }
-                        Op::Timer { .. } => timer(b, state_table, node, args[0], args[1]),
                         Op::White { .. } => {
                             // Both lanes at sample t0 + k, each with its own seed.
                             let [s0, s1] = white_seeds[&node];
@@ -952,36 +952,6 @@ impl InlineState {
             b.ins().store(mem(), value, self.address, (8 * k) as i32);
         }
     }
-}
-
-/// `x` times an instance timer's gain at local time `t` (both vectors), as
-/// `timbre_ir::op::timer_gain` computes it, operation for operation. The timer's
-/// length (infinite if it has none), fade-in and fade-out are its state, at
-/// `states[node]`.
-fn timer(b: &mut FunctionBuilder, states: Value, node: usize, x: Value, t: Value) -> Value {
-    let params = b.ins().load(I64, mem(), states, (8 * node) as i32);
-    let [length, fade_in, fade_out] = [0, 8, 16].map(|at| {
-        let v = b.ins().load(types::F64, mem(), params, at);
-        b.ins().splat(F64X2, v)
-    });
-    let (zero, one) = (splat(b, 0.0), splat(b, 1.0));
-    let rising = b.ins().fdiv(t, fade_in);
-    let rising = min_max(b, rising, one, false);
-    let fades_in = b.ins().fcmp(FloatCC::GreaterThan, fade_in, zero);
-    let gain = select(b, fades_in, rising, one);
-    let end = b.ins().fadd(length, fade_out);
-    let left = b.ins().fsub(end, t);
-    let falling = b.ins().fdiv(left, fade_out);
-    let fades_out = b.ins().fcmp(FloatCC::GreaterThan, fade_out, zero);
-    let falling = select(b, fades_out, falling, zero);
-    let lower = min_max(b, gain, falling, false);
-    let after_length = b.ins().fcmp(FloatCC::GreaterThanOrEqual, t, length);
-    let gain = select(b, after_length, lower, gain);
-    let over = b.ins().fcmp(FloatCC::GreaterThanOrEqual, t, end);
-    let gain = select(b, over, zero, gain);
-    let before = b.ins().fcmp(FloatCC::LessThan, t, zero);
-    let gain = select(b, before, zero, gain);
-    b.ins().fmul(x, gain)
 }
 
 /// The gradient at lattice point `i` (scalar i64): a hash mapped to [−1, 1), as

@@ -18,6 +18,7 @@ mod codegen;
 mod modal;
 mod plan;
 mod shape;
+mod timer;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -126,7 +127,7 @@ struct Generation {
     /// it is freed.
     module: Mutex<Option<JITModule>>,
     /// The helper functions kernels call, declared in this module.
-    helpers: [FuncId; 5],
+    helpers: [FuncId; 6],
     live: Arc<AtomicUsize>,
 }
 
@@ -138,6 +139,7 @@ impl Generation {
         builder.symbol("timbre_unary", codegen::call_unary as *const u8);
         builder.symbol("timbre_binary", codegen::call_binary as *const u8);
         builder.symbol("timbre_modal_block", modal::modal_block as *const u8);
+        builder.symbol("timbre_timer_block", timer::timer_block as *const u8);
         let mut module = JITModule::new(builder);
         let call_conv = module.target_config().default_call_conv;
         use cranelift_codegen::ir::types::{F64, I64};
@@ -172,6 +174,11 @@ impl Generation {
                 &mut module,
                 "timbre_modal_block",
                 signature(&[I64; 6], None),
+            )?,
+            declare(
+                &mut module,
+                "timbre_timer_block",
+                signature(&[I64; 8], None),
             )?,
             // Every modal bank's tile loop, compiled once per generation.
             modal::define_tile_function(
@@ -302,7 +309,7 @@ impl Jit {
             b.append_block_params_for_function_params(entry);
             b.switch_to_block(entry);
             let params = b.block_params(entry).to_vec();
-            let [step, unary, binary, modal_block, modal_tile] = generation
+            let [step, unary, binary, modal_block, timer_block, modal_tile] = generation
                 .helpers
                 .map(|helper| module.declare_func_in_func(helper, b.func));
             let helpers = Helpers {
@@ -310,6 +317,7 @@ impl Jit {
                 unary,
                 binary,
                 modal_block,
+                timer_block,
                 modal_tile,
             };
             let param = |b: &mut FunctionBuilder, k: i32| {
@@ -355,7 +363,7 @@ impl Jit {
         let code = module.get_finalized_function(id);
         let (inline_nodes, callback_nodes) = plan.iter().fold((0, 0), |(i, c), step| match step {
             PlanStep::Region(r) => (i + r.nodes.len() + r.combines.len(), c),
-            PlanStep::ModalBank(_) => (i + 1, c),
+            PlanStep::ModalBank(_) | PlanStep::Timer(_) => (i + 1, c),
             PlanStep::Callback(_) => (i, c + 1),
         });
         let splatted = splatted
@@ -434,7 +442,7 @@ impl Jit {
                     length,
                     fade_in,
                     fade_out,
-                } => vec![length.unwrap_or(f64::INFINITY), fade_in, fade_out],
+                } => timer::state(length, fade_in, fade_out),
                 _ => vec![],
             })
             .collect();

@@ -141,7 +141,14 @@ pub(crate) struct ModalState {
     cursor: usize,
     /// Threads the groups are shared out among, if the voice has them.
     pool: Option<Arc<rayon::ThreadPool>>,
+    /// Whether τ is `t`, which never jumps: its samples need not be checked.
+    time_is_t: bool,
 }
+
+/// Below this sample index, t = index / rate advances by one sample period within
+/// the tolerance of `rotator::advances` (its rounding grows with the index: about
+/// 4e-7 of a period at 2³²), so a τ that is `t` need not be checked for jumps.
+const STEADY_T_SAMPLES: u64 = 1 << 32;
 
 /// Banks of fewer groups than this run on one thread: a group's block is a few
 /// microseconds of work, about what handing it to another thread costs.
@@ -206,6 +213,7 @@ impl ModalState {
             pieces: Vec::with_capacity(MAX_PIECES),
             cursor: 0,
             pool: None,
+            time_is_t: matches!(steps[step.args[0]].op, Op::Time),
         }
     }
 
@@ -275,6 +283,10 @@ impl ModalState {
             let tile_end = k + (TILE - (q % TILE as u64) as usize);
             let limit = tile_end.min(time.len());
             let mut end = k + 1;
+            if self.time_is_t && t0 + (limit as u64) < STEADY_T_SAMPLES {
+                // τ is t itself, which advances by one period at every sample.
+                end = limit;
+            }
             while end < limit && rotator::advances(Some(time[end - 1]), time[end], sr) {
                 end += 1;
             }

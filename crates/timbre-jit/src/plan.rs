@@ -5,11 +5,11 @@
 //! lanes, and inside it one loop over pairs of samples, in which every node of the
 //! region is an SSA value in registers. A node is written to its buffer only when
 //! something outside its region reads it. `combine` of a region's node is summed
-//! inside that region. `phasor`, `noise`, `white` and an instance's timer are
-//! computed inline too, their state (a phase, a lattice cell, a seed, a length and
-//! fades) kept in the voice's state table. Modal banks have code of their own
-//! (`modal`). Every other node is a *callback*: the kernel calls back into the
-//! interpreter, which computes that node exactly as it always does.
+//! inside that region. `phasor`, `noise` and `white` are computed inline too, their
+//! state (a phase, a lattice cell, a seed) kept in the voice's state table. Modal
+//! banks (`modal`) and instance timers (`timer`) have code of their own. Every other
+//! node is a *callback*: the kernel calls back into the interpreter, which computes
+//! that node exactly as it always does.
 
 use timbre_ir::op::Op;
 use timbre_ir::Step;
@@ -23,6 +23,8 @@ pub(crate) enum PlanStep {
     Callback(usize),
     /// A modal bank, compiled by `modal`.
     ModalBank(usize),
+    /// An instance's timer (`timer`).
+    Timer(usize),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -103,11 +105,11 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
                 }
             }
         }
-        if Kind::of_step(steps, step) == Kind::ModalBank {
-            plan.push(PlanStep::ModalBank(i));
-        } else {
-            plan.push(PlanStep::Callback(i));
-        }
+        plan.push(match Kind::of_step(steps, step) {
+            Kind::ModalBank => PlanStep::ModalBank(i),
+            Kind::Timer => PlanStep::Timer(i),
+            _ => PlanStep::Callback(i),
+        });
         ready[i] = plan.len();
     }
     mark_stored(steps, &mut plan, &home, &attached);
@@ -184,7 +186,9 @@ mod tests {
             .iter()
             .map(|p| match p {
                 PlanStep::Region(r) => r,
-                PlanStep::Callback(i) | PlanStep::ModalBank(i) => panic!("step {i} not inline"),
+                PlanStep::Callback(i) | PlanStep::ModalBank(i) | PlanStep::Timer(i) => {
+                    panic!("step {i} not inline")
+                }
             })
             .collect();
         assert_eq!(regions.len(), 201usize.div_ceil(MAX_REGION_NODES));

@@ -31,7 +31,8 @@ pub(crate) enum Kind {
     Combine,
     /// A modal bank of constant modes, compiled by `modal`.
     ModalBank,
-    /// An instance's timer; its length and fades are in the voice's state.
+    /// An instance's timer, computed by `timer`; its length and fades are in the
+    /// voice's state.
     Timer,
     /// Called back: `Interpreter::eval_step` runs the step's own op.
     Interpreted,
@@ -83,11 +84,12 @@ impl Kind {
             | Kind::Ternary(_)
             | Kind::Noise
             | Kind::White
-            | Kind::Timer
             | Kind::Phasor => true,
             // The interpreter's own tangent: its poles are not worth an approximation.
             Kind::Unary(op) => op != UnaryOp::Tan,
-            Kind::Const | Kind::Combine | Kind::ModalBank | Kind::Interpreted => false,
+            Kind::Const | Kind::Combine | Kind::ModalBank | Kind::Timer | Kind::Interpreted => {
+                false
+            }
         }
     }
 }
@@ -208,11 +210,6 @@ mod tests {
             Op::Noise { seed: 0 },
             Op::White { seed: 0, lanes: 1 },
             Op::Phasor,
-            Op::Timer {
-                length: None,
-                fade_in: 0.0,
-                fade_out: 0.0,
-            },
         ];
         ops.extend(UnaryOp::ALL.iter().map(|op| Op::Unary(*op)));
         ops.extend(BinaryOp::ALL.iter().map(|op| Op::Binary(*op)));

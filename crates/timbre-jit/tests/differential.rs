@@ -463,11 +463,11 @@ mod random_trees {
     }
 }
 
-/// An instance's timer is compiled inline and gives the interpreter's gain bit for
-/// bit: its fade-in, a stop with its fade-out, and silence after; one lane, and a
-/// lane per channel.
+/// An instance's timer gives the interpreter's gain bit for bit: its fade-in, the
+/// steady part (passed through), a stop with its fade-out, and silence after; one
+/// lane, and a lane per channel.
 #[test]
-fn instance_timers_are_compiled_bit_for_bit() {
+fn instance_timers_agree_bit_for_bit() {
     let program = compile_text(
         "(scene :channels 2)
          (define-sound tone (f) (* 0.3 (frac (* t f))))
