@@ -818,7 +818,8 @@ fn noise(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
 fn white(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     let lanes = l.const_count(&b.args[0], "the number of lanes", b.origin)?;
     let seed = l.random_seed("white", b.seed, &[]);
-    Ok(l.graph.add(Op::White { seed, lanes }, vec![]))
+    let seeds = (0..lanes as u64).map(|k| seed.wrapping_add(k)).collect();
+    Ok(l.graph.add(Op::White { seeds }, vec![]))
 }
 
 fn pink(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {

@@ -58,12 +58,14 @@ fn describe(op: &Op) -> String {
             }
             text
         }
-        Op::Noise { seed } | Op::White { seed, lanes: 1 } => {
-            format!("{}(seed={seed:#018x})", op.name())
-        }
-        Op::White { seed, lanes } => {
-            format!("{}(seed={seed:#018x}, lanes={lanes})", op.name())
-        }
+        Op::Noise { seed } => format!("{}(seed={seed:#018x})", op.name()),
+        Op::White { seeds } => match seeds[..] {
+            [seed] => format!("{}(seed={seed:#018x})", op.name()),
+            [seed, ..] if seeds.windows(2).all(|w| w[1] == w[0].wrapping_add(1)) => {
+                format!("{}(seed={seed:#018x}, lanes={})", op.name(), seeds.len())
+            }
+            _ => format!("{}(lanes={}, seeds of their own)", op.name(), seeds.len()),
+        },
         Op::Stateful(kernel) => match kernel.detail() {
             detail if detail.is_empty() => kernel.name().into(),
             detail => format!("{}({detail})", kernel.name()),
@@ -110,7 +112,12 @@ mod tests {
     #[test]
     fn lines_in_id_order_with_widths_and_roots() {
         let mut g = Graph::new();
-        let unused = g.add(Op::White { seed: 7, lanes: 1 }, vec![]);
+        let unused = g.add(
+            Op::White {
+                seeds: std::sync::Arc::from([7]),
+            },
+            vec![],
+        );
         let t = g.add(Op::Time, vec![]);
         let f = g.constant(440.0);
         let phase = g.add(Op::Binary(BinaryOp::Mul), vec![t, f]);

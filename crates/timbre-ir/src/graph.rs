@@ -182,7 +182,7 @@ impl Graph {
         let widths = args.iter().map(|a| self.width(*a));
         match op {
             Op::Const(values) => values.len(),
-            Op::White { lanes, .. } => *lanes,
+            Op::White { seeds } => seeds.len(),
             Op::Time | Op::Variable(_) => 1,
             Op::Combine | Op::Index => 1,
             Op::Concat => widths.sum(),
@@ -462,7 +462,12 @@ mod tests {
     #[test]
     fn schedule_is_post_order_of_reachable_nodes() {
         let mut g = Graph::new();
-        let unused = g.add(Op::White { seed: 1, lanes: 1 }, vec![]);
+        let unused = g.add(
+            Op::White {
+                seeds: Arc::from([1]),
+            },
+            vec![],
+        );
         let t = g.add(Op::Time, vec![]);
         let s = g.add(Op::Unary(UnaryOp::Sine), vec![t]);
         assert_eq!(g.schedule(s), vec![t, s]);

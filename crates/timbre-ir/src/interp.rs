@@ -321,8 +321,8 @@ impl Interpreter {
                         first += w;
                     }
                 }
-                (Op::White { seed, .. }, _) => {
-                    let seed = seed.wrapping_add(lane as u64);
+                (Op::White { seeds }, _) => {
+                    let seed = seeds[lane];
                     for (k, y) in o.iter_mut().enumerate() {
                         *y = white(seed, n0 + k as u64);
                     }

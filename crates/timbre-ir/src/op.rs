@@ -45,10 +45,9 @@ pub enum Op {
     /// Lanes of all arguments, one after the other.
     Concat,
     /// Per-sample uniform white noise in [-1, 1): a function of the sample index;
-    /// lane k hashes with `seed + k`.
+    /// lane k hashes with `seeds[k]` (`(white :lanes n)` has seeds s, s + 1, …).
     White {
-        seed: u64,
-        lanes: usize,
+        seeds: Arc<[u64]>,
     },
     /// Integrated frequency in cycles, wrapped to [0, 1); arguments: frequency, start phase.
     Phasor,
@@ -230,11 +229,14 @@ impl Op {
             Op::Const(values) => {
                 d.f64s(values);
             }
-            Op::Noise { seed } | Op::White { seed, lanes: 1 } => {
+            Op::Noise { seed } => {
                 d.u64(*seed);
             }
-            Op::White { seed, lanes } => {
-                d.u64(*seed).u64(*lanes as u64);
+            Op::White { seeds } => {
+                for seed in seeds.iter() {
+                    d.u64(*seed);
+                }
+                d.u64(seeds.len() as u64);
             }
             Op::Conv(ImpulseResponse::Wav { data, .. }) => {
                 d.str("wav").u64(data.content_hash);

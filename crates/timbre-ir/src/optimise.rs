@@ -16,6 +16,9 @@
 //!   one-lane factors, A the product of the constants: the sum Σ A·sin(2π·F·τ)·e^(−D·τ)
 //!   as one node, which the JIT compiles to a kernel of its own (the one-lane factors
 //!   are the same for every mode, so they multiply the sum).
+//! - **Vectors of white noises.** `(vector (white :seed 1) (white :seed 2) …)` is one
+//!   white noise of n lanes, each hashing its own seed: one node, which the JIT
+//!   computes inline across lanes, instead of n one-lane noises gathered by a vector.
 //!
 //! Every analysis is a single pass in id order (a node's arguments have smaller ids),
 //! each node's facts computed from its arguments' facts, so the passes use no
@@ -48,6 +51,7 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
         }
         let rewritten = match node.op {
             Op::Combine => facts.modal_bank(graph, &mut out, &map, node.args[0], &mut parts),
+            Op::Concat => white_lanes(graph, &node.args).map(|op| out.add(op, vec![])),
             _ => facts.damped_sine(graph, &mut out, &map, id, &mut parts),
         };
         let new = rewritten.unwrap_or_else(|| out.copy_node(node, &map));
@@ -240,6 +244,21 @@ impl Facts {
         }
         Some(product)
     }
+}
+
+/// One white noise of many lanes, each with its own seed, if `args` are all white
+/// noises.
+fn white_lanes(graph: &Graph, args: &[NodeId]) -> Option<Op> {
+    let mut seeds = vec![];
+    for a in args {
+        match &graph.node(*a).op {
+            Op::White { seeds: more } => seeds.extend_from_slice(more),
+            _ => return None,
+        }
+    }
+    Some(Op::White {
+        seeds: Arc::from(seeds),
+    })
 }
 
 fn broadcast(a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) -> Vec<f64> {

@@ -84,6 +84,23 @@ fn a_sum_of_damped_sines_becomes_one_modal_bank() {
 }
 
 #[test]
+fn a_vector_of_white_noises_becomes_one_noise_of_lanes() {
+    let text = "(combine (* (iota 5) (vector (white :seed 7) (white :seed 3) (white :seed 9 :lanes 2) (white))))";
+    // Exactly the same samples.
+    compare(text, 0.2, 0.0);
+    let kinds = optimised_kinds(text);
+    assert_eq!(
+        kinds.iter().filter(|k| **k == "white").count(),
+        1,
+        "{kinds:?}"
+    );
+    assert!(!kinds.contains(&"vector"), "{kinds:?}");
+    // A vector of anything else stays as written.
+    let kinds = optimised_kinds("(combine (vector (white :seed 7) (sine (* t 9))))");
+    assert!(kinds.contains(&"vector"), "{kinds:?}");
+}
+
+#[test]
 fn factors_in_any_order_and_amplitudes_are_kept() {
     for text in [
         "(* (damp (* t 3)) 0.5 (sine (* 440 t)))",

@@ -434,8 +434,9 @@ impl Jit {
                 }
                 // The bits of the mixed seed, as for a noise.
                 // Lane l hashes with seed + l.
-                Op::White { seed, .. } => (0..s.width as u64)
-                    .map(|l| f64::from_bits(timbre_ir::dsp::noise::mix64(seed.wrapping_add(l))))
+                Op::White { ref seeds } => seeds
+                    .iter()
+                    .map(|seed| f64::from_bits(timbre_ir::dsp::noise::mix64(*seed)))
                     .collect(),
                 Op::Combine => vec![0.0; 2 * config.block_size],
                 Op::Timer {

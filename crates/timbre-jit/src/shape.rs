@@ -208,7 +208,9 @@ mod tests {
         let mut ops: Vec<Op> = vec![
             Op::Time,
             Op::Noise { seed: 0 },
-            Op::White { seed: 0, lanes: 1 },
+            Op::White {
+                seeds: Arc::from([0]),
+            },
             Op::Phasor,
         ];
         ops.extend(UnaryOp::ALL.iter().map(|op| Op::Unary(*op)));
