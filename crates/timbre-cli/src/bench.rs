@@ -88,7 +88,7 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
     println!();
     println!("callbacks = share of the JIT's time spent in the interpreter, on nodes it does not compile");
     println!(
-        "jit {threads} threads = a scene's instances rendered on {threads} threads (bit for bit the same output)",
+        "jit {threads} threads = a scene's instances, or a large modal bank's modes, on {threads} threads (bit for bit the same output)",
         threads = cores()
     );
     println!();
@@ -219,6 +219,15 @@ fn measure(
             threaded: Some(median(&mut threaded)),
         });
     };
+    let pool = match cores() {
+        1 => None,
+        n => Some(std::sync::Arc::new(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| Failure::Message(format!("threads: {e}")))?,
+        )),
+    };
     for _ in 0..runs {
         let mut voice = interpreter(&program);
         interp.push(time_render(samples, buffer, |out| voice.render(out)));
@@ -233,13 +242,18 @@ fn measure(
         timbre_jit::profile::enable(false);
         in_callbacks.push(timbre_jit::profile::take().as_secs_f64() / seconds_of(time));
         jit.push(time);
+        if let Some(pool) = &pool {
+            // One voice: only its large modal banks share their work out.
+            voice.set_threads(Some(pool.clone()));
+            threaded.push(time_render(samples, buffer, |out| voice.render(out)));
+        }
     }
     Ok(Measured {
         interp: median(&mut interp),
         jit: median(&mut jit),
         compile: median(&mut compile),
         callbacks: median_share(&mut in_callbacks),
-        threaded: None,
+        threaded: (!threaded.is_empty()).then(|| median(&mut threaded)),
     })
 }
 

@@ -359,13 +359,18 @@ fn modal_banks_are_compiled_and_agree_at_every_split() {
                 "{text}: blocks of {block}, renders of {chunk} differ"
             );
         }
-        // The groups of modes shared out among threads: the same bits.
+        // The groups of modes shared out among threads (in blocks long enough to be
+        // worth it for a large bank): the same bits.
         for threads in [2, 3] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            let mut voice = jit.voice(&program.graph, root, config()).unwrap();
+            let config = RenderConfig {
+                block_size: 1024,
+                ..config()
+            };
+            let mut voice = jit.voice(&program.graph, root, config).unwrap();
             voice.set_threads(Some(std::sync::Arc::new(pool)));
             let mut parts = vec![0.0; samples];
             for part in parts.chunks_mut(4_000) {
