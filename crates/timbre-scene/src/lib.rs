@@ -9,7 +9,6 @@
 
 use std::sync::Arc;
 
-use rayon::prelude::*;
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
 use timbre_jit::{Jit, JitError, JitVoice};
 
@@ -491,24 +490,26 @@ impl SceneRenderer {
             // whatever the number of threads.
             Some(pool) => {
                 // One run of consecutive voices per thread: a voice's block is too
-                // little work to share out one by one.
-                let per_thread = self
-                    .active
-                    .len()
-                    .div_ceil(pool.current_num_threads())
-                    .max(1);
-                pool.install(|| {
-                    self.active.par_chunks_mut(per_thread).for_each(|run| {
-                        for active in run {
-                            if let Some((from, until)) = active.window(position, end) {
-                                let n = ((until - from) as usize) * active.voice.width();
-                                let mut buffer = std::mem::take(&mut active.buffer);
-                                buffer.resize(n, 0.0);
-                                active.voice.render(&mut buffer);
-                                active.buffer = buffer;
-                            }
+                // little work to share out one by one. This thread renders the first
+                // run itself rather than wait for the pool to.
+                let per_thread = self.active.len().div_ceil(pool.current_num_threads());
+                let render_run = |run: &mut [Active]| {
+                    for active in run {
+                        if let Some((from, until)) = active.window(position, end) {
+                            let n = ((until - from) as usize) * active.voice.width();
+                            let mut buffer = std::mem::take(&mut active.buffer);
+                            buffer.resize(n, 0.0);
+                            active.voice.render(&mut buffer);
+                            active.buffer = buffer;
                         }
-                    })
+                    }
+                };
+                let (first, rest) = self.active.split_at_mut(per_thread);
+                pool.in_place_scope(|scope| {
+                    for run in rest.chunks_mut(per_thread) {
+                        scope.spawn(move |_| render_run(run));
+                    }
+                    render_run(first);
                 });
                 for active in &mut self.active {
                     if let Some((from, until)) = active.window(position, end) {
