@@ -551,6 +551,9 @@ impl JitVoice {
     /// interleaved.
     pub fn render_frames(&mut self, out: &mut [f64]) {
         let width = self.root_width();
+        if width == 1 {
+            return self.render(out);
+        }
         let block = self.interp.config().block_size;
         for chunk in out.chunks_mut(block * width) {
             let n = chunk.len() / width;

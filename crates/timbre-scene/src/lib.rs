@@ -68,6 +68,33 @@ impl DecayWatch {
         }
     }
 
+    /// Takes the instance's next samples (as mixed, after any fade); `Some(k)` if the
+    /// instance ends after sample `k` of them (the last of a window, the instance
+    /// having decayed). The same as [`DecayWatch::push`] sample by sample, a window's
+    /// run at a time.
+    fn push_all(&mut self, samples: &[f64]) -> Option<usize> {
+        let mut from = 0;
+        while from < samples.len() {
+            let run = &samples[from..(from + self.left as usize).min(samples.len())];
+            match run.iter().rposition(|x| x.abs() >= SILENCE) {
+                Some(loud) => {
+                    self.heard = true;
+                    self.silent = (run.len() - 1 - loud) as u64;
+                }
+                None => self.silent += run.len() as u64,
+            }
+            self.left -= run.len() as u64;
+            from += run.len();
+            if self.left == 0 {
+                self.left = self.window;
+                if self.heard && self.silent >= self.window {
+                    return Some(from - 1);
+                }
+            }
+        }
+        None
+    }
+
     /// Takes the instance's next sample (as mixed, after any fade); true if the
     /// instance ends after it (it is the last sample of a window and the instance has
     /// decayed).
@@ -183,14 +210,15 @@ impl Active {
         let mut next = until;
         if width == 1 && channels == 1 && self.fade_from.is_none() {
             // The common case, mono and no fade, in a tight loop.
-            let mixed = &mut out[offset..offset + n];
-            for (k, (y, x)) in mixed.iter_mut().zip(rendered).enumerate() {
+            // Up to the sample after which it has decayed, if it has.
+            let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
+            let heard = last.map_or(n, |k| k + 1);
+            for (y, x) in out[offset..offset + heard].iter_mut().zip(rendered) {
                 *y += x;
-                if self.decay.as_mut().is_some_and(|d| d.push(x.abs())) {
-                    next = from + k as u64 + 1;
-                    self.end = Some(next);
-                    break;
-                }
+            }
+            if last.is_some() {
+                next = from + heard as u64;
+                self.end = Some(next);
             }
             self.next = next;
             return;
@@ -538,5 +566,52 @@ impl SceneRenderer {
         self.active.retain(|a| a.end.is_none_or(|e| a.next < e));
         self.position = end;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Where a watch ends a signal fed sample by sample, and fed in runs of `chunk`.
+    fn ends(signal: &[f64], chunk: usize) -> (Option<usize>, Option<usize>) {
+        let mut one = DecayWatch::new(1000.0);
+        let by_sample = signal.iter().position(|x| one.push(x.abs()));
+        let mut runs = DecayWatch::new(1000.0);
+        let mut at = 0;
+        let mut by_run = None;
+        for part in signal.chunks(chunk) {
+            if let Some(k) = runs.push_all(part) {
+                by_run = Some(at + k);
+                break;
+            }
+            at += part.len();
+        }
+        (by_sample, by_run)
+    }
+
+    /// `push_all` decides as `push` does, whatever the lengths of the runs: a sound
+    /// that rings, pauses, rings again and decays, and one never heard.
+    #[test]
+    fn decay_in_runs_ends_where_decay_by_sample_does() {
+        // 100-sample windows at 1 kHz.
+        let mut signal = vec![0.0; 1000];
+        for (k, x) in signal.iter_mut().enumerate() {
+            let loud = (30..180).contains(&k) || (250..262).contains(&k) || k == 433;
+            *x = if loud {
+                0.5 * (-1.0f64).powi(k as i32)
+            } else {
+                1e-7
+            };
+        }
+        for chunk in [1, 7, 64, 99, 100, 101, 1000] {
+            let (by_sample, by_run) = ends(&signal, chunk);
+            assert!(by_sample.is_some(), "the test decays");
+            assert_eq!(by_sample, by_run, "runs of {chunk}");
+        }
+        let quiet = vec![1e-9; 700];
+        for chunk in [1, 33, 700] {
+            assert_eq!(ends(&quiet, chunk), (None, None), "never heard, never ends");
+        }
     }
 }
