@@ -471,6 +471,7 @@ impl Jit {
             state_pointers[*i] = (bank as *mut modal::ModalState).cast();
         }
         Ok(JitVoice {
+            root_width: interp.root_width(),
             interp,
             kernel,
             buffers,
@@ -510,6 +511,9 @@ pub struct JitVoice {
     /// `state_pointers`.
     _states: Vec<Vec<f64>>,
     modal_banks: Vec<(usize, modal::ModalState)>,
+    /// The interpreter's, kept here: a scene asks for it every block, and a voice's
+    /// interpreter is cold in the cache when it has a thousand others.
+    root_width: usize,
     state_pointers: Vec<*mut f64>,
     params: Vec<f64>,
 }
@@ -534,7 +538,7 @@ impl JitVoice {
 
     /// Lanes of the root: the frames [`JitVoice::render_frames`] writes.
     pub fn root_width(&self) -> usize {
-        self.interp.root_width()
+        self.root_width
     }
 
     /// Renders the next `out.len()` samples (of a one-lane root).
