@@ -8,6 +8,7 @@
 //! into trees with a timer at the root.
 
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
 use timbre_jit::{Jit, JitError, JitVoice};
@@ -275,7 +276,15 @@ pub struct SceneRenderer {
     next_id: u64,
     /// Threads rendering voices, if more than one (see [`SceneRenderer::set_threads`]).
     pool: Option<Arc<rayon::ThreadPool>>,
+    /// The time the last block's voices took, as on one thread.
+    last_block_work: Duration,
+    /// See [`SceneRenderer::set_threads_min_work`].
+    threads_min_work: Duration,
 }
+
+/// Blocks whose voices take less than this on one thread are not shared out among
+/// threads: waking one costs tens of microseconds.
+const THREADS_WORTH_IT: Duration = Duration::from_micros(200);
 
 impl SceneRenderer {
     /// A renderer with no instances, for a host to add them.
@@ -303,6 +312,8 @@ impl SceneRenderer {
             fade_samples: (DECLICK_OUT * sr).round().max(1.0) as u64,
             next_id: 0,
             pool: None,
+            last_block_work: Duration::ZERO,
+            threads_min_work: THREADS_WORTH_IT,
         })
     }
 
@@ -369,6 +380,13 @@ impl SceneRenderer {
             active.voice.set_threads(self.pool.clone());
         }
         Ok(())
+    }
+
+    /// With threads, a block's voices are shared out among them only if the last
+    /// block's took at least `work` (as on one thread; 200 µs by default): below that,
+    /// waking a thread costs more than it saves. Zero shares every block out.
+    pub fn set_threads_min_work(&mut self, work: Duration) {
+        self.threads_min_work = work;
     }
 
     /// Threads rendering voices (see [`SceneRenderer::set_threads`]).
@@ -509,9 +527,18 @@ impl SceneRenderer {
         }
         let fade = self.fade_samples;
         let position = self.position;
-        // One voice renders on this thread (its own large modal banks may still use
-        // the threads): handing a lone voice to another thread only adds latency.
-        let pool = self.pool.as_ref().filter(|_| self.active.len() > 1);
+        // The voices share the threads out when there are several and the last
+        // block took long enough to be worth waking a thread for (tens of
+        // microseconds). A lone voice renders on this thread (its own large modal
+        // banks may still use the threads). Which way a block goes changes its speed,
+        // never its samples.
+        let worth_it = self.last_block_work >= self.threads_min_work;
+        let pool = self
+            .pool
+            .as_ref()
+            .filter(|_| self.active.len() > 1 && worth_it);
+        let started = Instant::now();
+        let threads = pool.map_or(1, |p| p.current_num_threads());
         match pool {
             // Each voice renders into its own buffer on some thread; then they are
             // mixed here in instance order, so the sums (and the bytes) are the same
@@ -558,6 +585,8 @@ impl SceneRenderer {
                 }
             }
         }
+        // What the block would have taken on one thread, roughly.
+        self.last_block_work = started.elapsed() * threads as u32;
         for a in &self.active {
             if a.end.is_some_and(|e| a.next >= e) {
                 self.ended_at = self.ended_at.max(a.next);

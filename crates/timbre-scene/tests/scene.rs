@@ -416,6 +416,8 @@ fn the_output_does_not_depend_on_the_number_of_threads() {
     let render_on = |threads: usize| {
         let mut renderer = SceneRenderer::new(&program, config(), Engine::Jit).unwrap();
         renderer.set_threads(threads).unwrap();
+        // Every block shared out, however little work it is.
+        renderer.set_threads_min_work(std::time::Duration::ZERO);
         assert_eq!(renderer.threads(), threads);
         let mut out = vec![0.0; 2 * 48_000];
         // Calls of several lengths, none a whole number of blocks.
