@@ -118,6 +118,8 @@ pub struct Jit {
     kernels_compiled: usize,
     /// Generations of this `Jit` not yet freed.
     live_generations: Arc<AtomicUsize>,
+    /// Modal banks' tables, shared by the voices of the same modes.
+    modal_tables: modal::TableCache,
 }
 
 /// One cranelift module: some kernels' code, freed when the last of them is dropped.
@@ -265,6 +267,7 @@ impl Jit {
             next_name: 0,
             kernels_compiled: 0,
             live_generations,
+            modal_tables: modal::TableCache::default(),
         })
     }
 
@@ -463,7 +466,8 @@ impl Jit {
             .enumerate()
             .filter(|(_, step)| modal::is_modal_bank(interp.steps(), step))
             .map(|(i, step)| {
-                let state = modal::ModalState::new(interp.steps(), step, config.sample_rate);
+                let state =
+                    modal::ModalState::new(interp.steps(), step, config, &mut self.modal_tables);
                 (i, state)
             })
             .collect();

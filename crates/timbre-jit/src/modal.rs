@@ -23,7 +23,8 @@
 //! added, so a voice with threads shares them out (`JitVoice::set_threads`) without
 //! changing a bit.
 
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::sync::{Arc, Weak};
 
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, Signature, Value};
@@ -33,7 +34,7 @@ use cranelift_jit::JITModule;
 use cranelift_module::{FuncId, Linkage, Module};
 use timbre_ir::dsp::rotator::{self, ModalBank};
 use timbre_ir::op::Op;
-use timbre_ir::Step;
+use timbre_ir::{RenderConfig, Step};
 
 use crate::codegen::KernelBuilder;
 use crate::JitError;
@@ -70,6 +71,7 @@ pub(crate) struct ModeTable {
 
 /// The most pieces (tiles, whole or cut) computed together; a block with more (τ
 /// jumping often) is computed in several rounds. Nothing is allocated while rendering.
+/// Blocks shorter than 32 tiles need fewer: as many as a block without jumps has.
 const MAX_PIECES: usize = 32;
 
 /// log2 of a table's size in bytes.
@@ -97,16 +99,82 @@ struct Piece {
     len: usize,
 }
 
-/// What every group of a bank reads: the modes and their tables.
-struct Modes {
+/// What every group of a bank reads: the modes and their tables. Voices whose modes
+/// have the same frequencies and dampings at one sample rate share one (see
+/// [`TableCache`]): a struck object's instances, a swarm of one kind.
+pub(crate) struct Modes {
     tables: Vec<ModeTable>,
     freq: Vec<f64>,
     damping: Vec<f64>,
-    amplitude: Vec<f64>,
     /// Per mode: p^TILE.
     tile_re: Vec<f64>,
     tile_im: Vec<f64>,
     sample_rate: f64,
+}
+
+impl Modes {
+    fn new(freq: Vec<f64>, damping: Vec<f64>, sample_rate: f64) -> Modes {
+        let tables = freq
+            .iter()
+            .zip(&damping)
+            .map(|(&f, &d)| {
+                let mut table = ModeTable {
+                    im: [0.0; TILE],
+                    re: [0.0; TILE],
+                };
+                for k in 0..TILE {
+                    let (re, im) = rotator::step_power(f, d, sample_rate, k as u64);
+                    table.re[k] = re as f32;
+                    table.im[k] = im as f32;
+                }
+                table
+            })
+            .collect();
+        let (tile_re, tile_im) = freq
+            .iter()
+            .zip(&damping)
+            .map(|(&f, &d)| rotator::step_power(f, d, sample_rate, TILE as u64))
+            .unzip();
+        Modes {
+            tables,
+            freq,
+            damping,
+            tile_re,
+            tile_im,
+            sample_rate,
+        }
+    }
+}
+
+/// The modes of the voices alive, by frequencies, dampings and sample rate (their
+/// bits), so that voices of the same modes share their tables: fewer to compute, and
+/// fewer to keep in the cache while a scene renders hundreds of voices.
+#[derive(Default)]
+pub(crate) struct TableCache {
+    modes: HashMap<Vec<u64>, Weak<Modes>>,
+}
+
+/// Entries after which the cache forgets the modes no voice uses any more.
+const TABLE_CACHE_SWEEP: usize = 1024;
+
+impl TableCache {
+    fn get(&mut self, freq: Vec<f64>, damping: Vec<f64>, sample_rate: f64) -> Arc<Modes> {
+        let key: Vec<u64> = freq
+            .iter()
+            .chain(&damping)
+            .chain([&sample_rate])
+            .map(|x| x.to_bits())
+            .collect();
+        if let Some(modes) = self.modes.get(&key).and_then(Weak::upgrade) {
+            return modes;
+        }
+        if self.modes.len() >= TABLE_CACHE_SWEEP {
+            self.modes.retain(|_, modes| modes.strong_count() > 0);
+        }
+        let modes = Arc::new(Modes::new(freq, damping, sample_rate));
+        self.modes.insert(key, Arc::downgrade(&modes));
+        modes
+    }
 }
 
 /// A group of at most [`GROUP`] consecutive modes: their rotators, and their sum over
@@ -128,14 +196,17 @@ pub(crate) type TileFn = unsafe extern "C" fn(*const ModeTable, *const f32, u64,
 
 /// A voice's modal bank.
 pub(crate) struct ModalState {
-    modes: Modes,
+    modes: Arc<Modes>,
+    /// Per mode.
+    amplitude: Vec<f64>,
     groups: Vec<Group>,
     /// Absolute index of the current tile's first sample.
     tile_start: u64,
     /// τ at the last sample rendered; None before the first.
     last_time: Option<f64>,
-    /// The pieces of the block being rendered, at most [`MAX_PIECES`] at a time.
+    /// The pieces of the block being rendered, at most `max_pieces` at a time.
     pieces: Vec<Piece>,
+    max_pieces: usize,
     /// The block's first sample not yet in `pieces`.
     cursor: usize,
     /// Threads the groups are shared out among, if the voice has them.
@@ -159,7 +230,15 @@ const WORK_FOR_THREADS: usize = 1 << 19;
 
 impl ModalState {
     /// The state of modal-bank step `step`, whose constants are steps of `steps`.
-    pub(crate) fn new(steps: &[Step], step: &Step, sample_rate: f64) -> ModalState {
+    pub(crate) fn new(
+        steps: &[Step],
+        step: &Step,
+        config: RenderConfig,
+        tables: &mut TableCache,
+    ) -> ModalState {
+        let sample_rate = config.sample_rate;
+        // A block without jumps has at most this many pieces.
+        let max_pieces = MAX_PIECES.min(config.block_size / TILE + 2);
         let constant = |k: usize| match &steps[step.args[k]].op {
             Op::Const(values) => values.to_vec(),
             _ => unreachable!("is_modal_bank checks that F, D and A are constants"),
@@ -170,23 +249,7 @@ impl ModalState {
         let freq: Vec<f64> = (0..count).map(|m| lane(&freq, m)).collect();
         let damping: Vec<f64> = (0..count).map(|m| lane(&damping, m)).collect();
         let amplitude: Vec<f64> = (0..count).map(|m| lane(&amplitude, m)).collect();
-        let tables = (0..count)
-            .map(|m| {
-                let mut table = ModeTable {
-                    im: [0.0; TILE],
-                    re: [0.0; TILE],
-                };
-                for k in 0..TILE {
-                    let (re, im) = rotator::step_power(freq[m], damping[m], sample_rate, k as u64);
-                    table.re[k] = re as f32;
-                    table.im[k] = im as f32;
-                }
-                table
-            })
-            .collect();
-        let (tile_re, tile_im) = (0..count)
-            .map(|m| rotator::step_power(freq[m], damping[m], sample_rate, TILE as u64))
-            .unzip();
+        let modes = tables.get(freq, damping, sample_rate);
         let groups = (0..count)
             .step_by(GROUP)
             .map(|first| {
@@ -196,24 +259,18 @@ impl ModalState {
                     re: vec![0.0; len],
                     im: vec![0.0; len],
                     coefficients: vec![0.0; 2 * len],
-                    tiles: vec![[0.0; TILE]; MAX_PIECES],
+                    tiles: vec![[0.0; TILE]; max_pieces],
                 }
             })
             .collect();
         ModalState {
-            modes: Modes {
-                tables,
-                freq,
-                damping,
-                amplitude,
-                tile_re,
-                tile_im,
-                sample_rate,
-            },
+            modes,
+            amplitude,
             groups,
             tile_start: 0,
             last_time: None,
-            pieces: Vec::with_capacity(MAX_PIECES),
+            pieces: Vec::with_capacity(max_pieces),
+            max_pieces,
             cursor: 0,
             pool: None,
             time_is_t: matches!(steps[step.args[0]].op, Op::Time),
@@ -229,7 +286,8 @@ impl ModalState {
     /// Renders a block: `n` samples of the sum into `out`, τ from `time`.
     fn render(&mut self, time: &[f64], t0: u64, out: &mut [f64], tile: TileFn) {
         while self.begin(time, t0) > 0 {
-            let (modes, pieces) = (&self.modes, &self.pieces[..]);
+            let (modes, pieces) = (&*self.modes, &self.pieces[..]);
+            let amplitude = &self.amplitude[..];
             // Waking another thread costs tens of microseconds: worth it only for a
             // round of enough work.
             let work = pieces.iter().map(|p| p.len).sum::<usize>() * modes.freq.len();
@@ -243,18 +301,18 @@ impl ModalState {
                         for run in rest.chunks_mut(per_thread) {
                             scope.spawn(move |_| {
                                 for group in run {
-                                    group.render(modes, pieces, tile);
+                                    group.render(modes, amplitude, pieces, tile);
                                 }
                             });
                         }
                         for group in first {
-                            group.render(modes, pieces, tile);
+                            group.render(modes, amplitude, pieces, tile);
                         }
                     })
                 }
                 None => {
                     for group in &mut self.groups {
-                        group.render(modes, pieces, tile);
+                        group.render(modes, amplitude, pieces, tile);
                     }
                 }
             }
@@ -262,7 +320,7 @@ impl ModalState {
         }
     }
 
-    /// The next at most [`MAX_PIECES`] pieces of a block (see [`Piece`]), from where
+    /// The next at most `max_pieces` pieces of a block (see [`Piece`]), from where
     /// the last call stopped; returns how many, 0 once the block is done (and then
     /// starts again at its first sample).
     fn begin(&mut self, time: &[f64], t0: u64) -> usize {
@@ -278,9 +336,9 @@ impl ModalState {
             let anchor =
                 q.is_multiple_of(ANCHOR_INTERVAL) || !rotator::advances(self.last_time, tau, sr);
             let tile = anchor || q.is_multiple_of(TILE as u64);
-            if self.pieces.len() == MAX_PIECES {
+            if self.pieces.len() == self.max_pieces {
                 self.cursor = k;
-                return MAX_PIECES;
+                return self.max_pieces;
             }
             let (start, offset) = if anchor {
                 (Start::Anchor(tau), 0)
@@ -318,10 +376,19 @@ impl ModalState {
 
     /// Writes the round's samples: each the sum of its tile's groups, in group order.
     fn end(&self, out: &mut [f64]) {
+        let Some((first, rest)) = self.groups.split_first() else {
+            return;
+        };
         for (p, piece) in self.pieces.iter().enumerate() {
-            for k in 0..piece.len {
-                let sample = piece.offset + k;
-                out[piece.at + k] = self.groups.iter().map(|g| g.tiles[p][sample] as f64).sum();
+            let out = &mut out[piece.at..piece.at + piece.len];
+            let samples = piece.offset..piece.offset + piece.len;
+            for (y, x) in out.iter_mut().zip(&first.tiles[p][samples.clone()]) {
+                *y = *x as f64;
+            }
+            for group in rest {
+                for (y, x) in out.iter_mut().zip(&group.tiles[p][samples.clone()]) {
+                    *y += *x as f64;
+                }
             }
         }
     }
@@ -330,7 +397,7 @@ impl ModalState {
 impl Group {
     /// Computes the group's sum over the tile of every piece of the round, moving its
     /// rotators from tile to tile.
-    fn render(&mut self, modes: &Modes, pieces: &[Piece], tile: TileFn) {
+    fn render(&mut self, modes: &Modes, amplitude: &[f64], pieces: &[Piece], tile: TileFn) {
         let len = self.re.len();
         let all = self.first..self.first + len;
         for (p, piece) in pieces.iter().enumerate() {
@@ -339,8 +406,8 @@ impl Group {
                 Start::Anchor(tau) => {
                     for (k, m) in all.clone().enumerate() {
                         let (re, im) = rotator::exact(modes.freq[m], modes.damping[m], tau);
-                        self.re[k] = modes.amplitude[m] * re;
-                        self.im[k] = modes.amplitude[m] * im;
+                        self.re[k] = amplitude[m] * re;
+                        self.im[k] = amplitude[m] * im;
                     }
                 }
                 Start::Advance(samples) if samples == TILE as u64 => {
