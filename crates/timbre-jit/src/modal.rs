@@ -582,3 +582,27 @@ fn do_while(
     b.ins().brif(more, block, &[], exit, &[]);
     b.switch_to_block(exit);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn voices_of_the_same_modes_share_their_tables() {
+        let mut cache = TableCache::default();
+        let a = cache.get(vec![440.0, 660.0], vec![1.0, 2.0], 48_000.0);
+        let b = cache.get(vec![440.0, 660.0], vec![1.0, 2.0], 48_000.0);
+        assert!(Arc::ptr_eq(&a, &b));
+        let other_damping = cache.get(vec![440.0, 660.0], vec![1.0, 2.5], 48_000.0);
+        let other_rate = cache.get(vec![440.0, 660.0], vec![1.0, 2.0], 44_100.0);
+        assert!(!Arc::ptr_eq(&a, &other_damping) && !Arc::ptr_eq(&a, &other_rate));
+        // Modes no voice uses any more are forgotten, those in use are kept.
+        drop((b, other_damping, other_rate));
+        for k in 0..TABLE_CACHE_SWEEP {
+            drop(cache.get(vec![k as f64], vec![0.0], 48_000.0));
+        }
+        assert!(cache.modes.len() <= TABLE_CACHE_SWEEP);
+        let again = cache.get(vec![440.0, 660.0], vec![1.0, 2.0], 48_000.0);
+        assert!(Arc::ptr_eq(&a, &again));
+    }
+}

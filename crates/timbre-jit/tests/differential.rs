@@ -384,6 +384,36 @@ fn modal_banks_are_compiled_and_agree_at_every_split() {
     }
 }
 
+/// Voices of one bell struck with different amplitudes share the bell's tables
+/// (`modal::TableCache`) and each renders its own amplitude.
+#[test]
+fn bells_of_the_same_modes_keep_their_own_amplitudes() {
+    let mut jit = Jit::new().unwrap();
+    let bell = |amp: f64| {
+        compile_text(&format!("(* 0.02 (combine (* {amp} (sine (* t (rvector 50 200 2000))) (damp (* t 0.002 (rvector 50 200 2000))))))"))
+    };
+    let (soft, loud) = (bell(0.3), bell(0.9));
+    for program in [&soft, &loud] {
+        if let Err(e) = compare(&mut jit, program, 9_600, TOLERANCE) {
+            panic!("{e}");
+        }
+    }
+    let render = |jit: &mut Jit, p: &Program| {
+        let mut out = vec![0.0; 4_800];
+        jit.voice(&p.graph, p.root.unwrap(), config())
+            .unwrap()
+            .render(&mut out);
+        out
+    };
+    let (a, b) = (render(&mut jit, &soft), render(&mut jit, &loud));
+    // The amplitude is inside the bank (its rotators start at A), so the two differ
+    // by a factor of 3 up to the bank's f32 rounding.
+    assert!(a.iter().any(|x| x.abs() > 0.01), "silent");
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x * 3.0 - y).abs() <= 1e-6, "{x} × 3 vs {y}");
+    }
+}
+
 #[test]
 fn instances_of_one_shape_share_one_kernel() {
     let mut jit = Jit::new().unwrap();
