@@ -197,14 +197,8 @@ impl Facts {
         let freq = out.add(Op::Const(Arc::from(freq)), vec![]);
         let damping = out.add(Op::Const(Arc::from(damping)), vec![]);
         let damped_sine = Op::Stateful(Arc::new(DampedSine));
-        let mut product = out.add(damped_sine, vec![map[time.index()], freq, damping]);
-        for factor in parts.drain(..) {
-            product = out.add(
-                Op::Binary(BinaryOp::Mul),
-                vec![product, map[factor.index()]],
-            );
-        }
-        Some(product)
+        let product = out.add(damped_sine, vec![map[time.index()], freq, damping]);
+        Some(times(out, map, product, parts.drain(..)))
     }
 
     /// `(combine summed)` rewritten as a modal bank, if `summed` is a damped-sine
@@ -235,15 +229,24 @@ impl Facts {
         let [freq, damping, amplitude] =
             [freq, damping, amplitude].map(|v| out.add(Op::Const(Arc::from(v)), vec![]));
         let bank = Op::Stateful(Arc::new(ModalBank));
-        let mut product = out.add(bank, vec![map[time.index()], freq, damping, amplitude]);
-        for factor in common {
-            product = out.add(
-                Op::Binary(BinaryOp::Mul),
-                vec![product, map[factor.index()]],
-            );
-        }
-        Some(product)
+        let product = out.add(bank, vec![map[time.index()], freq, damping, amplitude]);
+        Some(times(out, map, product, common))
     }
+}
+
+/// `product` times each of `factors` (nodes of the original graph, mapped into `out`).
+fn times(
+    out: &mut Graph,
+    map: &[NodeId],
+    product: NodeId,
+    factors: impl IntoIterator<Item = NodeId>,
+) -> NodeId {
+    factors.into_iter().fold(product, |product, factor| {
+        out.add(
+            Op::Binary(BinaryOp::Mul),
+            vec![product, map[factor.index()]],
+        )
+    })
 }
 
 /// One white noise of many lanes, each with its own seed, if `args` are all white

@@ -435,8 +435,7 @@ impl Jit {
                     state[NOISE_SEED * lanes..(NOISE_SEED + 1) * lanes].fill(mixed);
                     state
                 }
-                // The bits of the mixed seed, as for a noise.
-                // Lane l hashes with seed + l.
+                // The bits of each lane's mixed seed, as for a noise.
                 Op::White { ref seeds } => seeds
                     .iter()
                     .map(|seed| f64::from_bits(timbre_ir::dsp::noise::mix64(*seed)))

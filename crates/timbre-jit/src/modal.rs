@@ -40,12 +40,12 @@ use crate::codegen::KernelBuilder;
 use crate::JitError;
 
 /// Samples in a tile: eight vectors of four `f32`.
-pub(crate) const TILE: usize = 32;
+const TILE: usize = 32;
 /// Modes whose tables are run over the block together: 64 × 256 bytes, in L1.
-pub(crate) const GROUP: usize = 64;
+const GROUP: usize = 64;
 /// Samples between exact anchors (besides jumps of τ). Between them z advances by
 /// p^32 in `f64`, whose rounding after 256 tiles is ~1e-14 of the mode's amplitude.
-pub(crate) const ANCHOR_INTERVAL: u64 = 8192;
+const ANCHOR_INTERVAL: u64 = 8192;
 
 const F32X4: types::Type = types::F32X4;
 const I64: types::Type = types::I64;

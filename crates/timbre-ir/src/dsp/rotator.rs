@@ -22,28 +22,13 @@ impl StatefulKernel for DampedSine {
     }
 
     fn new_state(&self, ctx: &StateContext) -> RotatorBank {
-        RotatorBank {
-            lanes: vec![Rotator::default(); ctx.width],
-            last_time: None,
-        }
+        RotatorBank::new(ctx.width)
     }
 
     fn process(&self, bank: &mut RotatorBank, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
-        // F and D are constants, so the first sample of each lane is its value.
-        let time = inputs.lane(0, 0);
-        let freq = |l: usize| inputs.lane(1, l)[0];
-        let damping = |l: usize| inputs.lane(2, l)[0];
         let n = out.n;
         let (samples, stride) = out.strided();
-        let block = BlockOut { samples, stride, n };
-        bank.render(
-            time,
-            &freq,
-            &damping,
-            inputs.first_sample,
-            inputs.sample_rate,
-            block,
-        );
+        bank.render(inputs, BlockOut { samples, stride, n });
     }
 }
 
@@ -78,27 +63,14 @@ impl StatefulKernel for ModalBank {
     fn process(&self, state: &mut ModalBankState, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
         let modes = (1..4).map(|a| inputs.width(a)).max().unwrap_or(1);
         let n = out.n;
-        let bank = state.bank.get_or_insert_with(|| RotatorBank {
-            lanes: vec![Rotator::default(); modes],
-            last_time: None,
-        });
+        let bank = state.bank.get_or_insert_with(|| RotatorBank::new(modes));
         state.modes.resize(modes * n, 0.0);
-        let freq = |l: usize| inputs.lane(1, l)[0];
-        let damping = |l: usize| inputs.lane(2, l)[0];
         let block = BlockOut {
             samples: &mut state.modes,
             stride: n,
             n,
         };
-        let time = inputs.lane(0, 0);
-        bank.render(
-            time,
-            &freq,
-            &damping,
-            inputs.first_sample,
-            inputs.sample_rate,
-            block,
-        );
+        bank.render(inputs, block);
         let sum = out.lane(0);
         sum.fill(0.0);
         for (m, samples) in state.modes.chunks_exact(n).enumerate() {
@@ -183,17 +155,23 @@ pub fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
 }
 
 impl RotatorBank {
+    fn new(lanes: usize) -> Self {
+        RotatorBank {
+            lanes: vec![Rotator::default(); lanes],
+            last_time: None,
+        }
+    }
+
     /// Renders a block of every lane. Lanes are advanced four at a time so that their
     /// multiplications overlap.
-    fn render(
-        &mut self,
-        time: &[f64],
-        freq: &dyn Fn(usize) -> f64,
-        damping: &dyn Fn(usize) -> f64,
-        first_sample: u64,
-        sr: f64,
-        block: BlockOut<'_>,
-    ) {
+    /// Its arguments are τ (one lane) and the constants F and D, as both nodes have
+    /// them.
+    fn render(&mut self, inputs: &Inputs<'_>, block: BlockOut<'_>) {
+        let time = inputs.lane(0, 0);
+        // F and D are constants, so the first sample of each lane is its value.
+        let freq = |l: usize| inputs.lane(1, l)[0];
+        let damping = |l: usize| inputs.lane(2, l)[0];
+        let (first_sample, sr) = (inputs.first_sample, inputs.sample_rate);
         let BlockOut {
             samples: out,
             stride,
