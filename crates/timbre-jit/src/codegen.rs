@@ -312,24 +312,152 @@ impl KernelBuilder<'_, '_> {
         let splatted_inputs = &self.splatted;
         let t0 = self.t0;
 
-        // The body for the lanes `first` and `second` (equal when one lane is left).
-        // Buffer and state pointers are loaded here, per pair of lanes, rather than
-        // held in registers across the whole region.
-        let body = |b: &mut FunctionBuilder, first: Value, second: Value, single: bool| {
+        // A node computed from constants and splatted inputs only, at sample k.
+        let ahead = |b: &mut FunctionBuilder, pair: &PairContext, node: usize, k: Value| {
+            let vector_offset = b.ins().ishl_imm_u(k, 4);
+            let step = &steps[node];
+            let args: Vec<Value> = step
+                .args
+                .iter()
+                .map(|&a| match pair.constants.get(&a) {
+                    Some(&slot) => b.ins().stack_load(I64, F64X2, slot, 0),
+                    None => {
+                        let addr = b.ins().iadd(pair.copies[&a], vector_offset);
+                        b.ins().load(F64X2, mem(), addr, 0)
+                    }
+                })
+                .collect();
+            elementwise(b, &helpers, steps, step, &args)
+        };
+
+        // One pair's nodes at sample k (byte offsets `offset` in one-lane buffers and
+        // `vector_offset` in vectors); stores what the region stores, and returns every
+        // value, for the combines.
+        let sample = |b: &mut FunctionBuilder,
+                      pair: &PairContext,
+                      k: Value,
+                      offset: Value,
+                      vector_offset: Value| {
+            let mut values: HashMap<usize, Value> = HashMap::new();
+            for &(node, var) in &pair.carried {
+                values.insert(node, b.use_var(var));
+            }
+            // Inputs from outside the region are loaded where they are used, so that
+            // they are not held (or spilled) across the whole body.
+            let input = |b: &mut FunctionBuilder, s: usize| {
+                if let Some(&slot) = pair.constants.get(&s) {
+                    return b.ins().stack_load(I64, F64X2, slot, 0);
+                }
+                if let Some(&base) = pair.copies.get(&s) {
+                    let addr = b.ins().iadd(base, vector_offset);
+                    return b.ins().load(F64X2, mem(), addr, 0);
+                }
+                let lanes = pair.bases[&s];
+                let a0 = b.ins().iadd(lanes[0], offset);
+                let x0 = b.ins().load(types::F64, mem(), a0, 0);
+                if steps[s].width == 1 {
+                    b.ins().splat(F64X2, x0)
+                } else {
+                    let a1 = b.ins().iadd(lanes[1], offset);
+                    let x1 = b.ins().load(types::F64, mem(), a1, 0);
+                    self::pair(b, x0, x1)
+                }
+            };
+            for &node in &region.nodes {
+                let step = &steps[node];
+                if values.contains_key(&node) {
+                    continue; // computed ahead
+                }
+                if let Some(&noise) = fused.get(&node) {
+                    // k · noise: the noise's own value (see `scaled_noises`).
+                    values.insert(node, values[&noise]);
+                    continue;
+                }
+                // An input is loaded once per sample, where first used.
+                let mut args: Vec<Value> = vec![];
+                for &a in &step.args {
+                    let value = match values.get(&a) {
+                        Some(&v) => v,
+                        None => {
+                            let v = input(b, a);
+                            values.insert(a, v);
+                            v
+                        }
+                    };
+                    args.push(value);
+                }
+                let value = match &step.op {
+                    _ if is_elementwise(&step.op) => elementwise(b, &helpers, steps, step, &args),
+                    Op::Noise { .. } => lane_noise(
+                        b,
+                        pair.states[&node].vars[0],
+                        &pair.noise_rows[&node],
+                        args[0],
+                    ),
+                    Op::White { .. } => {
+                        // Both lanes at sample t0 + k, each with its own seed.
+                        let [s0, s1] = pair.white_seeds[&node];
+                        let index = b.ins().iadd(t0, k);
+                        let x0 = gradient(b, s0, index);
+                        let x1 = gradient(b, s1, index);
+                        self::pair(b, x0, x1)
+                    }
+                    Op::Phasor => {
+                        // out = frac(phase + offset), or phase without an offset;
+                        // phase = frac(phase + freq · period)
+                        let phase = pair.states[&node].vars[0];
+                        let p = b.use_var(phase);
+                        let out = match args.get(1) {
+                            Some(&offset) => {
+                                let shifted = b.ins().fadd(p, offset);
+                                approx::frac(b, shifted)
+                            }
+                            None => p,
+                        };
+                        let period = b.ins().stack_load(I64, F64X2, period, 0);
+                        let step = b.ins().fmul(args[0], period);
+                        let next = b.ins().fadd(p, step);
+                        let next = approx::frac(b, next);
+                        b.def_var(phase, next);
+                        out
+                    }
+                    other => unreachable!("`{other}` is not compiled inline across lanes"),
+                };
+                values.insert(node, value);
+            }
+            for &s in &region.stored {
+                for (lane, base) in pair.bases[&s].iter().enumerate() {
+                    let x = b.ins().extractlane(values[&s], lane as u8);
+                    let addr = b.ins().iadd(*base, offset);
+                    b.ins().store(mem(), x, addr, 0);
+                }
+            }
+            values
+        };
+
+        // What one pair of lanes (`first` and `second`, equal when one lane is left)
+        // needs before the sample loop. Buffer and state pointers are loaded here, per
+        // pair of lanes, rather than held in registers across the whole region.
+        let setup = |b: &mut FunctionBuilder, first: Value, second: Value, single: bool| {
             let offsets = [
                 b.ins().imul_imm_s(first, lane_bytes),
                 b.ins().imul_imm_s(second, lane_bytes),
             ];
-            // Where each buffer's two lanes start; constants as vectors.
-            let mut bases: HashMap<usize, [Value; 2]> = HashMap::new();
-            let mut constants: HashMap<usize, StackSlot> = HashMap::new();
-            // One-lane inputs computed inline are read from their splatted copies.
-            let mut copies: HashMap<usize, Value> = HashMap::new();
+            let mut pair = PairContext {
+                single,
+                bases: HashMap::new(),
+                constants: HashMap::new(),
+                copies: HashMap::new(),
+                states: HashMap::new(),
+                noise_rows: HashMap::new(),
+                white_seeds: HashMap::new(),
+                carried: vec![],
+            };
             for &s in &buffer_steps {
                 if splatted_inputs[s] {
                     let entry = (steps.len() + s) * 8;
                     let table = b.ins().load(I64, mem(), state_table, entry as i32);
-                    copies.insert(s, table);
+                    pair.copies.insert(s, table);
                     continue;
                 }
                 let table = b.ins().load(I64, mem(), buffers, (s * 8) as i32);
@@ -347,35 +475,32 @@ impl KernelBuilder<'_, '_> {
                         b.ins().splat(F64X2, x0)
                     } else {
                         let x1 = b.ins().load(types::F64, mem(), lanes[1], 0);
-                        pair(b, x0, x1)
+                        self::pair(b, x0, x1)
                     };
                     // Kept in a stack slot and loaded where used: as a value, the
                     // register allocator reloads it and stores it back every
                     // iteration.
-                    constants.insert(s, vector_slot(b, value));
+                    pair.constants.insert(s, vector_slot(b, value));
                 } else {
-                    bases.insert(s, lanes);
+                    pair.bases.insert(s, lanes);
                 }
             }
-            let mut states: HashMap<usize, LaneState> = HashMap::new();
-            let mut noise_rows: HashMap<usize, NoiseRows> = HashMap::new();
-            // A white noise's two lanes' mixed seeds, loaded once for the sample loop.
-            let mut white_seeds: HashMap<usize, [Value; 2]> = HashMap::new();
             for &s in &stateful {
                 // A phasor's phase, a noise's cell: one vector variable. A noise's
                 // coefficients stay in its state table, loaded where they are used.
                 let state = LaneState::load(b, state_table, s, [first, second], 1);
                 if matches!(steps[s].op, Op::White { .. }) {
+                    // The two lanes' mixed seeds, loaded once for the sample loop.
                     let lanes = state.addresses(b, 1);
                     let seeds = lanes.map(|address| b.ins().load(I64, mem(), address, 0));
-                    white_seeds.insert(s, seeds);
+                    pair.white_seeds.insert(s, seeds);
                 }
                 if matches!(steps[s].op, Op::Noise { .. }) {
                     // Slot 0 of each lane; the coefficients are rows further on.
                     let lanes = state.addresses(b, 1);
                     let row = (steps[s].width * 8) as i32;
-                    let scale = scaled.get(&s).map(|&(_, k)| constants[&k]);
-                    noise_rows.insert(
+                    let scale = scaled.get(&s).map(|&(_, k)| pair.constants[&k]);
+                    pair.noise_rows.insert(
                         s,
                         NoiseRows {
                             lanes,
@@ -385,29 +510,12 @@ impl KernelBuilder<'_, '_> {
                         },
                     );
                 }
-                states.insert(s, state);
+                pair.states.insert(s, state);
             }
-
             // Nodes computed only from constants and splatted one-lane inputs are
             // computed a sample ahead and carried to the next iteration, so that the
             // chains through them start with the iteration (see `docs/performance.md`).
-            let ahead = |b: &mut FunctionBuilder, node: usize, k: Value| {
-                let vector_offset = b.ins().ishl_imm_u(k, 4);
-                let step = &steps[node];
-                let args: Vec<Value> = step
-                    .args
-                    .iter()
-                    .map(|&a| match constants.get(&a) {
-                        Some(&slot) => b.ins().stack_load(I64, F64X2, slot, 0),
-                        None => {
-                            let addr = b.ins().iadd(copies[&a], vector_offset);
-                            b.ins().load(F64X2, mem(), addr, 0)
-                        }
-                    })
-                    .collect();
-                elementwise(b, &helpers, steps, step, &args)
-            };
-            let carried: Vec<(usize, Variable)> = region
+            pair.carried = region
                 .nodes
                 .iter()
                 .copied()
@@ -415,152 +523,93 @@ impl KernelBuilder<'_, '_> {
                     let step = &steps[node];
                     is_elementwise(&step.op)
                         && !fused.contains_key(&node)
-                        && step
-                            .args
-                            .iter()
-                            .all(|a| constants.contains_key(a) || copies.contains_key(a))
+                        && step.args.iter().all(|a| {
+                            pair.constants.contains_key(a) || pair.copies.contains_key(a)
+                        })
                 })
+                .collect::<Vec<_>>()
+                .into_iter()
                 .map(|node| {
                     let var = b.declare_var(F64X2);
                     let zero = b.ins().iconst(I64, 0);
-                    let first = ahead(b, node, zero);
+                    let first = ahead(b, &pair, node, zero);
                     b.def_var(var, first);
                     (node, var)
                 })
                 .collect();
+            pair
+        };
 
+        // The sample loop for several pairs of lanes at once: their chains (a phase,
+        // a noise's cell) are independent, so the processor overlaps them, where one
+        // pair alone waits on its own chain's latency.
+        let samples = |b: &mut FunctionBuilder, pairs: &[PairContext]| {
             counted_loop(b, 0, n, 1, |b, k| {
-                let mut values: HashMap<usize, Value> = HashMap::new();
-                for &(node, var) in &carried {
-                    values.insert(node, b.use_var(var));
-                }
                 // Byte offsets of this sample in one-lane buffers and in vectors.
                 let offset = b.ins().ishl_imm_u(k, 3);
                 let vector_offset = b.ins().ishl_imm_u(k, 4);
-                // Inputs from outside the region are loaded where they are used, so
-                // that they are not held (or spilled) across the whole body.
-                let input = |b: &mut FunctionBuilder, s: usize| {
-                    if let Some(&slot) = constants.get(&s) {
-                        return b.ins().stack_load(I64, F64X2, slot, 0);
-                    }
-                    if let Some(&base) = copies.get(&s) {
-                        let addr = b.ins().iadd(base, vector_offset);
-                        return b.ins().load(F64X2, mem(), addr, 0);
-                    }
-                    let lanes = bases[&s];
-                    let a0 = b.ins().iadd(lanes[0], offset);
-                    let x0 = b.ins().load(types::F64, mem(), a0, 0);
-                    if steps[s].width == 1 {
-                        b.ins().splat(F64X2, x0)
-                    } else {
-                        let a1 = b.ins().iadd(lanes[1], offset);
-                        let x1 = b.ins().load(types::F64, mem(), a1, 0);
-                        pair(b, x0, x1)
-                    }
-                };
-                for &node in &region.nodes {
-                    let step = &steps[node];
-                    if values.contains_key(&node) {
-                        continue; // computed ahead
-                    }
-                    if let Some(&noise) = fused.get(&node) {
-                        // k · noise: the noise's own value (see `scaled_noises`).
-                        values.insert(node, values[&noise]);
-                        continue;
-                    }
-                    // An input is loaded once per sample, where first used.
-                    let mut args: Vec<Value> = vec![];
-                    for &a in &step.args {
-                        let value = match values.get(&a) {
-                            Some(&v) => v,
-                            None => {
-                                let v = input(b, a);
-                                values.insert(a, v);
-                                v
-                            }
-                        };
-                        args.push(value);
-                    }
-                    let value = match &step.op {
-                        _ if is_elementwise(&step.op) => {
-                            elementwise(b, &helpers, steps, step, &args)
-                        }
-                        Op::Noise { .. } => {
-                            lane_noise(b, states[&node].vars[0], &noise_rows[&node], args[0])
-                        }
-                        Op::White { .. } => {
-                            // Both lanes at sample t0 + k, each with its own seed.
-                            let [s0, s1] = white_seeds[&node];
-                            let index = b.ins().iadd(t0, k);
-                            let x0 = gradient(b, s0, index);
-                            let x1 = gradient(b, s1, index);
-                            pair(b, x0, x1)
-                        }
-                        Op::Phasor => {
-                            // out = frac(phase + offset), or phase without an offset;
-                            // phase = frac(phase + freq · period)
-                            let phase = states[&node].vars[0];
-                            let p = b.use_var(phase);
-                            let out = match args.get(1) {
-                                Some(&offset) => {
-                                    let shifted = b.ins().fadd(p, offset);
-                                    approx::frac(b, shifted)
-                                }
-                                None => p,
-                            };
-
-                            let period = b.ins().stack_load(I64, F64X2, period, 0);
-                            let step = b.ins().fmul(args[0], period);
-                            let next = b.ins().fadd(p, step);
-                            let next = approx::frac(b, next);
-                            b.def_var(phase, next);
-                            out
-                        }
-                        other => unreachable!("`{other}` is not compiled inline across lanes"),
-                    };
-                    values.insert(node, value);
+                let mut values: Vec<HashMap<usize, Value>> = vec![];
+                for pair in pairs {
+                    values.push(sample(b, pair, k, offset, vector_offset));
                 }
-                for &s in &region.stored {
-                    for (lane, base) in bases[&s].iter().enumerate() {
-                        let x = b.ins().extractlane(values[&s], lane as u8);
-                        let addr = b.ins().iadd(*base, offset);
-                        b.ins().store(mem(), x, addr, 0);
-                    }
-                }
+                // Each combine adds the pairs in lane order, as one pair at a time.
                 for &c in &region.combines {
-                    let mut x = values[&steps[c].args[0]];
-                    if single {
-                        // Both halves hold the one lane left: count it once.
-                        let zero = b.ins().f64const(0.0);
-                        x = b.ins().insertlane(x, zero, 1);
-                    }
                     let addr = b.ins().iadd(partial_sums[&c], vector_offset);
-                    let sum = b.ins().load(F64X2, mem(), addr, 0);
-                    let sum = b.ins().fadd(sum, x);
+                    let mut sum = b.ins().load(F64X2, mem(), addr, 0);
+                    for (pair, values) in pairs.iter().zip(&values) {
+                        let mut x = values[&steps[c].args[0]];
+                        if pair.single {
+                            // Both halves hold the one lane left: count it once.
+                            let zero = b.ins().f64const(0.0);
+                            x = b.ins().insertlane(x, zero, 1);
+                        }
+                        sum = b.ins().fadd(sum, x);
+                    }
                     b.ins().store(mem(), sum, addr, 0);
                 }
                 // The next sample's values of the nodes computed ahead (the last
                 // iteration reads one sample past the block: the copies have room).
                 let next = b.ins().iadd_imm_s(k, 1);
-                for &(node, var) in &carried {
-                    let value = ahead(b, node, next);
-                    b.def_var(var, value);
+                for pair in pairs {
+                    for &(node, var) in &pair.carried {
+                        let value = ahead(b, pair, node, next);
+                        b.def_var(var, value);
+                    }
                 }
             });
-            for state in states.values() {
-                state.store(b);
+            for pair in pairs {
+                for state in pair.states.values() {
+                    state.store(b);
+                }
             }
         };
 
-        let pairs = self.b.ins().iconst(I64, (width / 2) as i64);
-        counted_loop(self.b, 0, pairs, 1, |b, p| {
-            let first = b.ins().imul_imm_s(p, 2);
-            let second = b.ins().iadd_imm_s(first, 1);
-            body(b, first, second, false);
+        // Full groups of pairs in a loop, then the pairs left and a lone last lane.
+        let pair_count = width / 2;
+        let groups = self.b.ins().iconst(I64, (pair_count / PAIRS_AT_ONCE) as i64);
+        counted_loop(self.b, 0, groups, 1, |b, g| {
+            let first_lane = b.ins().imul_imm_s(g, 2 * PAIRS_AT_ONCE as i64);
+            let pairs: Vec<PairContext> = (0..PAIRS_AT_ONCE)
+                .map(|j| {
+                    let first = b.ins().iadd_imm_s(first_lane, 2 * j as i64);
+                    let second = b.ins().iadd_imm_s(first, 1);
+                    setup(b, first, second, false)
+                })
+                .collect();
+            samples(b, &pairs);
         });
+        let mut rest: Vec<PairContext> = vec![];
+        for p in pair_count / PAIRS_AT_ONCE * PAIRS_AT_ONCE..pair_count {
+            let first = self.b.ins().iconst(I64, 2 * p as i64);
+            let second = self.b.ins().iconst(I64, 2 * p as i64 + 1);
+            rest.push(setup(self.b, first, second, false));
+        }
         if width % 2 == 1 {
             let last = self.b.ins().iconst(I64, (width - 1) as i64);
-            body(self.b, last, last, true);
+            rest.push(setup(self.b, last, last, true));
+        }
+        if !rest.is_empty() {
+            samples(self.b, &rest);
         }
         for &c in &region.combines {
             let out = self.buffer(c);
@@ -1239,6 +1288,28 @@ fn vector_slot(b: &mut FunctionBuilder, value: Value) -> StackSlot {
 fn pair(b: &mut FunctionBuilder, x0: Value, x1: Value) -> Value {
     let v = b.ins().splat(F64X2, x0);
     b.ins().insertlane(v, x1, 1)
+}
+
+/// Pairs of lanes a lane-vectorised region computes in one sample loop.
+const PAIRS_AT_ONCE: usize = 2;
+
+/// What the sample loop of a lane-vectorised region needs of one pair of lanes.
+struct PairContext {
+    /// Both halves are the one lane left (an odd width's last).
+    single: bool,
+    /// Where each input buffer's two lanes start.
+    bases: HashMap<usize, [Value; 2]>,
+    /// Constant inputs, as vectors in stack slots.
+    constants: HashMap<usize, StackSlot>,
+    /// One-lane inputs computed inline, read from their splatted copies.
+    copies: HashMap<usize, Value>,
+    /// Inline stateful nodes' state.
+    states: HashMap<usize, LaneState>,
+    noise_rows: HashMap<usize, NoiseRows>,
+    /// A white noise's two lanes' mixed seeds.
+    white_seeds: HashMap<usize, [Value; 2]>,
+    /// Nodes computed a sample ahead, and the variable carrying each.
+    carried: Vec<(usize, Variable)>,
 }
 
 /// Per-lane state of an inline node in a lane-vectorised region: `slots` scalars per
