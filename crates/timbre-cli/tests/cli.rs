@@ -1426,3 +1426,45 @@ fn threads_do_not_change_the_bytes() {
     ])
     .assert_code(2);
 }
+
+#[test]
+fn a_scene_that_ends_early_writes_a_header_of_the_frames_it_has() {
+    // No :duration: the file ends with the instance (its stop plus the fade-out),
+    // so the header first written for the cap is written again.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("short.tt");
+    std::fs::write(
+        &scene,
+        "(define-sound tone () (* 0.5 (sine (* t 440))))\n(instance a (tone) :start 0 :stop 0.25)\n",
+    )
+    .unwrap();
+    let mut lengths = vec![];
+    for (format, bytes) in [("f32", 4), ("s16", 2), ("s24", 3)] {
+        let out = dir.path().join(format!("{format}.wav"));
+        run_in(
+            Some(dir.path()),
+            [
+                "render".as_ref(),
+                scene.as_os_str(),
+                "--format".as_ref(),
+                format.as_ref(),
+                "-o".as_ref(),
+                out.as_os_str(),
+                "-q".as_ref(),
+            ],
+        )
+        .assert_success();
+        let wav = read_wav(&out);
+        let n = wav.samples.len();
+        assert!(
+            (0.25 * 48_000.0..0.3 * 48_000.0).contains(&(n as f64)),
+            "{format}: {n} samples"
+        );
+        let size = std::fs::metadata(&out).unwrap().len() as usize;
+        let header = if format == "f32" { 56 } else { 44 };
+        assert_eq!(size, header + bytes * n, "{format}: no bytes past the data");
+        assert!(peak(&wav.samples) > 0.45, "{format}: the tone is there");
+        lengths.push(n);
+    }
+    assert!(lengths.iter().all(|&n| n == lengths[0]), "{lengths:?}");
+}

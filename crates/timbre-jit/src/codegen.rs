@@ -523,9 +523,10 @@ impl KernelBuilder<'_, '_> {
                     let step = &steps[node];
                     is_elementwise(&step.op)
                         && !fused.contains_key(&node)
-                        && step.args.iter().all(|a| {
-                            pair.constants.contains_key(a) || pair.copies.contains_key(a)
-                        })
+                        && step
+                            .args
+                            .iter()
+                            .all(|a| pair.constants.contains_key(a) || pair.copies.contains_key(a))
                 })
                 .collect::<Vec<_>>()
                 .into_iter()
@@ -586,7 +587,10 @@ impl KernelBuilder<'_, '_> {
 
         // Full groups of pairs in a loop, then the pairs left and a lone last lane.
         let pair_count = width / 2;
-        let groups = self.b.ins().iconst(I64, (pair_count / PAIRS_AT_ONCE) as i64);
+        let groups = self
+            .b
+            .ins()
+            .iconst(I64, (pair_count / PAIRS_AT_ONCE) as i64);
         counted_loop(self.b, 0, groups, 1, |b, g| {
             let first_lane = b.ins().imul_imm_s(g, 2 * PAIRS_AT_ONCE as i64);
             let pairs: Vec<PairContext> = (0..PAIRS_AT_ONCE)

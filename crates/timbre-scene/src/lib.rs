@@ -537,7 +537,8 @@ impl SceneRenderer {
             .pool
             .as_ref()
             .filter(|_| self.active.len() > 1 && worth_it);
-        let started = Instant::now();
+        // Timed only when there are threads to decide for.
+        let started = self.pool.is_some().then(Instant::now);
         let threads = pool.map_or(1, |p| p.current_num_threads());
         match pool {
             // Each voice renders into its own buffer on some thread; then they are
@@ -585,8 +586,10 @@ impl SceneRenderer {
                 }
             }
         }
-        // What the block would have taken on one thread, roughly.
-        self.last_block_work = started.elapsed() * threads as u32;
+        if let Some(started) = started {
+            // What the block would have taken on one thread, roughly.
+            self.last_block_work = started.elapsed() * threads as u32;
+        }
         for a in &self.active {
             if a.end.is_some_and(|e| a.next >= e) {
                 self.ended_at = self.ended_at.max(a.next);
