@@ -15,13 +15,14 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 10] = [
+pub const WORKLOADS: [&str; 11] = [
     "bell-100",
     "wood-500",
     "bell-1000",
     "swarm-50",
     "bell-100-restruck",
     "scene-500",
+    "bees-50",
     "space-100",
     "peer-w1",
     "peer-w2",
@@ -37,6 +38,7 @@ pub fn workload(name: &str) -> Option<Workload> {
         "swarm-50" => swarm(50),
         "bell-100-restruck" => bell_restruck(100),
         "scene-500" => collisions(500),
+        "bees-50" => bees(50),
         "space-100" => moving_sources(100),
         "peer-w1" => peer("peer-w1", include_str!("../peers/w1.tt")),
         "peer-w2" => peer("peer-w2", include_str!("../peers/w2.tt")),
@@ -209,6 +211,28 @@ pub fn collisions(n: usize) -> Workload {
     }
 }
 
+/// A swarm as a scene: `n` instances of one bee class (the swarm's bee: its own
+/// pitch and noise), one starting every 5 ms, all playing to the end. The JIT
+/// computes them as the lanes of one kernel call (`timbre_jit::LaneBatch`).
+pub fn bees(n: usize) -> Workload {
+    let mut source = String::from(
+        "(define-sound bee (f o)
+           (* (/ 1 50) (sawtooth (phasor (+ f (* 12 (noise (+ o (* t 3)))) (* 2 (noise (+ o (* t 400)))))))))\n",
+    );
+    for k in 0..n {
+        source += &format!(
+            "(instance b{k} (bee :f {} :o {}) :start {})\n",
+            180.0 + 80.0 * ((k * 37) % n) as f64 / n as f64,
+            1 + 19 * k,
+            0.005 * k as f64
+        );
+    }
+    Workload {
+        name: leak(format!("bees-{n}")),
+        source,
+    }
+}
+
 /// `n` sources, each a tone, moving on straight lines past a spaced stereo pair (a
 /// second each way, then back), heard with exact propagation: the cost of space.
 pub fn moving_sources(n: usize) -> Workload {
@@ -251,6 +275,7 @@ mod tests {
             assert!(WORKLOADS.contains(&w.name));
         }
         assert_eq!(compile(&collisions(500)).instances.len(), 500);
+        assert_eq!(compile(&bees(50)).instances.len(), 50);
         assert_eq!(compile(&moving_sources(100)).instances.len(), 100);
         assert!(workload("bell-7").is_none());
     }

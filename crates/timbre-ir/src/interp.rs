@@ -37,7 +37,7 @@ impl Default for RenderConfig {
 }
 
 /// One scheduled node, as a compiled engine sees it.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Step {
     pub op: Op,
     /// Step indices of the arguments.
@@ -45,6 +45,24 @@ pub struct Step {
     pub width: usize,
     /// Constants are filled once and never recomputed.
     pub constant: bool,
+}
+
+/// The schedule of `root` as steps: children before parents, the root last.
+pub fn steps(graph: &Graph, root: NodeId) -> Vec<Step> {
+    let schedule = graph.schedule(root);
+    let mut step_of = vec![usize::MAX; root.index() + 1];
+    let mut steps = Vec::with_capacity(schedule.len());
+    for (i, id) in schedule.iter().enumerate() {
+        step_of[id.index()] = i;
+        let node = graph.node(*id);
+        steps.push(Step {
+            op: node.op.clone(),
+            args: node.args.iter().map(|a| step_of[a.index()]).collect(),
+            width: node.width,
+            constant: matches!(node.op, Op::Const(_)),
+        });
+    }
+    steps
 }
 
 /// An instance of a tree being rendered: its buffers, states and position.
@@ -78,19 +96,7 @@ impl Interpreter {
             sample_rate: config.sample_rate,
             block_size: config.block_size.max(1),
         };
-        let schedule = graph.schedule(root);
-        let mut step_of = vec![usize::MAX; root.index() + 1];
-        let mut steps = Vec::with_capacity(schedule.len());
-        for (i, id) in schedule.iter().enumerate() {
-            step_of[id.index()] = i;
-            let node = graph.node(*id);
-            steps.push(Step {
-                op: node.op.clone(),
-                args: node.args.iter().map(|a| step_of[a.index()]).collect(),
-                width: node.width,
-                constant: matches!(node.op, Op::Const(_)),
-            });
-        }
+        let steps = steps(graph, root);
         let bs = config.block_size;
         let buffers = steps
             .iter()

@@ -38,7 +38,7 @@ pub use custom::{BlockContext, CustomNode, Lanes};
 pub use dump::dump;
 pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, StableHasher};
-pub use interp::{Interpreter, RenderConfig, Step};
+pub use interp::{steps, Interpreter, RenderConfig, Step};
 pub use loader::{FsLoader, Loader, NoFiles};
 pub use lower::{
     compile, compile_after, did_you_mean, CompileOptions, Instance, Instantiated, Library,

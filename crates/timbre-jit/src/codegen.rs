@@ -4,7 +4,9 @@
 //! The kernel's signature is
 //! `kernel(interp, buffers, params, n, t0, states)`: the interpreter being driven (for
 //! callbacks), the table of per-step buffer pointers, the parameters (`params[0]` is
-//! the sample rate, `params[1]` its reciprocal), the samples in this block, the index
+//! the sample rate, `params[1]` its reciprocal, `params[2]` the address of each lane's
+//! start and `params[3]` the lanes in use, both as integers: see
+//! [`KernelBuilder::lane_starts`]), the samples in this block, the index
 //! of its first sample, and the table of per-step state of nodes compiled inline (a
 //! phasor's phase per lane, a noise's cell, coefficients and seed, a combine's
 //! partial sums), followed by one entry per step for splatted copies
@@ -78,6 +80,13 @@ pub(crate) struct KernelBuilder<'a, 'b> {
     pub sample_rate: Value,
     /// 1 / sample rate, as the interpreter computes it.
     pub sample_period: Value,
+    /// Per lane, the sample (of `t0`'s count) at which the lane's local time is 0:
+    /// zero for a voice's own lanes, an instance's start for a batch of instances
+    /// as lanes (`params[2]`, a pointer to `i64`s).
+    pub lane_starts: Value,
+    /// Lanes of a lane region to compute, rounded up to whole groups of pairs
+    /// (`params[3]`, an `i64`): all of them for a voice, those in use for a batch.
+    pub lanes_in_use: Value,
     /// Per step: whether a one-lane region keeps splatted copies of it
     /// ([`Region::splatted`]).
     pub splatted: Vec<bool>,
@@ -305,6 +314,16 @@ impl KernelBuilder<'_, '_> {
             let value = self.b.ins().splat(F64X2, self.sample_period);
             vector_slot(self.b, value)
         };
+        let rate = {
+            let value = self.b.ins().splat(F64X2, self.sample_rate);
+            vector_slot(self.b, value)
+        };
+        // Whether the region reads its lanes' sample indices.
+        let needs_index = region
+            .nodes
+            .iter()
+            .any(|&node| matches!(steps[node].op, Op::Time | Op::White { .. }));
+        let lane_starts = self.lane_starts;
         let helpers = self.helpers;
         let (buffers, state_table) = (self.buffers, self.states);
         let scaled = scaled_noises(steps, region);
@@ -395,12 +414,23 @@ impl KernelBuilder<'_, '_> {
                         args[0],
                     ),
                     Op::White { .. } => {
-                        // Both lanes at sample t0 + k, each with its own seed.
+                        // Each lane at its own local sample index, with its own seed.
                         let [s0, s1] = pair.white_seeds[&node];
-                        let index = b.ins().iadd(t0, k);
-                        let x0 = gradient(b, s0, index);
-                        let x1 = gradient(b, s1, index);
+                        let [i0, i1] = pair.sample_bases.map(|base| b.ins().iadd(base, k));
+                        let x0 = gradient(b, s0, i0);
+                        let x1 = gradient(b, s1, i1);
                         self::pair(b, x0, x1)
+                    }
+                    Op::Time => {
+                        // Each lane's local time, index / rate as the interpreter has it
+                        // (lanes of time are instances of a batch).
+                        let [t0, t1] = pair.sample_bases.map(|base| {
+                            let index = b.ins().iadd(base, k);
+                            b.ins().fcvt_from_sint(types::F64, index)
+                        });
+                        let rate = b.ins().stack_load(I64, F64X2, rate, 0);
+                        let v = self::pair(b, t0, t1);
+                        b.ins().fdiv(v, rate)
                     }
                     Op::Phasor => {
                         // out = frac(phase + offset), or phase without an offset;
@@ -443,7 +473,19 @@ impl KernelBuilder<'_, '_> {
                 b.ins().imul_imm_s(first, lane_bytes),
                 b.ins().imul_imm_s(second, lane_bytes),
             ];
+            // Each lane's local sample index at k = 0: t0 − its start.
+            let sample_bases = if needs_index {
+                [first, second].map(|lane| {
+                    let offset = b.ins().ishl_imm_u(lane, 3);
+                    let address = b.ins().iadd(lane_starts, offset);
+                    let start = b.ins().load(I64, mem(), address, 0);
+                    b.ins().isub(t0, start)
+                })
+            } else {
+                [t0, t0]
+            };
             let mut pair = PairContext {
+                sample_bases,
                 single,
                 bases: HashMap::new(),
                 constants: HashMap::new(),
@@ -587,12 +629,21 @@ impl KernelBuilder<'_, '_> {
 
         // Full groups of pairs in a loop, then the pairs left and a lone last lane.
         let pair_count = width / 2;
-        let groups = self
-            .b
-            .ins()
-            .iconst(I64, (pair_count / PAIRS_AT_ONCE) as i64);
+        let lanes_per_group = 2 * PAIRS_AT_ONCE as i64;
+        let groups = {
+            let all = self
+                .b
+                .ins()
+                .iconst(I64, (pair_count / PAIRS_AT_ONCE) as i64);
+            let lanes = self
+                .b
+                .ins()
+                .iadd_imm_s(self.lanes_in_use, lanes_per_group - 1);
+            let in_use = self.b.ins().udiv_imm_u(lanes, lanes_per_group);
+            self.b.ins().umin(all, in_use)
+        };
         counted_loop(self.b, 0, groups, 1, |b, g| {
-            let first_lane = b.ins().imul_imm_s(g, 2 * PAIRS_AT_ONCE as i64);
+            let first_lane = b.ins().imul_imm_s(g, lanes_per_group);
             let pairs: Vec<PairContext> = (0..PAIRS_AT_ONCE)
                 .map(|j| {
                     let first = b.ins().iadd_imm_s(first_lane, 2 * j as i64);
@@ -1299,6 +1350,9 @@ const PAIRS_AT_ONCE: usize = 2;
 
 /// What the sample loop of a lane-vectorised region needs of one pair of lanes.
 struct PairContext {
+    /// Each lane's local sample index at the block's first sample (for `t` and white
+    /// noise).
+    sample_bases: [Value; 2],
     /// Both halves are the one lane left (an odd width's last).
     single: bool,
     /// Where each input buffer's two lanes start.
@@ -1455,13 +1509,13 @@ fn lane_noise(b: &mut FunctionBuilder, cell: Variable, rows: &NoiseRows, x: Valu
     b.ins().jump(join, &[BlockArg::Value(u)]);
 
     b.switch_to_block(slow);
-    // Every lane holds the seed: the first lane's.
-    let seed = SeedSlot {
-        address: rows.lanes[0],
-        offset: NOISE_SEED as i32 * rows.row,
-    };
-    let mixed_seed = seed.load(b);
     for lane in 0..2u8 {
+        // Each lane's own seed (the lanes of a batch are different instances).
+        let seed = SeedSlot {
+            address: rows.lanes[lane as usize],
+            offset: NOISE_SEED as i32 * rows.row,
+        };
+        let mixed_seed = seed.load(b);
         let f = b.ins().extractlane(fl, lane);
         let mut coefficients = cell_coefficients(b, mixed_seed, f);
         if let Some(slot) = rows.scale {

@@ -15,6 +15,7 @@
 
 mod approx;
 mod codegen;
+mod lanes;
 mod modal;
 mod plan;
 mod shape;
@@ -38,6 +39,8 @@ use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
 use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SEED, NOISE_SLOTS};
 use crate::plan::PlanStep;
 use crate::shape::Shape;
+
+pub use crate::lanes::{InstanceLanes, LaneBatch, BATCH_LANES};
 
 /// Why a tree could not be compiled.
 #[derive(Debug, thiserror::Error)]
@@ -333,6 +336,16 @@ impl Jit {
             };
             let sample_rate = param(&mut b, 0);
             let sample_period = param(&mut b, 1);
+            let int_param = |b: &mut FunctionBuilder, k: i32| {
+                b.ins().load(
+                    cranelift_codegen::ir::types::I64,
+                    MemFlagsData::new().with_notrap(),
+                    params[2],
+                    8 * k,
+                )
+            };
+            let lane_starts = int_param(&mut b, 2);
+            let lanes_in_use = int_param(&mut b, 3);
             let mut kb = KernelBuilder {
                 b: &mut b,
                 steps,
@@ -345,6 +358,8 @@ impl Jit {
                 states: params[5],
                 sample_rate,
                 sample_period,
+                lane_starts,
+                lanes_in_use,
                 splatted: splatted.clone(),
             };
             kb.emit(&plan);
@@ -473,6 +488,10 @@ impl Jit {
         for (i, bank) in &mut modal_banks {
             state_pointers[*i] = (bank as *mut modal::ModalState).cast();
         }
+        // Its lanes all start with it (see `KernelBuilder::lane_starts`).
+        let widest = interp.steps().iter().map(|s| s.width).max().unwrap_or(1);
+        let lane_starts = vec![0i64; widest];
+        let params = kernel_params(config.sample_rate, &lane_starts, widest);
         Ok(JitVoice {
             root_width: interp.root_width(),
             interp,
@@ -481,8 +500,8 @@ impl Jit {
             _states: states,
             modal_banks,
             state_pointers,
-            // The interpreter's own sample period, bit for bit.
-            params: vec![config.sample_rate, 1.0 / config.sample_rate],
+            _lane_starts: lane_starts,
+            params,
         })
     }
 
@@ -518,7 +537,21 @@ pub struct JitVoice {
     /// interpreter is cold in the cache when it has a thousand others.
     root_width: usize,
     state_pointers: Vec<*mut f64>,
-    params: Vec<f64>,
+    /// Reached through `params`.
+    _lane_starts: Vec<i64>,
+    params: [f64; 4],
+}
+
+/// A kernel's parameter table: the sample rate, the interpreter's own sample period
+/// (bit for bit), where the lanes' starts are and how many lanes are in use (see
+/// `KernelBuilder`), the last two as the bits of integers.
+fn kernel_params(sample_rate: f64, lane_starts: &[i64], lanes_in_use: usize) -> [f64; 4] {
+    [
+        sample_rate,
+        1.0 / sample_rate,
+        f64::from_bits(lane_starts.as_ptr() as u64),
+        f64::from_bits(lanes_in_use as u64),
+    ]
 }
 
 // SAFETY: the raw pointers point into buffers owned by this voice's interpreter and

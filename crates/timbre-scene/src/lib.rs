@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
-use timbre_jit::{Jit, JitError, JitVoice};
+use timbre_jit::{InstanceLanes, Jit, JitError, JitVoice, LaneBatch};
 
 /// Which engine renders the instances.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,6 +119,11 @@ impl DecayWatch {
 enum Voice {
     Interpreter(Box<Interpreter>),
     Jit(Box<JitVoice>),
+    /// A lane of one of the renderer's batches (one lane: a mono instance).
+    Lane {
+        batch: usize,
+        lane: usize,
+    },
 }
 
 impl Voice {
@@ -127,6 +132,7 @@ impl Voice {
         match self {
             Voice::Interpreter(v) => v.root_width(),
             Voice::Jit(v) => v.root_width(),
+            Voice::Lane { .. } => 1,
         }
     }
 
@@ -135,6 +141,8 @@ impl Voice {
         match self {
             Voice::Interpreter(v) => v.render_frames(out),
             Voice::Jit(v) => v.render_frames(out),
+            // Rendered with its batch, before the voices.
+            Voice::Lane { .. } => unreachable!("a lane is rendered by its batch"),
         }
     }
 
@@ -280,6 +288,10 @@ pub struct SceneRenderer {
     last_block_work: Duration,
     /// See [`SceneRenderer::set_threads_min_work`].
     threads_min_work: Duration,
+    /// Instances of one shape computed as the lanes of one kernel call (see
+    /// `timbre_jit::LaneBatch`); whether instances that can be are.
+    batches: Vec<LaneBatch>,
+    batching: bool,
 }
 
 /// Blocks whose voices take less than this on one thread are not shared out among
@@ -314,6 +326,8 @@ impl SceneRenderer {
             pool: None,
             last_block_work: Duration::ZERO,
             threads_min_work: THREADS_WORTH_IT,
+            batches: vec![],
+            batching: engine == Engine::Jit,
         })
     }
 
@@ -387,6 +401,21 @@ impl SceneRenderer {
     /// waking a thread costs more than it saves. Zero shares every block out.
     pub fn set_threads_min_work(&mut self, work: Duration) {
         self.threads_min_work = work;
+    }
+
+    /// Whether instances of one shape that qualify (one lane, computed wholly inline:
+    /// see `timbre_jit::LaneBatch`) are computed as the lanes of one kernel call
+    /// (on by default with the JIT) or each as its own voice. Either way they give the
+    /// same samples to within the JIT's agreement with the interpreter; each way is
+    /// independent of the block size and the threads, bit for bit. Applies to
+    /// instances that start afterwards.
+    pub fn set_batching(&mut self, on: bool) {
+        self.batching = on && self.engine == Engine::Jit;
+    }
+
+    /// Instances playing now as lanes of batches.
+    pub fn instances_in_lanes(&self) -> usize {
+        self.batches.iter().map(LaneBatch::lanes_in_use).sum()
     }
 
     /// Threads rendering voices (see [`SceneRenderer::set_threads`]).
@@ -491,6 +520,31 @@ impl SceneRenderer {
         })
     }
 
+    /// A lane of a batch for instance `root` starting at scene sample `start`, if it
+    /// qualifies and batching is on.
+    fn lane(&mut self, graph: &Graph, root: NodeId, start: u64) -> Result<Option<Voice>, JitError> {
+        let Some(jit) = self.jit.as_mut().filter(|_| self.batching) else {
+            return Ok(None);
+        };
+        let Some(instance) = InstanceLanes::of(graph, root, self.config.block_size) else {
+            return Ok(None);
+        };
+        for (batch, b) in self.batches.iter_mut().enumerate() {
+            if b.fits(&instance) {
+                if let Some(lane) = b.add(&instance, start) {
+                    return Ok(Some(Voice::Lane { batch, lane }));
+                }
+            }
+        }
+        let mut b = LaneBatch::new(jit, &instance, self.config)?;
+        let lane = b.add(&instance, start).expect("a new batch has free lanes");
+        self.batches.push(b);
+        Ok(Some(Voice::Lane {
+            batch: self.batches.len() - 1,
+            lane,
+        }))
+    }
+
     /// Renders the next `out.len() / channels` frames of the scene (interleaved).
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), JitError> {
         let block = self.config.block_size.max(1) * self.channels;
@@ -510,7 +564,10 @@ impl SceneRenderer {
                 Source::Voice(voice) => voice,
                 Source::Root(root) => {
                     let graph = self.graph.clone();
-                    self.voice(&graph, root)?
+                    match self.lane(&graph, root, p.start)? {
+                        Some(lane) => lane,
+                        None => self.voice(&graph, root)?,
+                    }
                 }
             };
             voice.set_threads(self.pool.clone());
@@ -527,6 +584,14 @@ impl SceneRenderer {
         }
         let fade = self.fade_samples;
         let position = self.position;
+        // Batches first, on this thread: their lanes are then mixed like voices.
+        let frames = (end - position) as usize;
+        for batch in &mut self.batches {
+            if batch.lanes_in_use() > 0 {
+                batch.render(position, frames);
+            }
+        }
+        let batches = &self.batches;
         // The voices share the threads out when there are several and the last
         // block took long enough to be worth waking a thread for (tens of
         // microseconds). A lone voice renders on this thread (its own large modal
@@ -551,6 +616,9 @@ impl SceneRenderer {
                 let per_thread = self.active.len().div_ceil(pool.current_num_threads());
                 let render_run = |run: &mut [Active]| {
                     for active in run {
+                        if matches!(active.voice, Voice::Lane { .. }) {
+                            continue;
+                        }
                         if let Some((from, until)) = active.window(position, end) {
                             let n = ((until - from) as usize) * active.voice.width();
                             let mut buffer = std::mem::take(&mut active.buffer);
@@ -569,6 +637,12 @@ impl SceneRenderer {
                 });
                 for active in &mut self.active {
                     if let Some((from, until)) = active.window(position, end) {
+                        if let Voice::Lane { batch, lane } = active.voice {
+                            let (a, b) = ((from - position) as usize, (until - position) as usize);
+                            let rendered = batches[batch].output(lane, a, b);
+                            active.mix(rendered, from, until, out, position, channels, fade);
+                            continue;
+                        }
                         let rendered = std::mem::take(&mut active.buffer);
                         active.mix(&rendered, from, until, out, position, channels, fade);
                         active.buffer = rendered;
@@ -578,6 +652,12 @@ impl SceneRenderer {
             None => {
                 for active in &mut self.active {
                     if let Some((from, until)) = active.window(position, end) {
+                        if let Voice::Lane { batch, lane } = active.voice {
+                            let (a, b) = ((from - position) as usize, (until - position) as usize);
+                            let rendered = batches[batch].output(lane, a, b);
+                            active.mix(rendered, from, until, out, position, channels, fade);
+                            continue;
+                        }
                         let n = ((until - from) as usize) * active.voice.width();
                         let rendered = &mut self.scratch[..n];
                         active.voice.render(rendered);
@@ -593,6 +673,9 @@ impl SceneRenderer {
         for a in &self.active {
             if a.end.is_some_and(|e| a.next >= e) {
                 self.ended_at = self.ended_at.max(a.next);
+                if let Voice::Lane { batch, lane } = a.voice {
+                    self.batches[batch].release(lane);
+                }
             }
         }
         self.active.retain(|a| a.end.is_none_or(|e| a.next < e));

@@ -437,3 +437,93 @@ fn the_output_does_not_depend_on_the_number_of_threads() {
         assert!(same, "{threads} threads differ from one");
     }
 }
+
+/// A swarm: 40 bees of one class, each with its own pitch and noise (their seeds
+/// differ with `o`), starting anywhere in a block, every third stopping (a fade-out);
+/// then 10 more, starting after the first stops, to take their lanes again. More
+/// than one batch holds.
+fn swarm() -> Program {
+    let mut text = String::from(
+        "(define-sound bee (f o) (* 0.02 (sawtooth (phasor (+ f (* 12 (noise (+ (* t 3) o))) (* 2 (white)))))))\n",
+    );
+    for k in 0..40 {
+        let start = 0.0037 * k as f64;
+        let stop = if k % 3 == 0 {
+            format!(" :stop {}", start + 0.05 + 0.01 * k as f64)
+        } else {
+            String::new()
+        };
+        text += &format!(
+            "(instance b{k} (bee :f {} :o {}) :start {start}{stop})\n",
+            180 + 2 * k,
+            37 * k
+        );
+    }
+    for k in 0..10 {
+        let start = 0.6 + 0.0111 * k as f64;
+        text += &format!(
+            "(instance late{k} (bee :f {} :o {}) :start {start} :stop {})\n",
+            300 + k,
+            1000 + k,
+            start + 0.2
+        );
+    }
+    scene(&text)
+}
+
+#[test]
+fn instances_of_one_class_run_as_lanes_and_agree_with_the_interpreter() {
+    let program = swarm();
+    let mut renderer = SceneRenderer::new(&program, config(), Engine::Jit).unwrap();
+    let mut jit = vec![0.0; 48_000];
+    let mut most = 0;
+    for chunk in jit.chunks_mut(1000) {
+        renderer.render(chunk).unwrap();
+        most = most.max(renderer.instances_in_lanes());
+        // Every instance playing is a lane; ended ones have given theirs back.
+        assert_eq!(renderer.instances_in_lanes(), renderer.active_instances());
+    }
+    assert!(
+        most > timbre_jit::BATCH_LANES,
+        "more bees than one batch holds play at once: {most}"
+    );
+    // At the end: the 26 first bees that do not stop.
+    assert_eq!(renderer.instances_in_lanes(), 26);
+    let interp = render(&program, 1.0, Engine::Interpreter);
+    assert!(interp.iter().any(|x| x.abs() > 0.1), "a silent test");
+    let worst = jit
+        .iter()
+        .zip(&interp)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "lanes and the interpreter differ by {worst}");
+}
+
+#[test]
+fn lanes_are_the_same_bits_whatever_the_block_size_split_or_threads() {
+    let program = swarm();
+    let samples = 48_000;
+    let reference = render_with(&program, samples, 256, Engine::Jit);
+    for block in [64, 100, 1000] {
+        let other = render_with(&program, samples, block, Engine::Jit);
+        assert_same_bits(&reference, &other, &format!("blocks of {block}"));
+    }
+    assert_same_bits(
+        &reference,
+        &render_split(&program, samples, Engine::Jit),
+        "uneven calls",
+    );
+    let mut renderer = SceneRenderer::new(&program, config(), Engine::Jit).unwrap();
+    renderer.set_threads(3).unwrap();
+    renderer.set_threads_min_work(std::time::Duration::ZERO);
+    let mut threaded = vec![0.0; samples];
+    renderer.render(&mut threaded).unwrap();
+    assert_same_bits(&reference, &threaded, "3 threads");
+    // Each instance its own voice instead: the same samples.
+    let mut renderer = SceneRenderer::new(&program, config(), Engine::Jit).unwrap();
+    renderer.set_batching(false);
+    let mut voices = vec![0.0; samples];
+    renderer.render(&mut voices).unwrap();
+    assert_eq!(renderer.instances_in_lanes(), 0);
+    assert_same_bits(&reference, &voices, "lanes against voices");
+}
