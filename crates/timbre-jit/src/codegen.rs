@@ -332,21 +332,36 @@ impl KernelBuilder<'_, '_> {
         let t0 = self.t0;
 
         // A node computed from constants and splatted inputs only, at sample k.
-        let ahead = |b: &mut FunctionBuilder, pair: &PairContext, node: usize, k: Value| {
+        // The nodes computed ahead, at sample k: each from constants, splatted inputs,
+        // the lanes' time and the nodes before it; returns those the loop reads.
+        let ahead = |b: &mut FunctionBuilder, pair: &PairContext, k: Value| {
             let vector_offset = b.ins().ishl_imm_u(k, 4);
-            let step = &steps[node];
-            let args: Vec<Value> = step
-                .args
+            let mut values: HashMap<usize, Value> = HashMap::new();
+            for &node in &pair.ahead {
+                let step = &steps[node];
+                let value = if let Op::Time = step.op {
+                    lane_time(b, pair.sample_bases, k, rate)
+                } else {
+                    let args: Vec<Value> = step
+                        .args
+                        .iter()
+                        .map(|&a| match (values.get(&a), pair.constants.get(&a)) {
+                            (Some(&v), _) => v,
+                            (None, Some(&slot)) => b.ins().stack_load(I64, F64X2, slot, 0),
+                            (None, None) => {
+                                let addr = b.ins().iadd(pair.copies[&a], vector_offset);
+                                b.ins().load(F64X2, mem(), addr, 0)
+                            }
+                        })
+                        .collect();
+                    elementwise(b, &helpers, steps, step, &args)
+                };
+                values.insert(node, value);
+            }
+            pair.carried
                 .iter()
-                .map(|&a| match pair.constants.get(&a) {
-                    Some(&slot) => b.ins().stack_load(I64, F64X2, slot, 0),
-                    None => {
-                        let addr = b.ins().iadd(pair.copies[&a], vector_offset);
-                        b.ins().load(F64X2, mem(), addr, 0)
-                    }
-                })
-                .collect();
-            elementwise(b, &helpers, steps, step, &args)
+                .map(|&(node, _)| values[&node])
+                .collect::<Vec<Value>>()
         };
 
         // One pair's nodes at sample k (byte offsets `offset` in one-lane buffers and
@@ -361,6 +376,7 @@ impl KernelBuilder<'_, '_> {
             for &(node, var) in &pair.carried {
                 values.insert(node, b.use_var(var));
             }
+            let ahead_set: std::collections::HashSet<usize> = pair.ahead.iter().copied().collect();
             // Inputs from outside the region are loaded where they are used, so that
             // they are not held (or spilled) across the whole body.
             let input = |b: &mut FunctionBuilder, s: usize| {
@@ -384,7 +400,7 @@ impl KernelBuilder<'_, '_> {
             };
             for &node in &region.nodes {
                 let step = &steps[node];
-                if values.contains_key(&node) {
+                if ahead_set.contains(&node) {
                     continue; // computed ahead
                 }
                 if let Some(&noise) = fused.get(&node) {
@@ -420,17 +436,6 @@ impl KernelBuilder<'_, '_> {
                         let x0 = gradient(b, s0, i0);
                         let x1 = gradient(b, s1, i1);
                         self::pair(b, x0, x1)
-                    }
-                    Op::Time => {
-                        // Each lane's local time, index / rate as the interpreter has it
-                        // (lanes of time are instances of a batch).
-                        let [t0, t1] = pair.sample_bases.map(|base| {
-                            let index = b.ins().iadd(base, k);
-                            b.ins().fcvt_from_sint(types::F64, index)
-                        });
-                        let rate = b.ins().stack_load(I64, F64X2, rate, 0);
-                        let v = self::pair(b, t0, t1);
-                        b.ins().fdiv(v, rate)
                     }
                     Op::Phasor => {
                         // out = frac(phase + offset), or phase without an offset;
@@ -493,6 +498,7 @@ impl KernelBuilder<'_, '_> {
                 states: HashMap::new(),
                 noise_rows: HashMap::new(),
                 white_seeds: HashMap::new(),
+                ahead: vec![],
                 carried: vec![],
             };
             for &s in &buffer_steps {
@@ -557,29 +563,49 @@ impl KernelBuilder<'_, '_> {
             // Nodes computed only from constants and splatted one-lane inputs are
             // computed a sample ahead and carried to the next iteration, so that the
             // chains through them start with the iteration (see `docs/performance.md`).
-            pair.carried = region
-                .nodes
+            // Nodes computed from constants, splatted inputs and the lanes' time (and
+            // from such nodes) are computed a sample ahead; those the loop reads are
+            // carried to the next iteration in variables.
+            let mut ahead_set = std::collections::HashSet::new();
+            for &node in &region.nodes {
+                let step = &steps[node];
+                let from_outside = step.args.iter().all(|a| {
+                    pair.constants.contains_key(a)
+                        || pair.copies.contains_key(a)
+                        || ahead_set.contains(a)
+                });
+                let computable = match step.op {
+                    Op::Time => true,
+                    _ => is_elementwise(&step.op) && !fused.contains_key(&node),
+                };
+                if computable && from_outside {
+                    ahead_set.insert(node);
+                    pair.ahead.push(node);
+                }
+            }
+            let read_in_loop = |node: usize| {
+                region.stored.contains(&node)
+                    || region.combines.iter().any(|&c| steps[c].args[0] == node)
+                    || region
+                        .nodes
+                        .iter()
+                        .any(|&n| !ahead_set.contains(&n) && steps[n].args.contains(&node))
+            };
+            let carried: Vec<usize> = pair
+                .ahead
                 .iter()
                 .copied()
-                .filter(|&node| {
-                    let step = &steps[node];
-                    is_elementwise(&step.op)
-                        && !fused.contains_key(&node)
-                        && step
-                            .args
-                            .iter()
-                            .all(|a| pair.constants.contains_key(a) || pair.copies.contains_key(a))
-                })
-                .collect::<Vec<_>>()
-                .into_iter()
-                .map(|node| {
-                    let var = b.declare_var(F64X2);
-                    let zero = b.ins().iconst(I64, 0);
-                    let first = ahead(b, &pair, node, zero);
-                    b.def_var(var, first);
-                    (node, var)
-                })
+                .filter(|&n| read_in_loop(n))
                 .collect();
+            pair.carried = carried
+                .iter()
+                .map(|&node| (node, b.declare_var(F64X2)))
+                .collect();
+            let zero = b.ins().iconst(I64, 0);
+            let first = ahead(b, &pair, zero);
+            for (&(_, var), value) in pair.carried.iter().zip(first) {
+                b.def_var(var, value);
+            }
             pair
         };
 
@@ -614,8 +640,8 @@ impl KernelBuilder<'_, '_> {
                 // iteration reads one sample past the block: the copies have room).
                 let next = b.ins().iadd_imm_s(k, 1);
                 for pair in pairs {
-                    for &(node, var) in &pair.carried {
-                        let value = ahead(b, pair, node, next);
+                    let values = ahead(b, pair, next);
+                    for (&(_, var), value) in pair.carried.iter().zip(values) {
                         b.def_var(var, value);
                     }
                 }
@@ -1345,6 +1371,24 @@ fn pair(b: &mut FunctionBuilder, x0: Value, x1: Value) -> Value {
     b.ins().insertlane(v, x1, 1)
 }
 
+/// The local time of a pair of lanes at sample k: index / rate as the interpreter
+/// has it, each lane's index counted from its own start (`sample_bases`: lanes of
+/// time are instances of a batch). `rate` is a stack slot of the splatted rate.
+fn lane_time(
+    b: &mut FunctionBuilder,
+    sample_bases: [Value; 2],
+    k: Value,
+    rate: StackSlot,
+) -> Value {
+    let [t0, t1] = sample_bases.map(|base| {
+        let index = b.ins().iadd(base, k);
+        b.ins().fcvt_from_sint(types::F64, index)
+    });
+    let rate = b.ins().stack_load(I64, F64X2, rate, 0);
+    let v = pair(b, t0, t1);
+    b.ins().fdiv(v, rate)
+}
+
 /// Pairs of lanes a lane-vectorised region computes in one sample loop.
 const PAIRS_AT_ONCE: usize = 2;
 
@@ -1366,7 +1410,9 @@ struct PairContext {
     noise_rows: HashMap<usize, NoiseRows>,
     /// A white noise's two lanes' mixed seeds.
     white_seeds: HashMap<usize, [Value; 2]>,
-    /// Nodes computed a sample ahead, and the variable carrying each.
+    /// Nodes computed a sample ahead, in order.
+    ahead: Vec<usize>,
+    /// Those of them the loop reads, and the variable carrying each.
     carried: Vec<(usize, Variable)>,
 }
 
