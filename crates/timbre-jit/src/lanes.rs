@@ -48,6 +48,11 @@ impl InstanceLanes {
     /// The instance `root` of `graph` (its timer at the root), after the rewrites of
     /// `timbre_ir::optimise`, if it can be a lane of a batch.
     pub fn of(graph: &Graph, root: NodeId, block_size: usize) -> Option<InstanceLanes> {
+        // Most instances that do not qualify (modes in lanes, a filter) are told at
+        // their first such node, before the optimiser's pass over the graph.
+        if !may_qualify(graph, root) {
+            return None;
+        }
         let (graph, root) = timbre_ir::optimise::optimise(graph, root);
         let steps = timbre_ir::steps(&graph, root);
         let timer_step = steps.last()?;
@@ -87,13 +92,7 @@ impl InstanceLanes {
         let mut sound_steps = vec![];
         for &i in &order {
             let step = &steps[i];
-            let inline = match Kind::of(&step.op) {
-                Kind::Const | Kind::Time | Kind::Noise | Kind::Phasor => true,
-                Kind::Unary(_) | Kind::Binary(_) | Kind::Ternary(_) => true,
-                Kind::White => matches!(&step.op, Op::White { seeds } if seeds.len() == 1),
-                _ => false,
-            };
-            if !inline || step.width != 1 {
+            if !lane_op(&step.op) || step.width != 1 {
                 return None;
             }
             sound_steps.push(Step {
@@ -114,6 +113,38 @@ impl InstanceLanes {
             timer: (length, fade_in, fade_out),
         })
     }
+}
+
+/// Whether an op can be in a lane's tree: computed inline, one lane.
+fn lane_op(op: &Op) -> bool {
+    match Kind::of(op) {
+        Kind::Const | Kind::Time | Kind::Noise | Kind::Phasor => true,
+        Kind::Unary(_) | Kind::Binary(_) | Kind::Ternary(_) => true,
+        Kind::White => matches!(op, Op::White { seeds } if seeds.len() == 1),
+        _ => false,
+    }
+}
+
+/// Whether every node of the instance `root` (a timer over its sound) is one lane and
+/// of an op a lane can compute, as written: a walk that stops at the first that is
+/// not. (The optimiser may still make one of them a rotator, which is not.)
+fn may_qualify(graph: &Graph, root: NodeId) -> bool {
+    if !matches!(graph.node(root).op, Op::Timer { .. }) {
+        return false;
+    }
+    let mut seen = std::collections::HashSet::new();
+    let mut stack: Vec<NodeId> = graph.node(root).args.clone();
+    while let Some(id) = stack.pop() {
+        if !seen.insert(id) {
+            continue;
+        }
+        let node = graph.node(id);
+        if node.width != 1 || !lane_op(&node.op) {
+            return false;
+        }
+        stack.extend(node.args.iter().copied());
+    }
+    true
 }
 
 /// The block size kernels are compiled for: whole pairs of samples.

@@ -460,7 +460,7 @@ impl Jit {
                     length,
                     fade_in,
                     fade_out,
-                } => timer::state(length, fade_in, fade_out),
+                } => timer::state(length, fade_in, fade_out, config.sample_rate),
                 _ => vec![],
             })
             .collect();

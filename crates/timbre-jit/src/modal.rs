@@ -283,9 +283,10 @@ impl ModalState {
         self.pool = pool.filter(|_| self.groups.len() >= GROUPS_FOR_THREADS);
     }
 
-    /// Renders a block: `n` samples of the sum into `out`, τ from `time`.
+    /// Renders a block: `out.len()` samples of the sum into `out`, τ from `time` (empty
+    /// when τ is `t`, which is then computed here).
     fn render(&mut self, time: &[f64], t0: u64, out: &mut [f64], tile: TileFn) {
-        while self.begin(time, t0) > 0 {
+        while self.begin(time, t0, out.len()) > 0 {
             let (modes, pieces) = (&*self.modes, &self.pieces[..]);
             let amplitude = &self.amplitude[..];
             // Waking another thread costs tens of microseconds: worth it only for a
@@ -323,16 +324,25 @@ impl ModalState {
     /// The next at most `max_pieces` pieces of a block (see [`Piece`]), from where
     /// the last call stopped; returns how many, 0 once the block is done (and then
     /// starts again at its first sample).
-    fn begin(&mut self, time: &[f64], t0: u64) -> usize {
+    fn begin(&mut self, time: &[f64], t0: u64, n: usize) -> usize {
         self.pieces.clear();
-        if self.cursor >= time.len() {
+        if self.cursor >= n {
             self.cursor = 0;
             return 0;
         }
         let sr = self.modes.sample_rate;
+        // τ at sample k of the block: t, as the interpreter computes it, or read.
+        let time_is_t = self.time_is_t;
+        let tau_at = |k: usize| {
+            if time_is_t {
+                (t0 + k as u64) as f64 / sr
+            } else {
+                time[k]
+            }
+        };
         let mut k = self.cursor;
-        while k < time.len() {
-            let (q, tau) = (t0 + k as u64, time[k]);
+        while k < n {
+            let (q, tau) = (t0 + k as u64, tau_at(k));
             let anchor =
                 q.is_multiple_of(ANCHOR_INTERVAL) || !rotator::advances(self.last_time, tau, sr);
             let tile = anchor || q.is_multiple_of(TILE as u64);
@@ -352,13 +362,13 @@ impl ModalState {
             }
             // The piece runs to the end of its tile, of the block, or to a jump.
             let tile_end = k + (TILE - (q % TILE as u64) as usize);
-            let limit = tile_end.min(time.len());
+            let limit = tile_end.min(n);
             let mut end = k + 1;
-            if self.time_is_t && t0 + (limit as u64) < STEADY_T_SAMPLES {
+            if time_is_t && t0 + (limit as u64) < STEADY_T_SAMPLES {
                 // τ is t itself, which advances by one period at every sample.
                 end = limit;
             }
-            while end < limit && rotator::advances(Some(time[end - 1]), time[end], sr) {
+            while end < limit && rotator::advances(Some(tau_at(end - 1)), tau_at(end), sr) {
                 end += 1;
             }
             self.pieces.push(Piece {
@@ -367,10 +377,10 @@ impl ModalState {
                 at: k,
                 len: end - k,
             });
-            self.last_time = Some(time[end - 1]);
+            self.last_time = Some(tau_at(end - 1));
             k = end;
         }
-        self.cursor = time.len();
+        self.cursor = n;
         self.pieces.len()
     }
 
@@ -457,14 +467,15 @@ pub(crate) extern "C" fn modal_block(
     out: *mut f64,
     tile: TileFn,
 ) {
-    // SAFETY: kernels pass the step's state, its time argument's buffer and its own
-    // buffer, of at least `n` samples each, and the tile function of their module.
-    let (state, time, out) = unsafe {
-        (
-            &mut *state,
-            std::slice::from_raw_parts(time, n as usize),
-            std::slice::from_raw_parts_mut(out, n as usize),
-        )
+    // SAFETY: kernels pass the step's state, its time argument's buffer (null when τ
+    // is `t`) and its own buffer, of at least `n` samples each, and the tile function
+    // of their module.
+    let (state, out) = unsafe { (&mut *state, std::slice::from_raw_parts_mut(out, n as usize)) };
+    let time: &[f64] = if time.is_null() {
+        &[]
+    } else {
+        // SAFETY: as above.
+        unsafe { std::slice::from_raw_parts(time, n as usize) }
     };
     state.render(time, t0, out, tile);
 }
@@ -477,7 +488,13 @@ impl KernelBuilder<'_, '_> {
     /// The code of modal-bank step `i`: a call to [`modal_block`].
     pub(crate) fn emit_modal_bank(&mut self, i: usize) {
         let state = self.state_pointer(i);
-        let time = self.buffer(self.steps[i].args[0]);
+        // t itself is computed by the helper (and the plan may not compute it).
+        let time = self.steps[i].args[0];
+        let time = if matches!(self.steps[time].op, Op::Time) {
+            self.b.ins().iconst(I64, 0)
+        } else {
+            self.buffer(time)
+        };
         let out = self.buffer(i);
         let tile = self.b.ins().func_addr(I64, self.helpers.modal_tile);
         let args = [state, time, self.n, self.t0, out, tile];

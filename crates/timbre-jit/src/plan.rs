@@ -63,8 +63,9 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
     let mut home: Vec<Option<usize>> = vec![None; steps.len()];
     // Combines summed inside their argument's region.
     let mut attached = vec![false; steps.len()];
+    let untimed = time_left_to_helpers(steps);
     for (i, step) in steps.iter().enumerate() {
-        if step.constant {
+        if step.constant || untimed[i] {
             continue;
         }
         let earliest = step.args.iter().map(|a| ready[*a]).max().unwrap_or(0);
@@ -114,6 +115,32 @@ pub(crate) fn plan(steps: &[Step]) -> Vec<PlanStep> {
     }
     mark_stored(steps, &mut plan, &home, &attached);
     plan
+}
+
+/// Per step: whether it is `t` read only as the time of modal banks and timers, whose
+/// helpers compute t themselves from the sample index (`modal_block`, `timer_block`):
+/// it is not computed at all. (A block of t costs a division per pair of samples;
+/// every instance's tree has a timer over `t`.)
+fn time_left_to_helpers(steps: &[Step]) -> Vec<bool> {
+    let root = steps.len() - 1;
+    let mut left = vec![false; steps.len()];
+    for (i, step) in steps.iter().enumerate() {
+        left[i] = matches!(step.op, Op::Time) && i != root;
+    }
+    for step in steps {
+        let kind = Kind::of_step(steps, step);
+        for (k, &a) in step.args.iter().enumerate() {
+            let read_as_time = match kind {
+                Kind::ModalBank => k == 0,
+                Kind::Timer => k == 1,
+                _ => false,
+            };
+            if !read_as_time {
+                left[a] = false;
+            }
+        }
+    }
+    left
 }
 
 /// A region's node is stored if the root is it, or a step outside the region (or a

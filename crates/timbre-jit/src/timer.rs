@@ -9,13 +9,16 @@ use timbre_ir::op::{timer_gain, Op};
 
 use crate::codegen::KernelBuilder;
 
-/// A timer's state: its length (infinite if it has none), fade-in and fade-out.
-pub(crate) fn state(length: Option<f64>, fade_in: f64, fade_out: f64) -> Vec<f64> {
-    vec![length.unwrap_or(f64::INFINITY), fade_in, fade_out]
+/// A timer's state: its length (infinite if it has none), fade-in and fade-out, and
+/// the sample rate.
+pub(crate) fn state(length: Option<f64>, fade_in: f64, fade_out: f64, rate: f64) -> Vec<f64> {
+    vec![length.unwrap_or(f64::INFINITY), fade_in, fade_out, rate]
 }
 
-/// `timer_block(state, sound, time, out, n, lanes, stride, time_is_t)`: called by
-/// kernels. `sound` and `out` hold `lanes` lanes at `stride`, `time` one lane.
+/// `timer_block(state, sound, time, out, n, lanes, stride, t0)`: called by kernels.
+/// `sound` and `out` hold `lanes` lanes at `stride`, `time` one lane, or is null when
+/// the timer's time is `t` itself: then t of sample k is (t0 + k) / rate, as the
+/// interpreter computes it (and the kernel need not compute it).
 #[allow(clippy::too_many_arguments)]
 pub(crate) extern "C" fn timer_block(
     state: *const f64,
@@ -25,25 +28,36 @@ pub(crate) extern "C" fn timer_block(
     n: u64,
     lanes: u64,
     stride: u64,
-    time_is_t: u64,
+    t0: u64,
 ) {
     let (n, lanes, stride) = (n as usize, lanes as usize, stride as usize);
     if n == 0 {
         return;
     }
     // SAFETY: kernels pass the timer's state (see `state`), its arguments' buffers and
-    // its own, each of `lanes` lanes of `stride ≥ n` samples (the time one lane).
-    let (state, time) = unsafe {
-        (
-            std::slice::from_raw_parts(state, 3),
-            std::slice::from_raw_parts(time, n),
-        )
+    // its own, each of `lanes` lanes of `stride ≥ n` samples (the time one lane, or
+    // null).
+    let state = unsafe { std::slice::from_raw_parts(state, 4) };
+    let time_is_t = time.is_null();
+    let time: &[f64] = if time_is_t {
+        &[]
+    } else {
+        // SAFETY: as above.
+        unsafe { std::slice::from_raw_parts(time, n) }
+    };
+    let rate = state[3];
+    let t = |k: usize| {
+        if time_is_t {
+            (t0 + k as u64) as f64 / rate
+        } else {
+            time[k]
+        }
     };
     let length = Some(state[0]).filter(|l| l.is_finite());
     let gain = |t: f64| timer_gain(t, length, state[1], state[2]);
     // t only grows, and the gain at the block's first sample is exactly 1 and the
     // block ends before the length: every gain of the block is exactly 1.
-    let steady = time_is_t != 0 && gain(time[0]) == 1.0 && length.is_none_or(|l| time[n - 1] < l);
+    let steady = time_is_t && gain(t(0)) == 1.0 && length.is_none_or(|l| t(n - 1) < l);
     for lane in 0..lanes {
         // SAFETY: as above; `sound` and `out` are different steps' buffers.
         let (x, y) = unsafe {
@@ -55,8 +69,8 @@ pub(crate) extern "C" fn timer_block(
         if steady {
             y.copy_from_slice(x);
         } else {
-            for ((y, x), t) in y.iter_mut().zip(x).zip(time) {
-                *y = x * gain(*t);
+            for (k, (y, x)) in y.iter_mut().zip(x).enumerate() {
+                *y = x * gain(t(k));
             }
         }
     }
@@ -69,12 +83,17 @@ impl KernelBuilder<'_, '_> {
         let (sound, time) = (step.args[0], step.args[1]);
         let time_is_t = matches!(self.steps[time].op, Op::Time);
         let state = self.state_pointer(i);
-        let [sound, time, out] = [sound, time, i].map(|s| self.buffer(s));
+        let [sound, out] = [sound, i].map(|s| self.buffer(s));
+        // t itself is computed by the helper (and the plan may not compute it).
+        let time = if time_is_t {
+            self.b.ins().iconst(types::I64, 0)
+        } else {
+            self.buffer(time)
+        };
         let b = &mut *self.b;
         let lanes = b.ins().iconst(types::I64, step.width as i64);
         let stride = b.ins().iconst(types::I64, self.block_size as i64);
-        let time_is_t = b.ins().iconst(types::I64, time_is_t as i64);
-        let args = [state, sound, time, out, self.n, lanes, stride, time_is_t];
+        let args = [state, sound, time, out, self.n, lanes, stride, self.t0];
         b.ins().call(self.helpers.timer_block, &args);
     }
 }
