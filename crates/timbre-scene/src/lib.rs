@@ -413,7 +413,7 @@ impl SceneRenderer {
         self.batching = on && self.engine == Engine::Jit;
     }
 
-    /// Instances playing now as lanes of batches.
+    /// Instances in lanes of batches: playing, or added by a host and yet to start.
     pub fn instances_in_lanes(&self) -> usize {
         self.batches.iter().map(LaneBatch::lanes_in_use).sum()
     }
@@ -451,8 +451,9 @@ impl SceneRenderer {
 
     /// Adds an instance: `root` of `graph` (its timer at the root), starting at scene
     /// sample `start` (a start already past begins now) and, if `end` is given, ending
-    /// there; without an end it ends once decayed. Its voice (and, the first time for
-    /// its shape, its kernel) is made here, so rendering stays free of allocation.
+    /// there; without an end it ends once decayed. Its voice or its lane (and, the
+    /// first time for its shape, its kernel) is made here, so rendering stays free of
+    /// allocation.
     pub fn add(
         &mut self,
         graph: &Graph,
@@ -460,9 +461,12 @@ impl SceneRenderer {
         start: u64,
         end: Option<u64>,
     ) -> Result<InstanceId, JitError> {
-        let voice = self.voice(graph, root)?;
-        let id = self.new_id();
         let start = start.max(self.position);
+        let voice = match self.lane(graph, root, start)? {
+            Some(lane) => lane,
+            None => self.voice(graph, root)?,
+        };
+        let id = self.new_id();
         let at = self.pending.partition_point(|p| p.start > start);
         self.pending.insert(
             at,
@@ -584,26 +588,36 @@ impl SceneRenderer {
         }
         let fade = self.fade_samples;
         let position = self.position;
-        // Batches first, on this thread: their lanes are then mixed like voices.
+        // The voices (and the batches of lanes) share the threads out when there are
+        // several and the last block took long enough to be worth waking a thread for
+        // (tens of microseconds). A lone voice renders on this thread (its own large
+        // modal banks may still use the threads). Which way a block goes changes its
+        // speed, never its samples.
+        let worth_it = self.last_block_work >= self.threads_min_work;
+        // Timed only when there are threads to decide for.
+        let started = self.pool.is_some().then(Instant::now);
+        // Batches first: their lanes are then mixed like voices. Each batch is
+        // independent of the others, so they may render on several threads.
         let frames = (end - position) as usize;
-        for batch in &mut self.batches {
-            if batch.lanes_in_use() > 0 {
-                batch.render(position, frames);
-            }
+        let playing = self.batches.iter().filter(|b| b.lanes_in_use() > 0).count();
+        let mut batches = self.batches.iter_mut().filter(|b| b.lanes_in_use() > 0);
+        match self.pool.as_ref().filter(|_| playing > 1 && worth_it) {
+            Some(pool) => pool.in_place_scope(|scope| {
+                let first = batches.next();
+                for batch in batches {
+                    scope.spawn(move |_| batch.render(position, frames));
+                }
+                if let Some(batch) = first {
+                    batch.render(position, frames);
+                }
+            }),
+            None => batches.for_each(|batch| batch.render(position, frames)),
         }
         let batches = &self.batches;
-        // The voices share the threads out when there are several and the last
-        // block took long enough to be worth waking a thread for (tens of
-        // microseconds). A lone voice renders on this thread (its own large modal
-        // banks may still use the threads). Which way a block goes changes its speed,
-        // never its samples.
-        let worth_it = self.last_block_work >= self.threads_min_work;
         let pool = self
             .pool
             .as_ref()
             .filter(|_| self.active.len() > 1 && worth_it);
-        // Timed only when there are threads to decide for.
-        let started = self.pool.is_some().then(Instant::now);
         let threads = pool.map_or(1, |p| p.current_num_threads());
         match pool {
             // Each voice renders into its own buffer on some thread; then they are

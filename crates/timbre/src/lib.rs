@@ -251,6 +251,15 @@ impl Scene {
             .map_err(std::io::Error::other)
     }
 
+    /// Instances computed as the lanes of shared kernel calls rather than each as a
+    /// voice of its own: with the JIT, the instances of one class whose tree is one
+    /// lane and computed wholly inline (a bee, a tone; not a modal bell, a filter or a
+    /// variable's value), whether playing or yet to start. A lane gives the same
+    /// samples as a voice; it costs less.
+    pub fn instances_in_lanes(&self) -> usize {
+        self.renderer.instances_in_lanes()
+    }
+
     /// Renders the next `out.len()` samples. Allocates nothing, takes no lock (with
     /// one thread, the default: see [`Scene::set_threads`]).
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {

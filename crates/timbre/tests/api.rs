@@ -373,3 +373,46 @@ fn random_nodes_reading_variables_and_host_nodes_are_the_same_in_every_engine() 
         }
     }
 }
+
+#[test]
+fn a_hosts_swarm_runs_as_lanes_without_allocating() {
+    let render = |backend: Backend| {
+        let engine = engine().with_backend(backend);
+        let library = engine.load_library(LIBRARY).unwrap();
+        let mut scene = engine.scene(&library).unwrap();
+        let mut ids = vec![];
+        for k in 0..40 {
+            let tone = [
+                ("amp", 0.02.into()),
+                ("freq", (200.0 + 9.0 * k as f64).into()),
+            ];
+            // Some start later, in the middle of blocks.
+            ids.push(scene.start("tone", &tone, 0.0031 * k as f64).unwrap());
+        }
+        for id in ids.iter().step_by(4) {
+            scene.stop(*id, 0.2);
+        }
+        let lanes = scene.instances_in_lanes();
+        let mut out = vec![0.0; 24_000];
+        ALLOCATIONS.store(0, Ordering::Relaxed);
+        COUNTING.with(|c| c.set(true));
+        for block in out.chunks_mut(256) {
+            scene.render(block).unwrap();
+        }
+        COUNTING.with(|c| c.set(false));
+        let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+        (out, lanes, allocations)
+    };
+    let (jit, lanes, allocations) = render(Backend::Jit);
+    assert_eq!(lanes, 40, "every tone a lane, from the moment it is added");
+    assert_eq!(allocations, 0, "rendering lanes allocated");
+    let (interp, lanes, _) = render(Backend::Interpreter);
+    assert_eq!(lanes, 0);
+    assert!(interp.iter().any(|x| x.abs() > 0.1), "a silent test");
+    let worst = jit
+        .iter()
+        .zip(&interp)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "lanes and the interpreter differ by {worst}");
+}
