@@ -2,9 +2,9 @@
 //! as the lanes of one kernel call rather than one voice each.
 //!
 //! An instance qualifies when its tree is one lane throughout and computed wholly
-//! inline under its timer: constants, `t`, element-wise functions, `phasor`, `noise`
-//! and `white` (a bee, a tone, an FM voice; not a modal bank, a filter or anything
-//! else the interpreter computes). Instances of one shape differ only in their
+//! inline under its timer: constants, `t`, the element-wise functions the JIT has
+//! inline code for (all but `tan`), `phasor`, `noise` and `white` (a bee, a tone, an
+//! FM voice; not a modal bank, a filter or anything else the interpreter computes). Instances of one shape differ only in their
 //! constants, seeds and timers, so a [`LaneBatch`] runs them as the lanes of one
 //! kernel compiled for the shape widened to [`BATCH_LANES`] lanes: their constants
 //! are per-lane buffers, their seeds per-lane state, and each lane's local time and
@@ -115,13 +115,13 @@ impl InstanceLanes {
     }
 }
 
-/// Whether an op can be in a lane's tree: computed inline, one lane.
+/// Whether an op can be in a lane's tree: a constant, or computed inline in a region
+/// (see `plan`), one lane.
 fn lane_op(op: &Op) -> bool {
     match Kind::of(op) {
-        Kind::Const | Kind::Time | Kind::Noise | Kind::Phasor => true,
-        Kind::Unary(_) | Kind::Binary(_) | Kind::Ternary(_) => true,
+        Kind::Const => true,
         Kind::White => matches!(op, Op::White { seeds } if seeds.len() == 1),
-        _ => false,
+        kind => kind.is_inline(),
     }
 }
 
@@ -212,19 +212,18 @@ unsafe impl Send for LaneBatch {}
 
 impl LaneBatch {
     /// A batch for instances of `first`'s shape (none in it yet). Compiles the widened
-    /// kernel unless `jit` has it already.
+    /// kernel unless `jit` has it already. `None` if that kernel is not wholly inline
+    /// after all (its instances are then voices).
     pub fn new(
         jit: &mut Jit,
         first: &InstanceLanes,
         config: RenderConfig,
-    ) -> Result<LaneBatch, JitError> {
+    ) -> Result<Option<LaneBatch>, JitError> {
         let block_size = even_block(config.block_size);
         let steps = widen(&first.steps);
         let kernel = jit.compile(&steps, block_size)?;
         if kernel.callback_nodes != 0 || !kernel.splatted.is_empty() {
-            return Err(JitError::Codegen(
-                "a batch of instances must be computed wholly inline".into(),
-            ));
+            return Ok(None);
         }
         let mut buffers: Vec<Vec<f64>> = steps
             .iter()
@@ -242,7 +241,7 @@ impl LaneBatch {
             .collect();
         states.extend(steps.iter().map(|_| vec![]));
         let state_pointers = states.iter_mut().map(|s| s.as_mut_ptr()).collect();
-        Ok(LaneBatch {
+        Ok(Some(LaneBatch {
             kernel,
             shape: first.shape.clone(),
             steps,
@@ -256,7 +255,7 @@ impl LaneBatch {
             lanes: vec![None; BATCH_LANES],
             output: vec![0.0; BATCH_LANES * block_size],
             position: 0,
-        })
+        }))
     }
 
     /// Whether `instance` has this batch's shape.

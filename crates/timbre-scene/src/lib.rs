@@ -540,7 +540,9 @@ impl SceneRenderer {
                 }
             }
         }
-        let mut b = LaneBatch::new(jit, &instance, self.config)?;
+        let Some(mut b) = LaneBatch::new(jit, &instance, self.config)? else {
+            return Ok(None);
+        };
         let lane = b.add(&instance, start).expect("a new batch has free lanes");
         self.batches.push(b);
         Ok(Some(Voice::Lane {
