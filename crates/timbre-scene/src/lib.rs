@@ -616,10 +616,10 @@ impl SceneRenderer {
             None => batches.for_each(|batch| batch.render(position, frames)),
         }
         let batches = &self.batches;
-        let pool = self
-            .pool
-            .as_ref()
-            .filter(|_| self.active.len() > 1 && worth_it);
+        let voices = (self.active.iter())
+            .filter(|a| !matches!(a.voice, Voice::Lane { .. }))
+            .count();
+        let pool = self.pool.as_ref().filter(|_| voices > 1 && worth_it);
         let threads = pool.map_or(1, |p| p.current_num_threads());
         match pool {
             // Each voice renders into its own buffer on some thread; then they are
