@@ -70,6 +70,9 @@ pub struct Summary {
     pub clipped: u64,
     /// Samples that were inf or NaN, written as 0.
     pub non_finite: u64,
+    /// Finite samples too large for 32-bit float output (they would be written as
+    /// inf), written as 0.
+    pub beyond_f32: u64,
     /// Frames written.
     pub frames: u64,
 }
@@ -303,6 +306,18 @@ fn pump(
                 .filter(|x| !x.is_finite())
                 .for_each(|x| *x = 0.0);
         }
+        if job.format == SampleFormat::F32 {
+            let beyond = |x: &f64| x.abs() > f32::MAX as f64;
+            let count = chunk.iter().filter(|x| beyond(x)).count();
+            if count > 0 {
+                summary.beyond_f32 += count as u64;
+                chunk
+                    .iter_mut()
+                    .filter(|x| beyond(x))
+                    .for_each(|x| *x = 0.0);
+            }
+        }
+        // The peak of what is written.
         summary.peak = summary.peak.max(peak(chunk));
         writer
             .write(chunk, job.format, &mut bytes, &mut summary.clipped)

@@ -799,6 +799,13 @@ fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, ou
             summary.non_finite
         );
     }
+    if summary.beyond_f32 > 0 {
+        eprintln!(
+            "warning: {} samples were beyond the range of 32-bit float (±3.4e38) and were \
+             written as silence; lower --gain, or use --normalize",
+            summary.beyond_f32
+        );
+    }
     if summary.peak > 1.0 {
         let over = 20.0 * summary.peak.log10();
         let clipped = if summary.clipped > 0 {

@@ -1468,3 +1468,34 @@ fn a_scene_that_ends_early_writes_a_header_of_the_frames_it_has() {
     }
     assert!(lengths.iter().all(|&n| n == lengths[0]), "{lengths:?}");
 }
+
+#[test]
+fn samples_beyond_32_bit_float_are_written_as_silence_and_warned_about() {
+    // Finite in f64, infinite in f32: the check is on what is written.
+    let huge = "(* 1e300 (sine (* t 440)))";
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("huge.wav");
+    let run = run([
+        "render",
+        "--expr",
+        huge,
+        "--duration",
+        "0.05",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    run.assert_success();
+    assert!(
+        run.stderr.contains("beyond the range of 32-bit float"),
+        "{}",
+        run.stderr
+    );
+    assert!(!run.stderr.contains("6000"), "{}", run.stderr);
+    let wav = read_wav(&out);
+    assert_eq!(wav.samples.len(), 2400);
+    assert!(wav.samples.iter().all(|x| x.is_finite()));
+    // Scaled to full scale first, it is the sine it is.
+    let wav = render_wav(s(&["--expr", huge, "--duration", "0.05", "--normalize"]));
+    assert!((peak(&wav.samples) - 10f64.powf(-1.0 / 20.0)).abs() < 1e-3);
+    assert!((zero_crossing_frequency(&wav.samples, 48_000.0) - 440.0).abs() < 5.0);
+}
