@@ -3,7 +3,7 @@
 //! Arguments are validated first (clap), then resolved against the file system; every
 //! error in a script is reported as a diagnostic pointing into it. Exit codes: 0 on
 //! success, 1 when a script or the file system refused, 2 on bad command-line usage,
-//! 130 when interrupted.
+//! 130 when interrupted (Ctrl-C, or SIGTERM or SIGHUP on Unix).
 
 mod audio_out;
 mod bench;
@@ -632,12 +632,19 @@ fn measure(plan: &Plan<'_>, interrupted: &AtomicBool) -> Result<(u64, f64), Fail
     Ok((done, peak))
 }
 
+/// Set when the render is to stop: Ctrl-C (SIGINT), and on Unix SIGTERM and SIGHUP
+/// (a process manager stopping it, a closed terminal), so that each leaves no
+/// temporary file behind.
 fn interrupt_flag() -> Arc<AtomicBool> {
     let interrupted = Arc::new(AtomicBool::new(false));
     let flag = interrupted.clone();
     // If a handler cannot be installed, the render still works; only an interrupt
     // would then leave the temporary file behind.
     let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    #[cfg(unix)]
+    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGHUP] {
+        let _ = signal_hook::flag::register(signal, interrupted.clone());
+    }
     interrupted
 }
 

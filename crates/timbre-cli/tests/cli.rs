@@ -671,6 +671,20 @@ impl Drop for Running {
 #[cfg(unix)]
 #[test]
 fn interrupted_render_exits_130_and_leaves_nothing() {
+    interrupt_a_render_with("-INT");
+}
+
+/// A process manager's stop and a closed terminal clean up as Ctrl-C does.
+#[cfg(unix)]
+#[test]
+fn a_terminated_or_hung_up_render_leaves_nothing() {
+    interrupt_a_render_with("-TERM");
+    interrupt_a_render_with("-HUP");
+}
+
+/// Starts a long render over an existing file, sends it `signal` once it writes, and
+/// checks that it exits 130 and leaves the file as it was and nothing else.
+fn interrupt_a_render_with(signal: &str) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("long.wav");
     let before = b"previous render".to_vec();
@@ -699,13 +713,17 @@ fn interrupted_render_exits_130_and_leaves_nothing() {
     }
     let pid = running.child().id().to_string();
     let kill = std::process::Command::new("kill")
-        .args(["-INT", &pid])
+        .args([signal, &pid])
         .status()
         .unwrap();
     assert!(kill.success());
     let output = running.take().wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(130), "stderr: {stderr}");
+    assert_eq!(
+        output.status.code(),
+        Some(130),
+        "{signal}: stderr: {stderr}"
+    );
     assert!(
         stderr.contains("interrupted: no output written"),
         "{stderr}"
