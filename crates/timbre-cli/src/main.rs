@@ -305,9 +305,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(Failure::Diagnostics(diagnostics)) => {
-            for diag in diagnostics.0 {
-                eprintln!("{:?}", miette::Report::new(diag));
-            }
+            print_diagnostics(diagnostics.0);
             ExitCode::from(1)
         }
         Err(Failure::Message(message)) => {
@@ -380,9 +378,7 @@ fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure>
         (None, None) => unreachable!("clap requires a file or an expression"),
     };
     let program = compile(source, dir.as_deref(), &options)?;
-    for warning in &program.warnings {
-        eprintln!("{:?}", miette::Report::new(warning.clone()));
-    }
+    print_diagnostics(program.warnings.iter().cloned());
     for name in &program.unused_bindings {
         let close = timbre_ir::did_you_mean(name, program.definitions.iter().map(String::as_str))
             .map(|n| format!("; did you mean `--set {n}=…`?"))
@@ -630,6 +626,28 @@ fn measure(plan: &Plan<'_>, interrupted: &AtomicBool) -> Result<(u64, f64), Fail
         }
     }
     Ok((done, peak))
+}
+
+/// Diagnostics printed before the rest are only counted: a file of junk can have
+/// thousands, and the first ones explain the rest.
+const MAX_DIAGNOSTICS_SHOWN: usize = 20;
+
+/// Prints diagnostics (miette's graphical form) to standard error, at most
+/// [`MAX_DIAGNOSTICS_SHOWN`] of them and then how many more there were.
+pub(crate) fn print_diagnostics(diagnostics: impl IntoIterator<Item = timbre_ir::Diag>) {
+    let mut more = 0;
+    for (k, diag) in diagnostics.into_iter().enumerate() {
+        if k < MAX_DIAGNOSTICS_SHOWN {
+            eprintln!("{:?}", miette::Report::new(diag));
+        } else {
+            more += 1;
+        }
+    }
+    if more > 0 {
+        eprintln!(
+            "… and {more} more not shown: fix the ones above first (later ones often follow from them)"
+        );
+    }
 }
 
 /// Set when the render is to stop: Ctrl-C (SIGINT), and on Unix SIGTERM and SIGHUP

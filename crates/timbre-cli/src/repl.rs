@@ -629,9 +629,7 @@ pub fn run(audition_path: PathBuf) -> Result<(), String> {
 }
 
 fn report(diagnostics: timbre_ir::Diagnostics) {
-    for diag in diagnostics.0 {
-        eprintln!("{:?}", miette::Report::new(diag));
-    }
+    crate::print_diagnostics(diagnostics.0);
 }
 
 /// Compiles an input: its definitions join the session (replacing earlier ones of

@@ -1517,3 +1517,48 @@ fn samples_beyond_32_bit_float_are_written_as_silence_and_warned_about() {
     assert!((peak(&wav.samples) - 10f64.powf(-1.0 / 20.0)).abs() < 1e-3);
     assert!((zero_crossing_frequency(&wav.samples, 48_000.0) - 440.0).abs() < 5.0);
 }
+
+/// `timbre check` of `text` (written to a file): its run.
+fn check_text(text: &str) -> Run {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("junk.tt");
+    std::fs::write(&path, text).unwrap();
+    run(["check".as_ref(), path.as_os_str()])
+}
+
+#[test]
+fn thousands_of_errors_are_counted_past_the_first_twenty() {
+    let run = check_text(&",".repeat(4000));
+    run.assert_code(1);
+    assert_eq!(run.stderr.matches("unexpected character").count(), 20);
+    assert!(
+        run.stderr.contains("… and 3980 more not shown"),
+        "{}",
+        &run.stderr[run.stderr.len().saturating_sub(300)..]
+    );
+    assert!(run.stderr.len() < 20_000, "{} bytes", run.stderr.len());
+}
+
+#[test]
+fn a_long_line_or_name_is_quoted_in_part() {
+    // A name of two million characters: its message and its line are quoted by
+    // their start, and no near name is looked for.
+    let run = check_text(&format!("({} 1)", "x".repeat(2_000_000)));
+    run.assert_code(1);
+    assert!(
+        run.stderr.contains("unknown function"),
+        "{}",
+        &run.stderr[..500.min(run.stderr.len())]
+    );
+    assert!(run.stderr.len() < 5_000, "{} bytes", run.stderr.len());
+    // An error at the end of a line of ten million characters: the part around it.
+    let run = check_text(&format!("(+ {} (sawtoth t))", "1 ".repeat(5_000_000)));
+    run.assert_code(1);
+    assert!(run.stderr.contains("sawtoth"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("did you mean `sawtooth`"),
+        "{}",
+        run.stderr
+    );
+    assert!(run.stderr.len() < 5_000, "{} bytes", run.stderr.len());
+}

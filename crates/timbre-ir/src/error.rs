@@ -36,6 +36,9 @@ impl SourceCode for SourceFile {
         let inner = self
             .text
             .read_span(span, context_lines_before, context_lines_after)?;
+        if inner.data().len() > 4 * QUOTED_BYTES {
+            return Ok(Box::new(self.window(span)));
+        }
         Ok(Box::new(MietteSpanContents::new_named(
             self.name.clone(),
             inner.data(),
@@ -45,6 +48,53 @@ impl SourceCode for SourceFile {
             inner.line_count(),
         )))
     }
+}
+
+/// Bytes of a long line quoted on each side of a diagnostic's span.
+const QUOTED_BYTES: usize = 80;
+
+/// The longest message, label or hint a diagnostic keeps, in bytes (a name a million
+/// characters long is quoted by its start).
+const MAX_TEXT_BYTES: usize = 300;
+
+impl SourceFile {
+    /// The part of `span`'s line around it, for a line too long to quote whole (a
+    /// 10 MB line prints a few hundred bytes, not 10 MB per diagnostic).
+    fn window(&self, span: &SourceSpan) -> MietteSpanContents<'_> {
+        let text = &*self.text;
+        let start = span.offset().min(text.len());
+        let end = (span.offset() + span.len()).clamp(start, text.len());
+        let line_start = text[..start].rfind('\n').map_or(0, |k| k + 1);
+        let line_end = text[end..].find('\n').map_or(text.len(), |k| end + k);
+        let from = floor_boundary(text, start.saturating_sub(QUOTED_BYTES).max(line_start));
+        let to = floor_boundary(text, (end.max(start + 1) + QUOTED_BYTES).min(line_end));
+        let line = text[..from].matches('\n').count();
+        MietteSpanContents::new_named(
+            self.name.clone(),
+            &text.as_bytes()[from..to],
+            SourceSpan::new(from.into(), to - from),
+            line,
+            from - line_start,
+            text[from..to].matches('\n').count() + 1,
+        )
+    }
+}
+
+/// The largest char boundary of `text` at or before `at`.
+fn floor_boundary(text: &str, at: usize) -> usize {
+    (0..=at.min(text.len()))
+        .rev()
+        .find(|&k| text.is_char_boundary(k))
+        .unwrap_or(0)
+}
+
+/// `text`, cut to [`MAX_TEXT_BYTES`] (at a char boundary, marked with `…`) if longer.
+fn bounded(text: String) -> String {
+    if text.len() <= MAX_TEXT_BYTES {
+        return text;
+    }
+    let cut = floor_boundary(&text, MAX_TEXT_BYTES);
+    format!("{}…", &text[..cut])
 }
 
 /// A diagnostic pointing into a source file, with a stable code and a hint.
@@ -65,7 +115,7 @@ impl Diag {
     pub fn new(code: &'static str, message: impl Into<String>) -> Self {
         Diag {
             code: Cow::Borrowed(code),
-            message: message.into(),
+            message: bounded(message.into()),
             labels: vec![],
             help: None,
             source: None,
@@ -80,12 +130,12 @@ impl Diag {
     }
 
     pub fn label(mut self, span: Span, text: impl Into<String>) -> Self {
-        self.labels.push((span, text.into()));
+        self.labels.push((span, bounded(text.into())));
         self
     }
 
     pub fn help(mut self, help: impl Into<String>) -> Self {
-        self.help = Some(help.into());
+        self.help = Some(bounded(help.into()));
         self
     }
 
@@ -170,6 +220,15 @@ impl Diagnostic for Diag {
                 let mut span = *span;
                 if span.start >= len && len > 0 {
                     span = Span::new(len - 1, len);
+                }
+                // A label over a long run (a name of a million characters) is drawn
+                // over its start only, as its line is quoted (see `SourceFile::window`).
+                if span.end - span.start > 2 * QUOTED_BYTES {
+                    let text = self.source.as_ref().map_or("", |s| &s.text[..]);
+                    span = Span::new(
+                        span.start,
+                        floor_boundary(text, span.start + 2 * QUOTED_BYTES),
+                    );
                 }
                 let text = (!text.is_empty()).then(|| text.clone());
                 if i == 0 {

@@ -524,6 +524,10 @@ pub fn did_you_mean<'n>(
 ) -> Option<&'n str> {
     candidates
         .into_iter()
+        // A name whose length differs by more than the distance allowed cannot be
+        // close: skipped before the distance, which is quadratic (a name of a million
+        // characters would take minutes).
+        .filter(|c| name.len().abs_diff(c.len()) <= (name.len().max(c.len()) / 3).max(1))
         .map(|c| (strsim::damerau_levenshtein(name, c), c))
         // Close relative to the length, and never a rewrite of the whole name.
         .filter(|(d, c)| {
