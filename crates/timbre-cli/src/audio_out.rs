@@ -114,13 +114,22 @@ pub fn write_audio(
             out.flush().map_err(io)?;
             Ok(summary)
         }
-        Destination::File(target) => {
+        Destination::File(path) => {
+            let target = &output_file(path).map_err(|message| WriteError::Encode {
+                path: path.to_path_buf(),
+                message,
+            })?;
             let temp = temp_path(target);
             let result = write_file(&temp, target, job, &mut render).and_then(|summary| {
-                std::fs::rename(&temp, target).map_err(|source| WriteError::Io {
+                let io = |source| WriteError::Io {
                     path: target.to_path_buf(),
                     source,
-                })?;
+                };
+                // The file written keeps the permissions of the one it replaces.
+                if let Ok(old) = std::fs::metadata(target) {
+                    std::fs::set_permissions(&temp, old.permissions()).map_err(io)?;
+                }
+                std::fs::rename(&temp, target).map_err(io)?;
                 Ok(summary)
             });
             if result.is_err() {
@@ -381,6 +390,57 @@ fn quantise(y: f64, bits: u32, clipped: &mut u64) -> i32 {
     }
     let full_scale = ((1i64 << (bits - 1)) - 1) as f64;
     (y.clamp(-1.0, 1.0) * full_scale).round() as i32
+}
+
+/// The file an output named `path` is written to: `path`, or the file a symbolic link
+/// at `path` leads to (the link is kept). Anything else that exists there is refused,
+/// since the output replaces it: a directory, a device such as `/dev/null`, a named
+/// pipe or a socket, and a link that leads nowhere.
+pub fn output_file(path: &Path) -> Result<PathBuf, String> {
+    let meta = match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(path.to_path_buf()),
+        Err(e) => return Err(e.to_string()),
+        Ok(meta) => meta,
+    };
+    let target = if meta.file_type().is_symlink() {
+        std::fs::canonicalize(path).map_err(|_| {
+            "it is a symbolic link that leads nowhere; remove it or choose another name".to_string()
+        })?
+    } else {
+        path.to_path_buf()
+    };
+    let meta = std::fs::metadata(&target).map_err(|e| e.to_string())?;
+    if meta.is_file() {
+        return Ok(target);
+    }
+    let kind = if meta.is_dir() {
+        "a directory"
+    } else {
+        special_kind(&meta)
+    };
+    Err(format!(
+        "it is {kind}, not a regular file, and the output would replace it; choose a file name"
+    ))
+}
+
+#[cfg(unix)]
+fn special_kind(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let kind = meta.file_type();
+    if kind.is_fifo() {
+        "a named pipe"
+    } else if kind.is_socket() {
+        "a socket"
+    } else if kind.is_char_device() || kind.is_block_device() {
+        "a device"
+    } else {
+        "a special file"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_: &std::fs::Metadata) -> &'static str {
+    "a special file"
 }
 
 /// `dir/.name.partial-PID`: same directory (so the rename is atomic), hidden, and

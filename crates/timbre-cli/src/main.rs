@@ -678,8 +678,8 @@ fn canonical_target(path: &Path) -> Option<PathBuf> {
 
 fn render(args: RenderArgs) -> Result<(), Failure> {
     let (program, inputs) = compile_source(&args.source)?;
-    if let Some(target) = canonical_target(&args.output).filter(|_| args.output.as_os_str() != "-")
-    {
+    let resolved = audio_out::output_file(&args.output).unwrap_or_else(|_| args.output.clone());
+    if let Some(target) = canonical_target(&resolved).filter(|_| args.output.as_os_str() != "-") {
         if inputs.contains(&target) {
             return Err(Failure::Message(format!(
                 "refusing to overwrite `{}`: the render reads it; choose another output name",

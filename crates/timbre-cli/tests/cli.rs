@@ -1562,3 +1562,80 @@ fn a_long_line_or_name_is_quoted_in_part() {
     );
     assert!(run.stderr.len() < 5_000, "{} bytes", run.stderr.len());
 }
+
+/// Renders a short tone to `output` in `dir`: its run.
+fn render_to(dir: &Path, output: &str) -> Run {
+    run_in(
+        Some(dir),
+        [
+            "render",
+            "--expr",
+            A440,
+            "--duration",
+            "0.01",
+            "-q",
+            "-o",
+            output,
+        ],
+    )
+}
+
+#[cfg(unix)]
+#[test]
+fn the_output_replaces_only_a_regular_file_and_keeps_its_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A named pipe, a directory, a link that leads nowhere: refused, left as they are.
+    assert!(std::process::Command::new("mkfifo")
+        .arg(d.join("pipe.wav"))
+        .status()
+        .unwrap()
+        .success());
+    std::fs::create_dir(d.join("folder.wav")).unwrap();
+    std::os::unix::fs::symlink("nowhere.wav", d.join("dangling.wav")).unwrap();
+    for (name, why) in [
+        ("pipe.wav", "a named pipe, not a regular file"),
+        ("folder.wav", "a directory, not a regular file"),
+        ("dangling.wav", "a symbolic link that leads nowhere"),
+    ] {
+        let run = render_to(d, name);
+        run.assert_code(1);
+        assert!(run.stderr.contains(why), "{name}: {}", run.stderr);
+    }
+    assert!(d.join("folder.wav").is_dir());
+    assert!(std::fs::symlink_metadata(d.join("dangling.wav"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    // A link to a file: the file is written, the link kept; and the file keeps its
+    // permissions.
+    std::fs::write(d.join("take.wav"), b"old").unwrap();
+    std::fs::set_permissions(d.join("take.wav"), std::fs::Permissions::from_mode(0o640)).unwrap();
+    std::os::unix::fs::symlink("take.wav", d.join("latest.wav")).unwrap();
+    render_to(d, "latest.wav").assert_success();
+    assert!(std::fs::symlink_metadata(d.join("latest.wav"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(read_wav(&d.join("take.wav")).samples.len(), 480);
+    let mode = std::fs::metadata(d.join("take.wav"))
+        .unwrap()
+        .permissions()
+        .mode();
+    assert_eq!(mode & 0o777, 0o640);
+    assert_eq!(partial_files(d), Vec::<String>::new());
+}
+
+#[cfg(unix)]
+#[test]
+fn a_link_to_a_file_the_render_reads_is_not_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("tone.tt"), A440).unwrap();
+    std::os::unix::fs::symlink("tone.tt", d.join("out.wav")).unwrap();
+    let run = run_in(Some(d), ["render", "tone.tt", "-o", "out.wav"]);
+    run.assert_code(1);
+    assert!(run.stderr.contains("the render reads it"), "{}", run.stderr);
+    assert_eq!(std::fs::read_to_string(d.join("tone.tt")).unwrap(), A440);
+}
