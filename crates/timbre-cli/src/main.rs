@@ -361,14 +361,28 @@ fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure>
     let (source, dir) = match (&args.file, &args.expr) {
         (_, Some(expr)) => (SourceFile::new("<expr>", expr.as_str()), None),
         (Some(path), None) if path.as_os_str() == "-" => {
-            let mut text = String::new();
-            std::io::Read::read_to_string(&mut std::io::stdin(), &mut text)
+            let mut bytes = vec![];
+            let mut stdin = std::io::Read::take(std::io::stdin(), timbre_ir::MAX_FILE_BYTES + 1);
+            std::io::Read::read_to_end(&mut stdin, &mut bytes)
                 .map_err(|e| Failure::Message(format!("cannot read standard input: {e}")))?;
+            if bytes.len() as u64 > timbre_ir::MAX_FILE_BYTES {
+                return Err(Failure::Message(format!(
+                    "cannot read standard input: more than {} MiB, the most a script may be",
+                    timbre_ir::MAX_FILE_BYTES >> 20
+                )));
+            }
+            let text = String::from_utf8(bytes).map_err(|_| {
+                Failure::Message("cannot read standard input: it is not UTF-8 text".into())
+            })?;
             (SourceFile::new("<stdin>", text), Some(PathBuf::from(".")))
         }
         (Some(path), None) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| Failure::Message(format!("cannot read `{}`: {e}", path.display())))?;
+            let cannot = |e: &dyn std::fmt::Display| {
+                Failure::Message(format!("cannot read `{}`: {e}", path.display()))
+            };
+            let bytes =
+                timbre_ir::read_bounded(path, timbre_ir::MAX_FILE_BYTES).map_err(|e| cannot(&e))?;
+            let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
             if let Ok(canonical) = std::fs::canonicalize(path) {
                 loader.read.borrow_mut().push(canonical);
             }

@@ -1639,3 +1639,20 @@ fn a_link_to_a_file_the_render_reads_is_not_written() {
     assert!(run.stderr.contains("the render reads it"), "{}", run.stderr);
     assert_eq!(std::fs::read_to_string(d.join("tone.tt")).unwrap(), A440);
 }
+
+#[cfg(unix)]
+#[test]
+fn a_device_is_not_read_as_a_script() {
+    // /dev/zero never ends: refused before reading, as the script or as an include.
+    let run = run(["check", "/dev/zero"]);
+    run.assert_code(1);
+    assert!(run.stderr.contains("not a regular file"), "{}", run.stderr);
+    let run = check_text("(include \"/dev/zero\")");
+    run.assert_code(1);
+    assert!(
+        run.stderr.contains("timbre::include-unreadable")
+            && run.stderr.contains("not a regular file"),
+        "{}",
+        run.stderr
+    );
+}

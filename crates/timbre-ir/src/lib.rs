@@ -39,7 +39,7 @@ pub use dump::dump;
 pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, StableHasher};
 pub use interp::{steps, Interpreter, RenderConfig, Step};
-pub use loader::{FsLoader, Loader, NoFiles};
+pub use loader::{read_bounded, FsLoader, Loader, NoFiles, MAX_FILE_BYTES};
 pub use lower::{
     compile, compile_after, did_you_mean, CompileOptions, Instance, Instantiated, Library,
     ParamValue, Program, Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
