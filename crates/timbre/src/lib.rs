@@ -22,6 +22,8 @@
 //! scene.render(&mut block).unwrap(); // the next 512 samples
 //! ```
 
+#![warn(missing_docs)]
+
 use std::path::Path;
 use std::sync::Arc;
 
@@ -38,8 +40,11 @@ pub use timbre_scene::InstanceId;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
+    /// The script or the call named something wrong (an unknown class, a missing
+    /// parameter …): every problem, each a miette diagnostic with its span and a hint.
     #[error(transparent)]
     Script(#[from] Diagnostics),
+    /// The code generator refused the host machine or the tree.
     #[error(transparent)]
     Compile(#[from] timbre_jit::JitError),
 }
@@ -79,6 +84,7 @@ impl Engine {
         self
     }
 
+    /// Renders with `backend`: the JIT (the default) or the reference interpreter.
     pub fn with_backend(mut self, backend: Backend) -> Self {
         self.backend = backend;
         self
@@ -95,6 +101,7 @@ impl Engine {
         &mut self.registry
     }
 
+    /// Samples per second of every scene it makes.
     pub fn sample_rate(&self) -> f64 {
         self.config.sample_rate
     }
