@@ -1561,6 +1561,17 @@ fn a_long_line_or_name_is_quoted_in_part() {
         run.stderr
     );
     assert!(run.stderr.len() < 5_000, "{} bytes", run.stderr.len());
+    // Lines of ordinary length are quoted whole, with the lines around.
+    let long = format!("(+ {})", "12 ".repeat(50).trim_end());
+    let run = check_text(&format!(
+        "(define a {long})\n(sawtoth t)\n(define b {long})\n"
+    ));
+    run.assert_code(1);
+    assert!(
+        run.stderr.contains(&format!("(define a {long})")),
+        "{}",
+        run.stderr
+    );
 }
 
 /// Renders a short tone to `output` in `dir`: its run.

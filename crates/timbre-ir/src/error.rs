@@ -36,7 +36,7 @@ impl SourceCode for SourceFile {
         let inner = self
             .text
             .read_span(span, context_lines_before, context_lines_after)?;
-        if inner.data().len() > 4 * QUOTED_BYTES {
+        if self.line_length(span) > 4 * QUOTED_BYTES {
             return Ok(Box::new(self.window(span)));
         }
         Ok(Box::new(MietteSpanContents::new_named(
@@ -58,14 +58,28 @@ const QUOTED_BYTES: usize = 80;
 const MAX_TEXT_BYTES: usize = 300;
 
 impl SourceFile {
-    /// The part of `span`'s line around it, for a line too long to quote whole (a
-    /// 10 MB line prints a few hundred bytes, not 10 MB per diagnostic).
-    fn window(&self, span: &SourceSpan) -> MietteSpanContents<'_> {
+    /// `span` within the text (start, end), and the start and end of the line (or
+    /// lines) it is on.
+    fn lines_of(&self, span: &SourceSpan) -> [usize; 4] {
         let text = &*self.text;
         let start = span.offset().min(text.len());
         let end = (span.offset() + span.len()).clamp(start, text.len());
         let line_start = text[..start].rfind('\n').map_or(0, |k| k + 1);
         let line_end = text[end..].find('\n').map_or(text.len(), |k| end + k);
+        [start, end, line_start, line_end]
+    }
+
+    /// Bytes of the line (or lines) that `span` is on.
+    fn line_length(&self, span: &SourceSpan) -> usize {
+        let [_, _, line_start, line_end] = self.lines_of(span);
+        line_end - line_start
+    }
+
+    /// The part of `span`'s line around it, for a line too long to quote whole (a
+    /// 10 MB line prints a few hundred bytes, not 10 MB per diagnostic).
+    fn window(&self, span: &SourceSpan) -> MietteSpanContents<'_> {
+        let text = &*self.text;
+        let [start, end, line_start, line_end] = self.lines_of(span);
         let from = floor_boundary(text, start.saturating_sub(QUOTED_BYTES).max(line_start));
         let to = floor_boundary(text, (end.max(start + 1) + QUOTED_BYTES).min(line_end));
         let line = text[..from].matches('\n').count();
