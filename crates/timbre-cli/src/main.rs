@@ -761,6 +761,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         audio_out::WriteError::Interrupted => Failure::Interrupted,
         other => Failure::Message(other.to_string()),
     })?;
+    report_faults(&plan, &pass.scene);
     drop(pass);
     let format_name = args
         .format
@@ -818,6 +819,37 @@ fn measured(
         None => 1.0,
     };
     Ok((length, scale))
+}
+
+/// Warns of each instance (or the sound) that produced samples that were not finite:
+/// the scene renderer left them out of the mix, so the rest was heard.
+fn report_faults(plan: &Plan<'_>, scene: &timbre_scene::SceneRenderer) {
+    if plan.quiet {
+        return;
+    }
+    let faults = scene.faults();
+    for fault in faults.iter().take(MAX_DIAGNOSTICS_SHOWN) {
+        let index = scene.program_ids().iter().position(|id| *id == fault.id);
+        let who = match index.and_then(|k| plan.program.instances.get(k)) {
+            Some(instance) => format!("instance `{}`", instance.name),
+            None => "the sound".to_string(),
+        };
+        let (n, these) = match fault.samples {
+            1 => ("1 sample that was".to_string(), "it was"),
+            n => (format!("{n} samples that were"), "they were"),
+        };
+        eprintln!(
+            "warning: {who} produced {n} not finite (inf or NaN), the first at {:.6} s; \
+             {these} left out of the mix: look for a division by zero or a log of zero",
+            fault.first as f64 / plan.sample_rate
+        );
+    }
+    if faults.len() > MAX_DIAGNOSTICS_SHOWN {
+        eprintln!(
+            "… and {} more instances with samples that were not finite",
+            faults.len() - MAX_DIAGNOSTICS_SHOWN
+        );
+    }
 }
 
 fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, output: &str) {

@@ -1667,3 +1667,28 @@ fn a_device_is_not_read_as_a_script() {
         run.stderr
     );
 }
+
+#[test]
+fn an_instance_that_is_not_finite_is_named_with_the_time() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("scene.tt"),
+        "(define-sound tone (f) (* 0.5 (sine (* t f))))
+         (define-sound broken () (* 0.1 (/ 1 (- t 0.25))))
+         (instance good (tone :f 440) :start 0)
+         (instance bad (broken) :start 0.1 :stop 0.4)",
+    )
+    .unwrap();
+    let run = run_in(
+        Some(dir.path()),
+        ["render", "scene.tt", "-d", "0.5", "-o", "out.wav"],
+    );
+    run.assert_success();
+    assert!(
+        run.stderr.contains(
+            "warning: instance `bad` produced 1 sample that was not finite (inf or NaN), the first at 0.350000 s"
+        ),
+        "{}",
+        run.stderr
+    );
+}

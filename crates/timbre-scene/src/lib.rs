@@ -187,6 +187,52 @@ struct Active {
     decay: Option<DecayWatch>,
     /// Its part of the block, when voices render on several threads.
     buffer: Vec<f64>,
+    /// Samples it produced that were not finite (left out of the mix), and the scene
+    /// sample of the first.
+    faults: u64,
+    first_fault: Option<u64>,
+}
+
+/// An instance that produced samples that were not finite (±∞ or NaN): they were left
+/// out of the mix (as silence), so the other instances are heard.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Fault {
+    pub id: InstanceId,
+    /// Scene sample of the first.
+    pub first: u64,
+    /// How many (frames times lanes).
+    pub samples: u64,
+}
+
+/// Zero for a finite sample, NaN for ±∞ or NaN.
+#[inline]
+#[allow(clippy::eq_op)] // x − x is the point: 0 unless x is ±∞ or NaN
+fn nan_unless_finite(x: f64) -> f64 {
+    x - x
+}
+
+/// Whether every sample is finite: eight running sums of `x − x` (NaN for ±∞ and
+/// NaN), cheap enough to run over every voice's block.
+fn all_finite(samples: &[f64]) -> bool {
+    let mut sums = [0.0f64; 8];
+    let mut runs = samples.chunks_exact(8);
+    for run in &mut runs {
+        for (s, x) in sums.iter_mut().zip(run) {
+            *s += nan_unless_finite(*x);
+        }
+    }
+    let rest: f64 = runs.remainder().iter().map(|x| nan_unless_finite(*x)).sum();
+    !(sums.iter().sum::<f64>() + rest).is_nan()
+}
+
+/// `x`, or 0 if it is not finite.
+#[inline]
+fn finite_or_zero(x: f64) -> f64 {
+    if x.is_finite() {
+        x
+    } else {
+        0.0
+    }
 }
 
 impl Active {
@@ -217,7 +263,16 @@ impl Active {
         let width = self.voice.width();
         let rendered = &rendered[..n * width];
         let mut next = until;
-        if width == 1 && channels == 1 && self.fade_from.is_none() {
+        let finite = all_finite(rendered);
+        if !finite {
+            // Left out of the mix (the rest of the scene is heard), counted, and the
+            // first one remembered.
+            let bad = rendered.iter().filter(|x| !x.is_finite()).count() as u64;
+            let first = rendered.iter().position(|x| !x.is_finite()).unwrap_or(0) / width;
+            self.faults += bad;
+            self.first_fault.get_or_insert(from + first as u64);
+        }
+        if finite && width == 1 && channels == 1 && self.fade_from.is_none() {
             // The common case, mono and no fade, in a tight loop.
             // Up to the sample after which it has decayed, if it has.
             let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
@@ -247,14 +302,15 @@ impl Active {
             let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
             if width == 1 {
                 for y in frame.iter_mut() {
-                    *y += lanes[0] * gain;
+                    *y += finite_or_zero(lanes[0]) * gain;
                 }
             } else {
                 for (y, x) in frame.iter_mut().zip(lanes) {
-                    *y += x * gain;
+                    *y += finite_or_zero(*x) * gain;
                 }
             }
-            let loudest = lanes.iter().fold(0.0f64, |m, x| m.max(x.abs())) * gain;
+            let loudest =
+                (lanes.iter()).fold(0.0f64, |m, x| m.max(finite_or_zero(*x).abs())) * gain;
             if self.decay.as_mut().is_some_and(|d| d.push(loudest)) {
                 // Decayed: this is its last sample, whatever the block.
                 next = from + k as u64 + 1;
@@ -288,6 +344,10 @@ pub struct SceneRenderer {
     last_block_work: Duration,
     /// See [`SceneRenderer::set_threads_min_work`].
     threads_min_work: Duration,
+    /// Instances that have ended after producing samples that were not finite.
+    faults: Vec<Fault>,
+    /// The ids of the program's instances (or of its one sound), in its order.
+    program_ids: Vec<InstanceId>,
     /// Instances of one shape computed as the lanes of one kernel call (see
     /// `timbre_jit::LaneBatch`); whether instances that can be are.
     batches: Vec<LaneBatch>,
@@ -328,6 +388,8 @@ impl SceneRenderer {
             threads_min_work: THREADS_WORTH_IT,
             batches: vec![],
             batching: engine == Engine::Jit,
+            faults: vec![],
+            program_ids: vec![],
         })
     }
 
@@ -348,6 +410,7 @@ impl SceneRenderer {
             }],
             (None, instances) => instances.iter().map(|i| renderer.pending(i, sr)).collect(),
         };
+        renderer.program_ids = pending.iter().map(|p| p.id).collect();
         pending.sort_by_key(|p| std::cmp::Reverse(p.start));
         renderer.active.reserve(pending.len());
         renderer.pending = pending;
@@ -411,6 +474,25 @@ impl SceneRenderer {
     /// instances that start afterwards.
     pub fn set_batching(&mut self, on: bool) {
         self.batching = on && self.engine == Engine::Jit;
+    }
+
+    /// The ids of the program's instances, in the order written (or the id of its one
+    /// sound), for naming them.
+    pub fn program_ids(&self) -> &[InstanceId] {
+        &self.program_ids
+    }
+
+    /// The instances that have produced samples that were not finite so far, by their
+    /// first: those samples were left out of the mix.
+    pub fn faults(&self) -> Vec<Fault> {
+        let playing = self.active.iter().filter(|a| a.faults > 0).map(|a| Fault {
+            id: a.id,
+            first: a.first_fault.unwrap_or(0),
+            samples: a.faults,
+        });
+        let mut faults: Vec<Fault> = self.faults.iter().copied().chain(playing).collect();
+        faults.sort_by_key(|f| (f.first, f.id));
+        faults
     }
 
     /// Instances in lanes of batches: playing, or added by a host and yet to start.
@@ -586,6 +668,8 @@ impl SceneRenderer {
                 end: p.end,
                 fade_from: None,
                 buffer: vec![],
+                faults: 0,
+                first_fault: None,
             });
         }
         let fade = self.fade_samples;
@@ -689,6 +773,13 @@ impl SceneRenderer {
         for a in &self.active {
             if a.end.is_some_and(|e| a.next >= e) {
                 self.ended_at = self.ended_at.max(a.next);
+                if a.faults > 0 {
+                    self.faults.push(Fault {
+                        id: a.id,
+                        first: a.first_fault.unwrap_or(0),
+                        samples: a.faults,
+                    });
+                }
                 if let Voice::Lane { batch, lane } = a.voice {
                     self.batches[batch].release(lane);
                 }

@@ -527,3 +527,35 @@ fn lanes_are_the_same_bits_whatever_the_block_size_split_or_threads() {
     assert_eq!(renderer.instances_in_lanes(), 0);
     assert_same_bits(&reference, &voices, "lanes against voices");
 }
+
+#[test]
+fn an_instance_that_is_not_finite_is_left_out_and_reported() {
+    // `bad` is +inf at 0.25 s of its own time (0.35 s of the scene) and NaN
+    // throughout its second part; `good` must be heard all along.
+    let program = scene(
+        "(define-sound tone (f) (* 0.5 (sine (* t f))))
+         (define-sound broken () (+ (* 0.1 (/ 1 (- t 0.25))) (sqrt (- 0.27 t))))
+         (instance good (tone :f 440) :start 0)
+         (instance bad (broken) :start 0.1 :stop 0.4)",
+    );
+    let good = render(&only(&program, "good"), 0.5, Engine::Jit);
+    for engine in [Engine::Jit, Engine::Interpreter] {
+        let mut renderer = SceneRenderer::new(&program, config(), engine).unwrap();
+        let mut out = vec![0.0; 24_000];
+        renderer.render(&mut out).unwrap();
+        assert!(
+            out.iter().all(|x| x.is_finite()),
+            "{engine:?}: the mix is finite"
+        );
+        // After `bad` has gone wrong (from 0.37 s its sqrt is NaN), `good` alone.
+        let late = 0.38 * SR;
+        let late = late as usize..(0.5 * SR) as usize;
+        assert_close(&out[late.clone()], &good[late], 1e-6, "good is heard");
+        let faults = renderer.faults();
+        assert_eq!(faults.len(), 1, "{engine:?}: {faults:?}");
+        let bad = renderer.program_ids()[1];
+        assert_eq!(faults[0].id, bad);
+        assert_eq!(faults[0].first, (0.35 * SR) as u64, "{engine:?}: the pole");
+        assert!(faults[0].samples > 1000, "{engine:?}: the NaN part too");
+    }
+}
