@@ -236,7 +236,7 @@ impl Interpreter {
                 (Op::Const(_), _) => unreachable!("constants are filled once"),
                 (Op::Time, _) => {
                     for (k, y) in o.iter_mut().enumerate() {
-                        *y = (n0 + k as u64) as f64 / sr;
+                        *y = crate::op::sample_time(n0 + k as u64, sr);
                     }
                 }
                 (Op::Unary(op), _) => {

@@ -473,6 +473,13 @@ impl fmt::Display for Op {
     }
 }
 
+/// `t` at sample `index` of a sound (counted from its first sample) at `rate`: the
+/// one definition both engines use, wherever they compute it.
+#[inline]
+pub fn sample_time(index: u64, rate: f64) -> f64 {
+    index as f64 / rate
+}
+
 /// The gain of a timer at local time `t` (see [`Op::Timer`]).
 #[inline]
 pub fn timer_gain(t: f64, length: Option<f64>, fade_in: f64, fade_out: f64) -> f64 {

@@ -21,11 +21,12 @@
 
 use std::sync::Arc;
 
-use timbre_ir::op::{timer_gain, Op};
+use timbre_ir::op::{sample_time, Op};
 use timbre_ir::{Graph, NodeId, RenderConfig, Step};
 
 use crate::codegen::{NOISE_SEED, NOISE_SLOTS};
 use crate::shape::{Kind, Shape};
+use crate::timer;
 use crate::{kernel_params, Jit, JitError, Kernel};
 
 /// Lanes of a batch: instances of one shape beyond this start another batch. A
@@ -390,19 +391,10 @@ impl LaneBatch {
             };
             let x = &sound[lane * bs..lane * bs + n];
             let y = &mut self.output[lane * bs + at..lane * bs + at + n];
-            let (length, fade_in, fade_out) = l.timer;
             // The instance's local time, as its own voice has it.
             let first = from - l.start;
-            let time = |k: usize| (first + k as u64) as f64 / self.sample_rate;
-            let gain = |t: f64| timer_gain(t, length, fade_in, fade_out);
-            let steady = gain(time(0)) == 1.0 && length.is_none_or(|len| time(n - 1) < len);
-            if steady {
-                y.copy_from_slice(x);
-            } else {
-                for (k, (y, x)) in y.iter_mut().zip(x).enumerate() {
-                    *y = x * gain(time(k));
-                }
-            }
+            let time = |k: usize| sample_time(first + k as u64, self.sample_rate);
+            timer::apply(l.timer, time, true, x, y);
         }
     }
 

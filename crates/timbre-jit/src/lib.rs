@@ -326,26 +326,15 @@ impl Jit {
                 timer_block,
                 modal_tile,
             };
-            let param = |b: &mut FunctionBuilder, k: i32| {
-                b.ins().load(
-                    cranelift_codegen::ir::types::F64,
-                    MemFlagsData::new().with_notrap(),
-                    params[2],
-                    8 * k,
-                )
+            let param = |b: &mut FunctionBuilder, ty, k: i32| {
+                b.ins()
+                    .load(ty, MemFlagsData::new().with_notrap(), params[2], 8 * k)
             };
-            let sample_rate = param(&mut b, 0);
-            let sample_period = param(&mut b, 1);
-            let int_param = |b: &mut FunctionBuilder, k: i32| {
-                b.ins().load(
-                    cranelift_codegen::ir::types::I64,
-                    MemFlagsData::new().with_notrap(),
-                    params[2],
-                    8 * k,
-                )
-            };
-            let lane_starts = int_param(&mut b, 2);
-            let lanes_in_use = int_param(&mut b, 3);
+            use cranelift_codegen::ir::types::{F64, I64};
+            let sample_rate = param(&mut b, F64, 0);
+            let sample_period = param(&mut b, F64, 1);
+            let lane_starts = param(&mut b, I64, 2);
+            let lanes_in_use = param(&mut b, I64, 3);
             let mut kb = KernelBuilder {
                 b: &mut b,
                 steps,

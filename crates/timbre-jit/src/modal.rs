@@ -335,7 +335,7 @@ impl ModalState {
         let time_is_t = self.time_is_t;
         let tau_at = |k: usize| {
             if time_is_t {
-                (t0 + k as u64) as f64 / sr
+                timbre_ir::op::sample_time(t0 + k as u64, sr)
             } else {
                 time[k]
             }

@@ -5,7 +5,7 @@
 //! gain computed per sample.
 
 use cranelift_codegen::ir::{types, InstBuilder};
-use timbre_ir::op::{timer_gain, Op};
+use timbre_ir::op::{sample_time, timer_gain, Op};
 
 use crate::codegen::KernelBuilder;
 
@@ -48,16 +48,12 @@ pub(crate) extern "C" fn timer_block(
     let rate = state[3];
     let t = |k: usize| {
         if time_is_t {
-            (t0 + k as u64) as f64 / rate
+            sample_time(t0 + k as u64, rate)
         } else {
             time[k]
         }
     };
-    let length = Some(state[0]).filter(|l| l.is_finite());
-    let gain = |t: f64| timer_gain(t, length, state[1], state[2]);
-    // t only grows, and the gain at the block's first sample is exactly 1 and the
-    // block ends before the length: every gain of the block is exactly 1.
-    let steady = time_is_t && gain(t(0)) == 1.0 && length.is_none_or(|l| t(n - 1) < l);
+    let timer = (Some(state[0]).filter(|l| l.is_finite()), state[1], state[2]);
     for lane in 0..lanes {
         // SAFETY: as above; `sound` and `out` are different steps' buffers.
         let (x, y) = unsafe {
@@ -66,12 +62,29 @@ pub(crate) extern "C" fn timer_block(
                 std::slice::from_raw_parts_mut(out.add(lane * stride), n),
             )
         };
-        if steady {
-            y.copy_from_slice(x);
-        } else {
-            for (k, (y, x)) in y.iter_mut().zip(x).enumerate() {
-                *y = x * gain(t(k));
-            }
+        apply(timer, t, time_is_t, x, y);
+    }
+}
+
+/// `y = x · gain(t(k))` for the timer of (length, fade-in, fade-out), `t(k)` the time
+/// of sample k. When that time is `t` itself (`grows`), a block whose first gain is
+/// exactly 1 and which ends before the length has every gain exactly 1: it passes
+/// through unchanged.
+pub(crate) fn apply(
+    (length, fade_in, fade_out): (Option<f64>, f64, f64),
+    t: impl Fn(usize) -> f64,
+    grows: bool,
+    x: &[f64],
+    y: &mut [f64],
+) {
+    let n = x.len();
+    let gain = |t: f64| timer_gain(t, length, fade_in, fade_out);
+    let steady = grows && n > 0 && gain(t(0)) == 1.0 && length.is_none_or(|l| t(n - 1) < l);
+    if steady {
+        y.copy_from_slice(x);
+    } else {
+        for (k, (y, x)) in y.iter_mut().zip(x).enumerate() {
+            *y = x * gain(t(k));
         }
     }
 }

@@ -204,6 +204,22 @@ pub struct Fault {
     pub samples: u64,
 }
 
+/// A lane's samples of scene samples `from..until` of the block at `position`, from
+/// its batch; `None` for a voice of its own.
+fn lane_samples<'b>(
+    batches: &'b [LaneBatch],
+    voice: &Voice,
+    position: u64,
+    from: u64,
+    until: u64,
+) -> Option<&'b [f64]> {
+    let Voice::Lane { batch, lane } = *voice else {
+        return None;
+    };
+    let (a, b) = ((from - position) as usize, (until - position) as usize);
+    Some(batches[batch].output(lane, a, b))
+}
+
 /// Zero for a finite sample, NaN for ±∞ or NaN.
 #[inline]
 #[allow(clippy::eq_op)] // x − x is the point: 0 unless x is ±∞ or NaN
@@ -737,9 +753,9 @@ impl SceneRenderer {
                 });
                 for active in &mut self.active {
                     if let Some((from, until)) = active.window(position, end) {
-                        if let Voice::Lane { batch, lane } = active.voice {
-                            let (a, b) = ((from - position) as usize, (until - position) as usize);
-                            let rendered = batches[batch].output(lane, a, b);
+                        if let Some(rendered) =
+                            lane_samples(batches, &active.voice, position, from, until)
+                        {
                             active.mix(rendered, from, until, out, position, channels, fade);
                             continue;
                         }
@@ -752,9 +768,9 @@ impl SceneRenderer {
             None => {
                 for active in &mut self.active {
                     if let Some((from, until)) = active.window(position, end) {
-                        if let Voice::Lane { batch, lane } = active.voice {
-                            let (a, b) = ((from - position) as usize, (until - position) as usize);
-                            let rendered = batches[batch].output(lane, a, b);
+                        if let Some(rendered) =
+                            lane_samples(batches, &active.voice, position, from, until)
+                        {
                             active.mix(rendered, from, until, out, position, channels, fade);
                             continue;
                         }

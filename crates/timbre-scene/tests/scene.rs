@@ -491,12 +491,7 @@ fn instances_of_one_class_run_as_lanes_and_agree_with_the_interpreter() {
     assert_eq!(renderer.instances_in_lanes(), 26);
     let interp = render(&program, 1.0, Engine::Interpreter);
     assert!(interp.iter().any(|x| x.abs() > 0.1), "a silent test");
-    let worst = jit
-        .iter()
-        .zip(&interp)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    assert!(worst < 1e-9, "lanes and the interpreter differ by {worst}");
+    assert_close(&jit, &interp, 1e-9, "lanes against the interpreter");
 }
 
 #[test]
