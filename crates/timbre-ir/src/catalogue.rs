@@ -1157,7 +1157,7 @@ fn max_delay(l: &Lowerer<'_>, b: &Bound<'_>, time: usize, max: usize) -> Result<
 
 impl Lowerer<'_> {
     /// A stateful kernel's node.
-    fn stateful(
+    pub(crate) fn stateful(
         &mut self,
         kernel: impl crate::kernel::StatefulKernel,
         args: Vec<NodeId>,

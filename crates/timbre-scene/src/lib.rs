@@ -7,11 +7,35 @@
 //! parse or lower: `timbre-ir` turns `define-sound`, `keyframes` and `instance` forms
 //! into trees with a timer at the root.
 
-use std::sync::Arc;
+mod mix;
+mod realtime;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
 use timbre_jit::{InstanceLanes, Jit, JitError, JitVoice, LaneBatch};
+
+use mix::Route;
+pub use mix::{Mix, Placement};
+pub use realtime::{Command, Control, Ended, Refused};
+
+/// A compiler shared by renderers (and the hosts' control threads), so that kernels
+/// compiled for one scene serve every other: its cache is by tree shape. Locked only
+/// to make a voice, never to render one.
+pub type SharedJit = Arc<Mutex<Jit>>;
+
+/// A new compiler to share.
+pub fn shared_jit() -> Result<SharedJit, JitError> {
+    Ok(Arc::new(Mutex::new(Jit::new()?)))
+}
+
+/// The compiler, even if a thread panicked while holding it (its cache stays valid:
+/// a kernel enters it only once compiled).
+fn lock(jit: &SharedJit) -> MutexGuard<'_, Jit> {
+    jit.lock().unwrap_or_else(PoisonError::into_inner)
+}
 
 /// Which engine renders the instances.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,7 +46,7 @@ pub enum Engine {
 
 /// Identifies an instance added by a host.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct InstanceId(u64);
+pub struct InstanceId(pub(crate) u64);
 
 /// Output below this is silence, for ending instances that have decayed (−120 dBFS).
 const SILENCE: f64 = 1e-6;
@@ -154,6 +178,43 @@ impl Voice {
     }
 }
 
+/// An instance's voice made ready to render (lowered, compiled and given its
+/// buffers), to hand to a renderer with [`SceneRenderer::insert`]: on a host's control
+/// thread, so that the audio thread only adds it.
+pub struct Prepared {
+    voice: Voice,
+}
+
+impl Prepared {
+    /// Makes the voice of `root` of `graph` with `engine` (the JIT through `jit`,
+    /// compiling its kernel unless the cache has its shape). A tree too large to compile
+    /// is rendered by the interpreter.
+    pub fn new(
+        engine: Engine,
+        jit: Option<&SharedJit>,
+        config: RenderConfig,
+        graph: &Graph,
+        root: NodeId,
+    ) -> Result<Self, JitError> {
+        let interpreted = || Voice::Interpreter(Box::new(Interpreter::new(graph, root, config)));
+        let voice = match (engine, jit) {
+            (Engine::Jit, Some(jit)) => match lock(jit).voice(graph, root, config) {
+                Ok(voice) => Voice::Jit(Box::new(voice)),
+                // Too large to compile: the reference interpreter renders it.
+                Err(JitError::TooLarge { .. }) => interpreted(),
+                Err(e) => return Err(e),
+            },
+            _ => interpreted(),
+        };
+        Ok(Prepared { voice })
+    }
+
+    /// Lanes of its output: 1 (a mono instance) or one per channel.
+    pub fn width(&self) -> usize {
+        self.voice.width()
+    }
+}
+
 /// Where a pending instance's voice comes from.
 enum Source {
     /// A root of the scene's own graph: the voice is made when it starts, so memory
@@ -173,6 +234,7 @@ struct Pending {
     /// First sample after the instance, if it stops (its timer has faded it out and
     /// the last of its sound has reached the receivers).
     end: Option<u64>,
+    mix: Mix,
 }
 
 struct Active {
@@ -191,6 +253,7 @@ struct Active {
     /// sample of the first.
     faults: u64,
     first_fault: Option<u64>,
+    mix: Mix,
 }
 
 /// An instance that produced samples that were not finite (±∞ or NaN): they were left
@@ -288,7 +351,8 @@ impl Active {
             self.faults += bad;
             self.first_fault.get_or_insert(from + first as u64);
         }
-        if finite && width == 1 && channels == 1 && self.fade_from.is_none() {
+        let unmixed = self.mix == Mix::default();
+        if finite && width == 1 && channels == 1 && self.fade_from.is_none() && unmixed {
             // The common case, mono and no fade, in a tight loop.
             // Up to the sample after which it has decayed, if it has.
             let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
@@ -303,8 +367,9 @@ impl Active {
             self.next = next;
             return;
         }
+        let route = Route::of(self.mix.placement, channels);
         for (k, lanes) in rendered.chunks_exact(width).enumerate() {
-            let gain = match self.fade_from {
+            let fading = match self.fade_from {
                 Some(f) => {
                     let s = from + k as u64;
                     if s < f {
@@ -315,18 +380,19 @@ impl Active {
                 }
                 None => 1.0,
             };
+            let gain = fading * self.mix.gain;
             let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
             if width == 1 {
-                for y in frame.iter_mut() {
-                    *y += finite_or_zero(lanes[0]) * gain;
-                }
+                route.add(finite_or_zero(lanes[0]) * gain, frame);
             } else {
                 for (y, x) in frame.iter_mut().zip(lanes) {
                     *y += finite_or_zero(*x) * gain;
                 }
             }
+            // Decay is judged on the instance's own sound (with its fade-out), not on
+            // the host's gain: a muted instance goes on.
             let loudest =
-                (lanes.iter()).fold(0.0f64, |m, x| m.max(finite_or_zero(*x).abs())) * gain;
+                (lanes.iter()).fold(0.0f64, |m, x| m.max(finite_or_zero(*x).abs())) * fading;
             if self.decay.as_mut().is_some_and(|d| d.push(loudest)) {
                 // Decayed: this is its last sample, whatever the block.
                 next = from + k as u64 + 1;
@@ -344,7 +410,7 @@ pub struct SceneRenderer {
     graph: Arc<Graph>,
     config: RenderConfig,
     engine: Engine,
-    jit: Option<Jit>,
+    jit: Option<SharedJit>,
     /// Instances not started yet, latest start first (so the next is at the end).
     pending: Vec<Pending>,
     active: Vec<Active>,
@@ -368,6 +434,14 @@ pub struct SceneRenderer {
     /// `timbre_jit::LaneBatch`); whether instances that can be are.
     batches: Vec<LaneBatch>,
     batching: bool,
+    /// One block of frames, for the output formats rendered through it.
+    block: Vec<f64>,
+    /// When split for real time (see [`SceneRenderer::split`]): the commands coming
+    /// from the control side, where ended instances go back to (to be freed there),
+    /// and where the position is published.
+    inbox: Option<rtrb::Consumer<Command>>,
+    outbox: Option<rtrb::Producer<Ended>>,
+    published: Option<Arc<AtomicU64>>,
 }
 
 /// Blocks whose voices take less than this on one thread are not shared out among
@@ -382,21 +456,43 @@ impl SceneRenderer {
         channels: usize,
     ) -> Result<Self, JitError> {
         let jit = match engine {
-            Engine::Jit => Some(Jit::new()?),
+            Engine::Jit => Some(shared_jit()?),
             Engine::Interpreter => None,
         };
+        Ok(Self::build(config, engine, channels, jit))
+    }
+
+    /// A renderer with no instances that compiles with `jit`, sharing its kernels with
+    /// every other renderer that does.
+    pub fn new_empty_sharing(
+        config: RenderConfig,
+        engine: Engine,
+        channels: usize,
+        jit: SharedJit,
+    ) -> Self {
+        Self::build(config, engine, channels, Some(jit))
+    }
+
+    fn build(
+        config: RenderConfig,
+        engine: Engine,
+        channels: usize,
+        jit: Option<SharedJit>,
+    ) -> Self {
         let sr = config.sample_rate;
-        Ok(SceneRenderer {
-            channels: channels.max(1),
+        let channels = channels.max(1);
+        let block = config.block_size.max(1) * channels;
+        SceneRenderer {
+            channels,
             graph: Arc::new(Graph::new()),
             config,
             engine,
-            jit,
+            jit: jit.filter(|_| engine == Engine::Jit),
             pending: vec![],
             active: vec![],
             position: 0,
             ended_at: 0,
-            scratch: vec![0.0; config.block_size.max(1)],
+            scratch: vec![0.0; block],
             fade_samples: (DECLICK_OUT * sr).round().max(1.0) as u64,
             next_id: 0,
             pool: None,
@@ -406,14 +502,41 @@ impl SceneRenderer {
             batching: engine == Engine::Jit,
             faults: vec![],
             program_ids: vec![],
-        })
+            block: vec![0.0; block],
+            inbox: None,
+            outbox: None,
+            published: None,
+        }
     }
 
     /// A renderer of `program`'s instances (or of its one sound, as an instance
     /// starting at 0 that plays to the end).
     pub fn new(program: &Program, config: RenderConfig, engine: Engine) -> Result<Self, JitError> {
+        let jit = match engine {
+            Engine::Jit => Some(shared_jit()?),
+            Engine::Interpreter => None,
+        };
+        Ok(Self::of_program(program, config, engine, jit))
+    }
+
+    /// A renderer of `program`'s instances that compiles with `jit`.
+    pub fn new_sharing(
+        program: &Program,
+        config: RenderConfig,
+        engine: Engine,
+        jit: SharedJit,
+    ) -> Self {
+        Self::of_program(program, config, engine, Some(jit))
+    }
+
+    fn of_program(
+        program: &Program,
+        config: RenderConfig,
+        engine: Engine,
+        jit: Option<SharedJit>,
+    ) -> Self {
         let channels = program.settings.channels.unwrap_or(1);
-        let mut renderer = Self::new_empty(config, engine, channels)?;
+        let mut renderer = Self::build(config, engine, channels, jit);
         renderer.graph = Arc::new(program.graph.clone());
         let sr = config.sample_rate;
         let mut pending: Vec<Pending> = match (&program.root, program.instances.as_slice()) {
@@ -423,6 +546,7 @@ impl SceneRenderer {
                 ends_when_silent: false,
                 start: 0,
                 end: None,
+                mix: Mix::default(),
             }],
             (None, instances) => instances.iter().map(|i| renderer.pending(i, sr)).collect(),
         };
@@ -430,7 +554,7 @@ impl SceneRenderer {
         pending.sort_by_key(|p| std::cmp::Reverse(p.start));
         renderer.active.reserve(pending.len());
         renderer.pending = pending;
-        Ok(renderer)
+        renderer
     }
 
     fn new_id(&mut self) -> InstanceId {
@@ -447,6 +571,7 @@ impl SceneRenderer {
             end: instance
                 .stop
                 .map(|stop| ((stop + DECLICK_OUT + instance.tail) * sr).round() as u64),
+            mix: Mix::default(),
         }
     }
 
@@ -549,35 +674,80 @@ impl SceneRenderer {
 
     /// Adds an instance: `root` of `graph` (its timer at the root), starting at scene
     /// sample `start` (a start already past begins now) and, if `end` is given, ending
-    /// there; without an end it ends once decayed. Its voice or its lane (and, the
-    /// first time for its shape, its kernel) is made here, so rendering stays free of
-    /// allocation.
+    /// there; without an end it ends once decayed; heard as `mix` says. Its voice or
+    /// its lane (and, the first time for its shape, its kernel) is made here, so
+    /// rendering stays free of allocation.
     pub fn add(
         &mut self,
         graph: &Graph,
         root: NodeId,
         start: u64,
         end: Option<u64>,
+        mix: Mix,
     ) -> Result<InstanceId, JitError> {
         let start = start.max(self.position);
-        let voice = match self.lane(graph, root, start)? {
-            Some(lane) => lane,
-            None => self.voice(graph, root)?,
+        let prepared = match self.lane(graph, root, start)? {
+            Some(lane) => Prepared { voice: lane },
+            None => self.prepare(graph, root)?,
         };
         let id = self.new_id();
+        self.reserve_instances(1);
+        self.insert(id, prepared, start, end, mix);
+        Ok(id)
+    }
+
+    /// Makes room for `more` instances than it has, so that inserting them (and their
+    /// ending) allocates nothing.
+    pub fn reserve_instances(&mut self, more: usize) {
+        let all = self.pending.len() + self.active.len() + more;
+        self.pending.reserve(all.saturating_sub(self.pending.len()));
+        self.active.reserve(all.saturating_sub(self.active.len()));
+        self.faults.reserve(more);
+    }
+
+    /// Adds a prepared instance as `id` (made by the control side of a split renderer),
+    /// starting at scene sample `start` (not before now), ending at `end` or once
+    /// decayed, heard as `mix` says. Allocates nothing when there is room (see
+    /// [`SceneRenderer::reserve_instances`]).
+    pub fn insert(
+        &mut self,
+        id: InstanceId,
+        prepared: Prepared,
+        start: u64,
+        end: Option<u64>,
+        mix: Mix,
+    ) {
+        let start = start.max(self.position);
+        let frames = self.config.block_size.max(1) * prepared.width();
+        if self.scratch.len() < frames {
+            // A voice wider than the channels (never one of a host's one-lane classes).
+            self.scratch.resize(frames, 0.0);
+        }
         let at = self.pending.partition_point(|p| p.start > start);
         self.pending.insert(
             at,
             Pending {
                 id,
-                source: Source::Voice(voice),
+                source: Source::Voice(prepared.voice),
                 ends_when_silent: end.is_none(),
                 start,
                 end,
+                mix,
             },
         );
-        self.active.reserve(self.pending.len());
-        Ok(id)
+    }
+
+    /// Changes where an instance is heard, from the next block. False if it has ended.
+    pub fn set_mix(&mut self, id: InstanceId, mix: Mix) -> bool {
+        if let Some(p) = self.pending.iter_mut().find(|p| p.id == id) {
+            p.mix = mix;
+            return true;
+        }
+        if let Some(a) = self.active.iter_mut().find(|a| a.id == id) {
+            a.mix = mix;
+            return true;
+        }
+        false
     }
 
     /// Stops an instance at scene sample `at` (not before now) with a short fade-out.
@@ -603,29 +773,14 @@ impl SceneRenderer {
         false
     }
 
-    fn voice(&mut self, graph: &Graph, root: NodeId) -> Result<Voice, JitError> {
-        // Room for a block of its frames (made here, so rendering does not allocate).
-        let frames = self.config.block_size.max(1) * graph.width(root);
-        if self.scratch.len() < frames {
-            self.scratch.resize(frames, 0.0);
-        }
-        Ok(match (self.engine, &mut self.jit) {
-            (Engine::Jit, Some(jit)) => match jit.voice(graph, root, self.config) {
-                Ok(voice) => Voice::Jit(Box::new(voice)),
-                // Too large to compile: the reference interpreter renders it.
-                Err(JitError::TooLarge { .. }) => {
-                    Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config)))
-                }
-                Err(e) => return Err(e),
-            },
-            _ => Voice::Interpreter(Box::new(Interpreter::new(graph, root, self.config))),
-        })
+    fn prepare(&mut self, graph: &Graph, root: NodeId) -> Result<Prepared, JitError> {
+        Prepared::new(self.engine, self.jit.as_ref(), self.config, graph, root)
     }
 
     /// A lane of a batch for instance `root` starting at scene sample `start`, if it
     /// qualifies and batching is on.
     fn lane(&mut self, graph: &Graph, root: NodeId, start: u64) -> Result<Option<Voice>, JitError> {
-        let Some(jit) = self.jit.as_mut().filter(|_| self.batching) else {
+        let Some(jit) = self.jit.as_ref().filter(|_| self.batching) else {
             return Ok(None);
         };
         let Some(instance) = InstanceLanes::of(graph, root, self.config.block_size) else {
@@ -638,7 +793,7 @@ impl SceneRenderer {
                 }
             }
         }
-        let Some(mut b) = LaneBatch::new(jit, &instance, self.config)? else {
+        let Some(mut b) = LaneBatch::new(&mut lock(jit), &instance, self.config)? else {
             return Ok(None);
         };
         let lane = b.add(&instance, start).expect("a new batch has free lanes");
@@ -658,7 +813,117 @@ impl SceneRenderer {
         Ok(())
     }
 
+    /// Renders the next `out.len() / channels` frames as interleaved `f32` (each
+    /// sample rounded to the nearest `f32`). Allocates nothing.
+    pub fn render_f32(&mut self, out: &mut [f32]) -> Result<(), JitError> {
+        let mut block = std::mem::take(&mut self.block);
+        let result = out.chunks_mut(block.len()).try_for_each(|chunk| {
+            let frames = &mut block[..chunk.len()];
+            self.render_block(frames)?;
+            for (y, x) in chunk.iter_mut().zip(frames.iter()) {
+                *y = *x as f32;
+            }
+            Ok(())
+        });
+        self.block = block;
+        result
+    }
+
+    /// Renders the next frames into one slice per channel (`out.len()` must be the
+    /// channels; every slice as long as the first). Allocates nothing.
+    pub fn render_planar(&mut self, out: &mut [&mut [f64]]) -> Result<(), JitError> {
+        assert_eq!(out.len(), self.channels, "one slice per channel");
+        let frames = out.first().map_or(0, |c| c.len());
+        assert!(
+            out.iter().all(|c| c.len() == frames),
+            "slices of one length"
+        );
+        let mut block = std::mem::take(&mut self.block);
+        let per_block = block.len() / self.channels;
+        let mut done = 0;
+        let mut result = Ok(());
+        while done < frames && result.is_ok() {
+            let n = per_block.min(frames - done);
+            let interleaved = &mut block[..n * self.channels];
+            result = self.render_block(interleaved);
+            for (k, frame) in interleaved.chunks_exact(self.channels).enumerate() {
+                for (channel, x) in out.iter_mut().zip(frame) {
+                    channel[done + k] = *x;
+                }
+            }
+            done += n;
+        }
+        self.block = block;
+        result
+    }
+
+    /// Splits the renderer for real time: a [`Control`] for the host's control side
+    /// (which prepares instances and sends them, with stops and mix changes, through a
+    /// lock-free queue) and this renderer for the audio thread, which takes them at
+    /// the start of each block and sends ended instances back to be freed, so that it
+    /// never locks, allocates or frees. At most `capacity` instances may be playing or
+    /// waiting to start at once. Instances of a program waiting to start are prepared
+    /// now.
+    pub fn split(mut self, capacity: usize) -> Result<(Control, SceneRenderer), JitError> {
+        for p in &mut self.pending {
+            if let Source::Root(root) = p.source {
+                let graph = self.graph.clone();
+                let prepared =
+                    Prepared::new(self.engine, self.jit.as_ref(), self.config, &graph, root)?;
+                p.source = Source::Voice(prepared.voice);
+            }
+        }
+        let already = self.pending.len() + self.active.len();
+        self.reserve_instances(capacity);
+        // Every instance ends once, so the queue back never fills.
+        let (commands, inbox) = rtrb::RingBuffer::new(capacity.max(1));
+        let (outbox, ended) = rtrb::RingBuffer::new(capacity.max(1) + already);
+        let position = Arc::new(AtomicU64::new(self.position));
+        self.inbox = Some(inbox);
+        self.outbox = Some(outbox);
+        self.published = Some(position.clone());
+        let control = Control::new(realtime::Parts {
+            commands,
+            ended,
+            position,
+            next_id: self.next_id,
+            alive: already,
+            capacity: capacity + already,
+            engine: self.engine,
+            jit: self.jit.clone(),
+            config: self.config,
+            channels: self.channels,
+        });
+        Ok((control, self))
+    }
+
+    /// Takes what the control side sent (when split).
+    fn take_commands(&mut self) {
+        let Some(mut inbox) = self.inbox.take() else {
+            return;
+        };
+        while let Ok(command) = inbox.pop() {
+            match command {
+                Command::Add {
+                    id,
+                    prepared,
+                    start,
+                    end,
+                    mix,
+                } => self.insert(id, prepared, start, end, mix),
+                Command::Stop { id, at } => {
+                    self.stop(id, at);
+                }
+                Command::Mix { id, mix } => {
+                    self.set_mix(id, mix);
+                }
+            }
+        }
+        self.inbox = Some(inbox);
+    }
+
     fn render_block(&mut self, out: &mut [f64]) -> Result<(), JitError> {
+        self.take_commands();
         out.fill(0.0);
         let channels = self.channels;
         let end = self.position + (out.len() / channels) as u64;
@@ -670,7 +935,7 @@ impl SceneRenderer {
                     let graph = self.graph.clone();
                     match self.lane(&graph, root, p.start)? {
                         Some(lane) => lane,
-                        None => self.voice(&graph, root)?,
+                        None => self.prepare(&graph, root)?.voice,
                     }
                 }
             };
@@ -686,6 +951,7 @@ impl SceneRenderer {
                 buffer: vec![],
                 faults: 0,
                 first_fault: None,
+                mix: p.mix,
             });
         }
         let fade = self.fade_samples;
@@ -786,23 +1052,44 @@ impl SceneRenderer {
             // What the block would have taken on one thread, roughly.
             self.last_block_work = started.elapsed() * threads as u32;
         }
-        for a in &self.active {
-            if a.end.is_some_and(|e| a.next >= e) {
-                self.ended_at = self.ended_at.max(a.next);
-                if a.faults > 0 {
-                    self.faults.push(Fault {
+        // Ended instances leave in place (keeping the others' order, and so the sums).
+        let mut k = 0;
+        while k < self.active.len() {
+            let a = &self.active[k];
+            if a.end.is_none_or(|e| a.next < e) {
+                k += 1;
+                continue;
+            }
+            let a = self.active.remove(k);
+            self.ended_at = self.ended_at.max(a.next);
+            let fault = (a.faults > 0).then(|| Fault {
+                id: a.id,
+                first: a.first_fault.unwrap_or(0),
+                samples: a.faults,
+            });
+            let voice = match a.voice {
+                Voice::Lane { batch, lane } => {
+                    self.batches[batch].release(lane);
+                    None
+                }
+                voice => Some(Prepared { voice }),
+            };
+            match self.outbox.as_mut() {
+                // Freed on the control side; the queue has room for every instance.
+                Some(outbox) => {
+                    let _ = outbox.push(Ended {
                         id: a.id,
-                        first: a.first_fault.unwrap_or(0),
-                        samples: a.faults,
+                        fault,
+                        voice,
                     });
                 }
-                if let Voice::Lane { batch, lane } = a.voice {
-                    self.batches[batch].release(lane);
-                }
+                None => self.faults.extend(fault),
             }
         }
-        self.active.retain(|a| a.end.is_none_or(|e| a.next < e));
         self.position = end;
+        if let Some(published) = &self.published {
+            published.store(end, Ordering::Release);
+        }
         Ok(())
     }
 }

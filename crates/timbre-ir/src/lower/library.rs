@@ -17,7 +17,8 @@ use crate::keyframes::KeyframeTrack;
 use crate::op::Op;
 
 /// A value the host sets while a sound plays, read by its voice at the start of each
-/// block (so it changes on block boundaries). Setting it takes no lock.
+/// block (so it changes on block boundaries, unless smoothed: see
+/// [`Variable::with_lag`]). Setting it takes no lock, from any thread.
 ///
 /// In a tree, a variable is known by the name of the parameter it is bound to, never
 /// by its address, so random nodes that read it are seeded the same on every run.
@@ -25,6 +26,8 @@ use crate::op::Op;
 pub struct Variable {
     cell: Arc<AtomicU64>,
     name: Arc<str>,
+    /// Smoothing time constant in seconds (0: none).
+    lag: f64,
 }
 
 impl Variable {
@@ -32,7 +35,26 @@ impl Variable {
         Variable {
             cell: Arc::new(AtomicU64::new(value.to_bits())),
             name: Arc::from(""),
+            lag: 0.0,
         }
+    }
+
+    /// The same variable, read through exponential smoothing with time constant
+    /// `seconds` (the `lag` node) by the instances it is bound to from now on, so a
+    /// change glides over a few time constants instead of stepping at a block
+    /// boundary (a step zippers). 0 turns smoothing off.
+    pub fn with_lag(mut self, seconds: f64) -> Self {
+        self.lag = if seconds.is_finite() {
+            seconds.max(0.0)
+        } else {
+            0.0
+        };
+        self
+    }
+
+    /// The smoothing time constant, in seconds (0: none).
+    pub fn lag(&self) -> f64 {
+        self.lag
     }
 
     pub fn set(&self, value: f64) {
@@ -53,6 +75,7 @@ impl Variable {
         Variable {
             cell: self.cell.clone(),
             name: Arc::from(name),
+            lag: self.lag,
         }
     }
 }
@@ -114,7 +137,7 @@ impl Library {
             lowerer.errors.push(diag);
         }
         // Every class is checked now, not at its first instance.
-        lowerer.check_unused_definitions();
+        lowerer.check_unused_definitions(true);
         if let Some(errors) = lowerer.take_errors() {
             return Err(errors);
         }
@@ -233,7 +256,15 @@ impl Library {
             let node = match value {
                 ParamValue::Constant(x) => lowerer.graph.constant(*x),
                 ParamValue::Keyframes(track) => lowerer.keyframe_node(track.clone()),
-                ParamValue::Variable(v) => lowerer.graph.add(Op::Variable(v.named(name)), vec![]),
+                ParamValue::Variable(v) => {
+                    let read = lowerer.graph.add(Op::Variable(v.named(name)), vec![]);
+                    if v.lag > 0.0 {
+                        let seconds = lowerer.graph.constant(v.lag);
+                        lowerer.stateful(crate::dsp::control::Lag, vec![read, seconds])
+                    } else {
+                        read
+                    }
+                }
             };
             scope.push((name.to_string(), node));
         }

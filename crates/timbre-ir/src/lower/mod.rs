@@ -334,7 +334,7 @@ impl<'a> Lowerer<'a> {
                 .in_source(&origin.source),
             );
         }
-        self.check_unused_definitions();
+        self.check_unused_definitions(false);
         if let Some(errors) = self.take_errors() {
             return Err(errors);
         }
@@ -381,7 +381,9 @@ impl<'a> Lowerer<'a> {
     /// or library tree is reported when the file is read. Parameters stand for the
     /// constant 1 and free names are not errors (`--set` may give them later); the
     /// nodes made are thrown away.
-    pub(crate) fn check_unused_definitions(&mut self) {
+    /// With `one_lane_classes` (a library's classes, which a host mixes as mono
+    /// instances), a class whose sound is wider than one lane is an error too.
+    pub(crate) fn check_unused_definitions(&mut self, one_lane_classes: bool) {
         let unused: Vec<String> = self
             .definition_order
             .iter()
@@ -407,9 +409,21 @@ impl<'a> Lowerer<'a> {
                 source: def.source.clone(),
                 dir: def.dir.clone(),
             };
-            self.expanding.push(name);
-            if let Err(diag) = self.lower(&def.body, &origin, &mut scope) {
-                self.errors.push(diag);
+            self.expanding.push(name.clone());
+            match self.lower(&def.body, &origin, &mut scope) {
+                Err(diag) => self.errors.push(diag),
+                Ok(sound) if one_lane_classes && def.class && self.graph.width(sound) != 1 => {
+                    let lanes = self.graph.width(sound);
+                    let diag = Diag::new(
+                        "timbre::wide-sound",
+                        format!("class `{name}` is {lanes} lanes wide"),
+                    )
+                    .label(def.body.span, format!("{lanes} lanes"))
+                    .help("a sound class is one lane: sum its lanes with (combine …)")
+                    .in_source(&def.source);
+                    self.errors.push(diag);
+                }
+                Ok(_) => {}
             }
             self.expanding.pop();
         }
