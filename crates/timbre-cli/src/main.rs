@@ -132,6 +132,23 @@ struct SourceArgs {
     /// Seed of all random nodes (overrides the file's `(scene :seed …)`).
     #[arg(long)]
     seed: Option<u64>,
+
+    /// Lift the limits on what a script may ask for, which otherwise guard against
+    /// runaway scripts: 4 M nodes, 16 M lanes in all, 2 GiB of delay lines and
+    /// convolutions at once, 10¹² lane-samples of work, 24 h, 768 kHz, 100 000
+    /// instances, 64 nested includes.
+    #[arg(long)]
+    no_limits: bool,
+}
+
+impl SourceArgs {
+    fn limits(&self) -> timbre_ir::limits::Limits {
+        if self.no_limits {
+            timbre_ir::limits::Limits::none()
+        } else {
+            timbre_ir::limits::Limits::default()
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -357,17 +374,20 @@ fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure>
         seed: args.seed,
         registry: &registry,
         loader: &loader,
+        limits: args.limits(),
     };
     let (source, dir) = match (&args.file, &args.expr) {
         (_, Some(expr)) => (SourceFile::new("<expr>", expr.as_str()), None),
         (Some(path), None) if path.as_os_str() == "-" => {
             let mut bytes = vec![];
-            let mut stdin = std::io::Read::take(std::io::stdin(), timbre_ir::MAX_FILE_BYTES + 1);
+            let limit = options.limits.script_bytes();
+            let mut stdin = std::io::Read::take(std::io::stdin(), limit + 1);
             std::io::Read::read_to_end(&mut stdin, &mut bytes)
                 .map_err(|e| Failure::Message(format!("cannot read standard input: {e}")))?;
-            if bytes.len() as u64 > timbre_ir::MAX_FILE_BYTES {
+            if bytes.len() as u64 > limit {
                 return Err(Failure::Message(format!(
-                    "cannot read standard input: more than {} MiB, the most a script may be",
+                    "cannot read standard input: more than {} MiB, the most a script may be (--no-limits allows {} MiB)",
+                    limit >> 20,
                     timbre_ir::MAX_FILE_BYTES >> 20
                 )));
             }
@@ -380,8 +400,8 @@ fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure>
             let cannot = |e: &dyn std::fmt::Display| {
                 Failure::Message(format!("cannot read `{}`: {e}", path.display()))
             };
-            let bytes =
-                timbre_ir::read_bounded(path, timbre_ir::MAX_FILE_BYTES).map_err(|e| cannot(&e))?;
+            let bytes = timbre_ir::read_bounded(path, options.limits.script_bytes())
+                .map_err(|e| cannot(&e))?;
             let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
             if let Ok(canonical) = std::fs::canonicalize(path) {
                 loader.read.borrow_mut().push(canonical);
@@ -482,7 +502,11 @@ struct Plan<'p> {
     quiet: bool,
 }
 
-fn plan<'p>(program: &'p Program, args: &SoundArgs) -> Result<Plan<'p>, Failure> {
+fn plan<'p>(
+    program: &'p Program,
+    args: &SoundArgs,
+    limits: &timbre_ir::limits::Limits,
+) -> Result<Plan<'p>, Failure> {
     if program.root.is_none() && program.instances.is_empty() {
         return Err(Failure::Message(
             "nothing to render: the file defines trees but has no sound expression or instance (add one, or use --expr)"
@@ -520,10 +544,19 @@ fn plan<'p>(program: &'p Program, args: &SoundArgs) -> Result<Plan<'p>, Failure>
         Engine::Jit => timbre_scene::Engine::Jit,
         Engine::Interp => timbre_scene::Engine::Interpreter,
     };
+    let config = timbre_ir::RenderConfig {
+        sample_rate,
+        block_size: args.block_size as usize,
+    };
+    let frames = (duration * sample_rate).round() as u64;
+    // What rendering will cost, known before the first sample.
+    timbre_ir::limits::check_length(duration, sample_rate, limits)?;
+    let playing = timbre_scene::playing(program, sample_rate, frames);
+    timbre_ir::limits::check_render(&program.graph, &playing, config, limits)?;
     Ok(Plan {
         program,
         sample_rate,
-        frames: (duration * sample_rate).round() as u64,
+        frames,
         open_ended,
         rendered_channels,
         channels,
@@ -531,10 +564,7 @@ fn plan<'p>(program: &'p Program, args: &SoundArgs) -> Result<Plan<'p>, Failure>
         fade_frames: args
             .fade_out
             .map_or(0, |s| (s * sample_rate).round() as u64),
-        config: timbre_ir::RenderConfig {
-            sample_rate,
-            block_size: args.block_size as usize,
-        },
+        config,
         engine,
         threads: args.threads.map_or_else(
             || std::thread::available_parallelism().map_or(1, |n| n.get()),
@@ -726,7 +756,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         (_, Some(Format::S16)) => SampleFormat::S16,
         (_, Some(Format::S24)) | (Container::Flac, None) => SampleFormat::S24,
     };
-    let plan = plan(&program, &args.sound)?;
+    let plan = plan(&program, &args.sound, &args.source.limits())?;
     // A WAV file's sizes are 32-bit: refuse before rendering rather than write a file
     // whose header lies about its length.
     let bytes_per_frame = format.bytes() * plan.channels as u64;
@@ -906,7 +936,7 @@ fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, ou
 /// Renders and plays; without a way to play, writes the WAV and says why.
 fn play(args: PlayArgs) -> Result<(), Failure> {
     let (program, _) = compile_source(&args.source)?;
-    let plan = plan(&program, &args.sound)?;
+    let plan = plan(&program, &args.sound, &args.source.limits())?;
     let interrupted = interrupt_flag();
     let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;
     let samples = render_to_memory(&plan, length, scale, &interrupted)?;

@@ -981,7 +981,12 @@ fn a_small_file_of_a_deep_tree_checks_and_renders() {
     let file = dir.path().join("doubling.tt");
     std::fs::write(&file, doubling_file()).unwrap();
     assert!(std::fs::metadata(&file).unwrap().len() <= 1024);
+    // A million expansions are past the default limit: a diagnostic at once.
     let run = run_in(Some(dir.path()), ["check", "doubling.tt"]);
+    run.assert_code(1)
+        .assert_stderr_has("timbre::too-many-expansions");
+    // Lifted, the chain is built and checked without recursion.
+    let run = run_in(Some(dir.path()), ["check", "doubling.tt", "--no-limits"]);
     run.assert_success();
     assert!(run.stdout.starts_with("ok: one sound"), "{}", run.stdout);
     // Too large for the code generator: the interpreter renders it (after the
@@ -999,6 +1004,7 @@ fn a_small_file_of_a_deep_tree_checks_and_renders() {
             "-o",
             "out.wav",
             "--quiet",
+            "--no-limits",
         ],
     );
     run.assert_success();
@@ -1551,8 +1557,8 @@ fn a_long_line_or_name_is_quoted_in_part() {
         &run.stderr[..500.min(run.stderr.len())]
     );
     assert!(run.stderr.len() < 5_000, "{} bytes", run.stderr.len());
-    // An error at the end of a line of ten million characters: the part around it.
-    let run = check_text(&format!("(+ {} (sawtoth t))", "1 ".repeat(5_000_000)));
+    // An error at the end of a line of six million characters: the part around it.
+    let run = check_text(&format!("(+ {} (sawtoth t))", "1 ".repeat(3_000_000)));
     run.assert_code(1);
     assert!(run.stderr.contains("sawtoth"), "{}", run.stderr);
     assert!(

@@ -1165,11 +1165,30 @@ impl Lowerer<'_> {
         self.graph.add(Op::Stateful(Arc::new(kernel)), args)
     }
 
-    /// `op` folded from the left over one or more nodes.
+    /// `op` folded from the left over one or more nodes. A run of one-lane constants
+    /// is folded here, as the graph would fold it, without a node per step (a call of
+    /// a million numbers makes one constant, not a million).
     pub(crate) fn fold(&mut self, op: BinaryOp, nodes: &[NodeId]) -> NodeId {
+        let scalar = |graph: &crate::graph::Graph, id: NodeId| match graph.node(id).as_const() {
+            Some([x]) => Some(*x),
+            _ => None,
+        };
         let mut acc = nodes[0];
-        for next in &nodes[1..] {
-            acc = self.graph.add(Op::Binary(op), vec![acc, *next]);
+        let mut k = 1;
+        while k < nodes.len() {
+            if let Some(mut value) = scalar(&self.graph, acc) {
+                let start = k;
+                while let Some(x) = nodes.get(k).and_then(|n| scalar(&self.graph, *n)) {
+                    value = op.apply(value, x);
+                    k += 1;
+                }
+                if k > start {
+                    acc = self.graph.constant(value);
+                    continue;
+                }
+            }
+            acc = self.graph.add(Op::Binary(op), vec![acc, nodes[k]]);
+            k += 1;
         }
         acc
     }

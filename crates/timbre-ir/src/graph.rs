@@ -13,7 +13,9 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
+use crate::error::SourceFile;
 use crate::op::{BinaryOp, ImpulseResponse, Op, TernaryOp, UnaryOp};
+use timbre_syntax::Span;
 
 /// Index of a node in its [`Graph`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -87,6 +89,20 @@ pub struct Graph {
     nodes: Vec<Node>,
     /// Structural hash → ids with that hash (collisions are resolved by comparison).
     interned: HashMap<u64, Vec<NodeId>>,
+    /// Where each node was first written, when lowering said (see
+    /// [`Graph::set_origin`]): for diagnostics about a node after lowering.
+    origins: Vec<Option<NodeOrigin>>,
+    /// The origin given to the nodes added now.
+    origin: Option<NodeOrigin>,
+    /// Lanes of every node together.
+    lanes: usize,
+}
+
+/// The call a node was written as: its file and span.
+#[derive(Clone, Debug)]
+pub struct NodeOrigin {
+    pub source: Arc<SourceFile>,
+    pub span: Span,
 }
 
 impl Graph {
@@ -96,6 +112,22 @@ impl Graph {
 
     pub fn len(&self) -> usize {
         self.nodes.len()
+    }
+
+    /// Lanes of all its nodes together.
+    pub fn lanes(&self) -> usize {
+        self.lanes
+    }
+
+    /// Gives the nodes added from now on `origin` (lowering sets it around each call
+    /// it builds); a node keeps the origin of its first writing.
+    pub fn set_origin(&mut self, origin: Option<NodeOrigin>) -> Option<NodeOrigin> {
+        std::mem::replace(&mut self.origin, origin)
+    }
+
+    /// Where node `id` was written, if known.
+    pub fn origin(&self, id: NodeId) -> Option<&NodeOrigin> {
+        self.origins.get(id.index()).and_then(Option::as_ref)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -173,6 +205,8 @@ impl Graph {
             width,
             hash,
         });
+        self.origins.push(self.origin.clone());
+        self.lanes = self.lanes.saturating_add(width);
         self.interned.entry(hash).or_default().push(id);
         id
     }

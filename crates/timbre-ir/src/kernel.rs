@@ -89,6 +89,14 @@ pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
 
     fn new_state(&self, ctx: &StateContext) -> Self::State;
 
+    /// Bytes its state will need at `ctx`, estimated without making it, so that a
+    /// render beyond the host's memory limit is refused before it starts (see
+    /// `timbre_ir::limits`). Kernels whose state grows with a time or a length
+    /// (delay lines, replays) say how much; the small ones keep the default.
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        64 * ctx.width as u64
+    }
+
     /// Computes the next `inputs.n` samples of every lane.
     fn process(&self, state: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>);
 }
@@ -100,6 +108,7 @@ pub trait DynKernel: fmt::Debug + Send + Sync + 'static {
     fn detail(&self) -> String;
     fn width(&self, args: &[usize]) -> usize;
     fn new_state(&self, ctx: &StateContext) -> Box<dyn Any + Send>;
+    fn memory(&self, ctx: &StateContext) -> u64;
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>);
     /// The kernel itself, for an engine that compiles some kernels of its own (the
     /// JIT's modal bank) to recognise them.
@@ -125,6 +134,10 @@ impl<K: StatefulKernel> DynKernel for K {
 
     fn new_state(&self, ctx: &StateContext) -> Box<dyn Any + Send> {
         Box::new(StatefulKernel::new_state(self, ctx))
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        StatefulKernel::memory(self, ctx)
     }
 
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>) {

@@ -28,6 +28,7 @@ mod graph;
 mod interp;
 pub mod kernel;
 pub mod keyframes;
+pub mod limits;
 mod loader;
 mod lower;
 pub mod op;
@@ -37,7 +38,7 @@ pub mod space;
 pub use custom::{BlockContext, CustomNode, Lanes};
 pub use dump::dump;
 pub use error::{Diag, Diagnostics, SourceFile};
-pub use graph::{Graph, Node, NodeId, StableHasher};
+pub use graph::{Graph, Node, NodeId, NodeOrigin, StableHasher};
 pub use interp::{steps, Interpreter, RenderConfig, Step};
 pub use loader::{read_bounded, FsLoader, Loader, NoFiles, MAX_FILE_BYTES};
 pub use lower::{
@@ -53,6 +54,7 @@ impl<'a> CompileOptions<'a> {
             seed: None,
             registry,
             loader,
+            limits: Default::default(),
         }
     }
 }

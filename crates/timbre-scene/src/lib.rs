@@ -404,6 +404,41 @@ impl Active {
     }
 }
 
+/// What rendering `program` for `frames` samples at `sample_rate` plays, for checking
+/// its cost before rendering (`timbre_ir::limits::check_render`): its sound for the
+/// whole render, or each instance from its start sample to its end (its stop, fade
+/// and tail), or to the render's end if it ends once decayed.
+pub fn playing(
+    program: &Program,
+    sample_rate: f64,
+    frames: u64,
+) -> Vec<timbre_ir::limits::Playing> {
+    use timbre_ir::limits::Playing;
+    if let Some(root) = program.root {
+        return vec![Playing {
+            root,
+            start: 0,
+            samples: frames,
+        }];
+    }
+    let to_sample = |seconds: f64| (seconds.max(0.0) * sample_rate).round().min(1e18) as u64;
+    program
+        .instances
+        .iter()
+        .filter_map(|i| {
+            let start = to_sample(i.start);
+            let end = i.stop.map_or(frames, |stop| {
+                to_sample(stop + DECLICK_OUT + i.tail).min(frames)
+            });
+            (start < frames).then_some(Playing {
+                root: i.root,
+                start,
+                samples: end.saturating_sub(start),
+            })
+        })
+        .collect()
+}
+
 /// Renders a scene: the sum of its instances, in interleaved frames of `channels`.
 pub struct SceneRenderer {
     channels: usize,
@@ -665,6 +700,11 @@ impl SceneRenderer {
     /// The sample after the last one that any instance that has ended produced.
     pub fn ended_at(&self) -> u64 {
         self.ended_at
+    }
+
+    /// Instances added or scheduled and not yet started.
+    pub fn pending_instances(&self) -> usize {
+        self.pending.len()
     }
 
     /// Instances playing now.

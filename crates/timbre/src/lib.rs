@@ -33,6 +33,7 @@ use timbre_ir::{
 use timbre_scene::{Prepared, SceneRenderer, SharedJit};
 
 pub use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
+pub use timbre_ir::limits::Limits;
 pub use timbre_ir::{Diagnostics, ParamValue, Variable};
 pub use timbre_scene::{Fault, InstanceId, Mix, Placement};
 
@@ -70,6 +71,7 @@ pub struct Engine {
     seed: Option<u64>,
     registry: Registry,
     loader: Arc<dyn Loader + Send + Sync>,
+    limits: Limits,
     /// Made at the first scene that needs it; shared by the engine's clones.
     jit: Arc<Mutex<Option<SharedJit>>>,
 }
@@ -87,8 +89,30 @@ impl Engine {
             seed: None,
             registry: Registry::new(),
             loader: Arc::new(NoFiles),
+            limits: Limits::default(),
             jit: Arc::new(Mutex::new(None)),
         }
+    }
+
+    /// What scripts may ask for ([`Limits::default`] unless set): nodes, lanes and
+    /// expansions when a library or scene is loaded; the memory of each instance and
+    /// the number playing when it starts; the length of an offline render, the
+    /// sample rate, and the wall time of one render call. Each refusal is a
+    /// diagnostic, never an abort.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0).with_limits(timbre::Limits {
+    ///     memory: 1 << 20,
+    ///     ..Default::default()
+    /// });
+    /// let library = engine.load_library("(define-sound echo (x) (delay x 60))").unwrap();
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// let refused = scene.start("echo", &[("x", 1.0.into())], 0.0).unwrap_err();
+    /// assert!(refused.to_string().contains("memory"));
+    /// ```
+    pub fn with_limits(mut self, limits: Limits) -> Self {
+        self.limits = limits;
+        self
     }
 
     /// Lets scripts read files (`include`, `sample`, CSV keyframes) from disk,
@@ -176,6 +200,7 @@ impl Engine {
     fn options(&self) -> CompileOptions<'_> {
         let mut options = CompileOptions::new(&self.registry, self.loader.as_ref());
         options.seed = self.seed;
+        options.limits = self.limits.clone();
         options
     }
 
@@ -217,17 +242,38 @@ impl Engine {
         Ok((SourceFile::new(resolved.display().to_string(), text), dir))
     }
 
+    /// Refuses a script larger than the limits allow, before parsing it.
+    fn check_size(&self, source: &SourceFile) -> Result<(), Diagnostics> {
+        let limit = self.limits.script_bytes();
+        if source.text.len() as u64 <= limit {
+            return Ok(());
+        }
+        Err(Diagnostics::one(
+            Diag::new(
+                "timbre::script-too-large",
+                format!(
+                    "`{}` has {} bytes, more than the limit of {limit}",
+                    source.name,
+                    source.text.len()
+                ),
+            )
+            .help("split it into files that include each other, or relax Limits::source_bytes"),
+        ))
+    }
+
     fn load(
         &self,
         source: Arc<SourceFile>,
         dir: Option<&Path>,
     ) -> Result<SoundLibrary, Diagnostics> {
+        self.check_size(&source)?;
         let library = Library::compile(source, dir, &self.options())?;
         Ok(SoundLibrary(Arc::new(library)))
     }
 
     /// An empty scene of the library's classes.
     pub fn scene(&self, library: &SoundLibrary) -> Result<Scene, Error> {
+        timbre_ir::limits::check_length(0.0, self.config.sample_rate, &self.limits)?;
         let renderer = match self.jit()? {
             Some(jit) => {
                 SceneRenderer::new_empty_sharing(self.config, self.backend, self.channels, jit)
@@ -267,7 +313,16 @@ impl Engine {
     }
 
     fn scene_of(&self, source: Arc<SourceFile>, dir: Option<&Path>) -> Result<Scene, Error> {
+        self.check_size(&source)?;
         let program = timbre_ir::compile(source, dir, &self.options())?;
+        // Its cost, known before rendering: to its :duration, else as the command
+        // line renders an open scene.
+        let rate = self.config.sample_rate;
+        let seconds = program.settings.duration.unwrap_or(600.0);
+        timbre_ir::limits::check_length(seconds, rate, &self.limits)?;
+        let frames = (seconds * rate).round() as u64;
+        let playing = timbre_scene::playing(&program, rate, frames);
+        timbre_ir::limits::check_render(&program.graph, &playing, self.config, &self.limits)?;
         let renderer = match self.jit()? {
             Some(jit) => SceneRenderer::new_sharing(&program, self.config, self.backend, jit),
             None => SceneRenderer::new(&program, self.config, self.backend)?,
@@ -379,12 +434,25 @@ fn prepare(
     let tree = library
         .0
         .instantiate(class, params, play.at, play.stop, &engine.options())?;
+    check_instance(engine, &tree)?;
     let prepared = Prepared::new(engine.backend, jit, engine.config, &tree.graph, tree.root)?;
     Ok(Started {
         prepared,
         start: sample(play.at).max(now),
         end: play.stop.map(|s| sample(s + timbre_ir::DECLICK_OUT)),
     })
+}
+
+/// Checks an instance against the engine's limits before its voice is made: the
+/// memory its state needs, and that the system can give it.
+fn check_instance(engine: &Engine, tree: &timbre_ir::Instantiated) -> Result<(), Error> {
+    let playing = [timbre_ir::limits::Playing {
+        root: tree.root,
+        start: 0,
+        samples: 0,
+    }];
+    timbre_ir::limits::check_render(&tree.graph, &playing, engine.config, &engine.limits)?;
+    Ok(())
 }
 
 /// Instances playing, and their state. Times are seconds on the scene's timeline.
@@ -448,6 +516,11 @@ impl Scene {
             play.stop,
             &self.engine.options(),
         )?;
+        check_instance(&self.engine, &tree)?;
+        let waiting = self.renderer.active_instances() + self.renderer.pending_instances();
+        if waiting >= self.engine.limits.instances {
+            return Err(too_many(self.engine.limits.instances));
+        }
         let start = self.sample(play.at);
         let end = play.stop.map(|s| self.sample(s + timbre_ir::DECLICK_OUT));
         Ok(self
@@ -506,9 +579,29 @@ impl Scene {
     }
 
     /// Renders the next `out.len() / channels` frames, interleaved. Allocates nothing,
-    /// takes no lock (with one thread, the default: see [`Scene::set_threads`]).
+    /// takes no lock (with one thread, the default: see [`Scene::set_threads`]). With
+    /// a wall-time limit ([`Limits::render_time`]), a call that takes longer stops at
+    /// the end of a block with a diagnostic (the frames after it are left as they
+    /// were).
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {
-        Ok(self.renderer.render(out)?)
+        let Some(budget) = self.engine.limits.render_time else {
+            return Ok(self.renderer.render(out)?);
+        };
+        let started = std::time::Instant::now();
+        let block = self.engine.config.block_size.max(1) * self.renderer.channels();
+        for chunk in out.chunks_mut(block) {
+            self.renderer.render(chunk)?;
+            if started.elapsed() > budget {
+                return Err(Error::Script(Diagnostics::one(
+                    Diag::new(
+                        "timbre::render-too-slow",
+                        format!("a render call took longer than its limit of {budget:?}"),
+                    )
+                    .help("render fewer instances or lanes, or relax Limits::render_time"),
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// Renders the next `out.len() / channels` frames as interleaved `f32`, what an
@@ -534,8 +627,14 @@ impl Scene {
         Ok(self.renderer.render_planar(out)?)
     }
 
-    /// Renders until scene time `until` and returns the frames, interleaved.
+    /// Renders until scene time `until` and returns the frames, interleaved (at most
+    /// [`Limits::duration`] seconds).
     pub fn render_offline(&mut self, until: f64) -> Result<Vec<f64>, Error> {
+        timbre_ir::limits::check_length(
+            until,
+            self.engine.config.sample_rate,
+            &self.engine.limits,
+        )?;
         let frames = self.sample(until).saturating_sub(self.renderer.position()) as usize;
         let mut out = vec![0.0; frames * self.renderer.channels()];
         self.render(&mut out)?;
@@ -586,6 +685,9 @@ impl Scene {
     /// assert!(callback_buffer.iter().any(|x| x.abs() > 0.01));
     /// ```
     pub fn split(self, capacity: usize) -> Result<(Control, Renderer), Error> {
+        if capacity > self.engine.limits.instances {
+            return Err(too_many(self.engine.limits.instances));
+        }
         let jit = self.engine.jit()?;
         let (control, renderer) = self.renderer.split(capacity)?;
         let control = Control {
@@ -620,6 +722,17 @@ struct ControlSide {
     engine: Engine,
     library: SoundLibrary,
     jit: Option<SharedJit>,
+}
+
+/// More instances than the limit.
+fn too_many(limit: usize) -> Error {
+    Error::Script(Diagnostics::one(
+        Diag::new(
+            "timbre::too-many-instances",
+            format!("more than {limit} instances at once"),
+        )
+        .help("stop instances, or relax Limits::instances"),
+    ))
 }
 
 /// A refusal of the control side as a diagnostic.

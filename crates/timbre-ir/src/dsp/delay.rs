@@ -144,6 +144,15 @@ impl DelayLine {
 }
 
 /// Delay lines, one per lane, long enough for `max_seconds` at the render's rate.
+/// Bytes of the lines [`lines`] makes.
+fn lines_bytes(max_seconds: f64, ctx: &StateContext) -> u64 {
+    let max = (max_seconds * ctx.config.sample_rate)
+        .ceil()
+        .clamp(0.0, 1e18) as u64;
+    let max = max.min(MAX_DELAY_SAMPLES as u64);
+    (max + 8).saturating_mul(8).saturating_mul(ctx.width as u64)
+}
+
 fn lines(max_seconds: f64, ctx: &StateContext) -> Vec<DelayLine> {
     let max = (max_seconds * ctx.config.sample_rate).ceil() as usize;
     (0..ctx.width).map(|_| DelayLine::new(max)).collect()
@@ -172,6 +181,10 @@ impl StatefulKernel for Delay {
 
     fn new_state(&self, ctx: &StateContext) -> Vec<DelayLine> {
         lines(self.max_seconds, ctx)
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        lines_bytes(self.max_seconds, ctx)
     }
 
     fn process(&self, lines: &mut Vec<DelayLine>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
@@ -228,6 +241,10 @@ impl StatefulKernel for Comb {
         lines(seconds, ctx).into_iter().map(|l| (l, 0.0)).collect()
     }
 
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        lines_bytes(self.max_seconds + 1.0 / ctx.config.sample_rate, ctx)
+    }
+
     fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
         let sr = inputs.sample_rate;
         for (lane, (line, lowpassed)) in lanes.iter_mut().enumerate() {
@@ -274,6 +291,10 @@ impl StatefulKernel for Allpass {
 
     fn new_state(&self, ctx: &StateContext) -> Vec<DelayLine> {
         lines(self.max_seconds + 1.0 / ctx.config.sample_rate, ctx)
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        lines_bytes(self.max_seconds + 1.0 / ctx.config.sample_rate, ctx)
     }
 
     fn process(&self, lines: &mut Vec<DelayLine>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {

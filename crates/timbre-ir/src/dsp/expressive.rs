@@ -239,6 +239,16 @@ impl StatefulKernel for Energetic {
         1
     }
 
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        // The source's own interpreter, and the window of its samples.
+        let config = RenderConfig {
+            sample_rate: ctx.config.sample_rate,
+            block_size: SOURCE_CHUNK,
+        };
+        let source = crate::limits::state_bytes(&self.source, self.root, config).bytes;
+        source.saturating_add(8 * (2 * SOURCE_CHUNK as u64 + MAX_SPEED as u64 + 4))
+    }
+
     fn new_state(&self, ctx: &StateContext) -> Replay {
         let config = RenderConfig {
             sample_rate: ctx.config.sample_rate,

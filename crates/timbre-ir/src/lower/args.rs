@@ -327,7 +327,10 @@ impl Lowerer<'_> {
             origin,
         )
         .label(span, "too many lanes")
-        .help(format!("a node may have at most {MAX_LANES} lanes"))
+        .help(format!(
+            "a node may have at most {} lanes",
+            self.options.limits.lanes.min(MAX_LANES)
+        ))
     }
 
     /// The seed of a random node: a function of the scene seed, the node kind, its

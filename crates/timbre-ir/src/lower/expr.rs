@@ -11,7 +11,7 @@ use super::{
 use crate::catalogue::{self, Build, NodeSpec, Param, Width};
 use crate::custom::CustomNode;
 use crate::error::Diag;
-use crate::graph::NodeId;
+use crate::graph::{NodeId, NodeOrigin};
 use crate::op::{BinaryOp, Op};
 
 impl Lowerer<'_> {
@@ -35,7 +35,52 @@ impl Lowerer<'_> {
             self.lower_inner(expr, origin, scope)
         };
         self.depth -= 1;
-        result
+        match result {
+            Ok(_) => match self.beyond_graph_limits(expr.span, origin) {
+                Some(diag) => Err(diag),
+                None => result,
+            },
+            Err(_) => result,
+        }
+    }
+
+    /// The diagnostic for a graph grown past the host's limits (nodes, or lanes of all
+    /// nodes together) by the expression at `span`, if it has; once reported, later
+    /// excesses are follow-ons.
+    fn beyond_graph_limits(&mut self, span: Span, origin: &Origin) -> Option<Diag> {
+        let limits = &self.options.limits;
+        let (nodes, lanes) = (self.graph.len(), self.graph.lanes());
+        let diag = if nodes > limits.nodes {
+            let limit = limits.nodes;
+            self.diag(
+                "timbre::too-many-nodes",
+                format!("the trees have grown past {limit} nodes"),
+                origin,
+            )
+            .label(span, "this expression passes the limit")
+            .help("named trees that call each other several times grow exponentially; share a value with `let`, or relax the limit (--no-limits)")
+        } else if lanes > limits.total_lanes {
+            let limit = limits.total_lanes;
+            self.diag(
+                "timbre::too-many-lanes",
+                format!("the trees have grown past {limit} lanes in all"),
+                origin,
+            )
+            .label(span, "this expression passes the limit")
+            .help("use narrower vectors, or relax the limit (--no-limits)")
+        } else {
+            return None;
+        };
+        Some(self.first_limit(diag, span, origin))
+    }
+
+    /// `diag` the first time a limit is passed; a follow-on after.
+    pub(crate) fn first_limit(&mut self, diag: Diag, span: Span, origin: &Origin) -> Diag {
+        if std::mem::replace(&mut self.limit_reported, true) {
+            self.follow_on("a limit", span, origin)
+        } else {
+            diag
+        }
     }
 
     pub(crate) fn lower_inner(
@@ -345,6 +390,19 @@ impl Lowerer<'_> {
         if let Some(node) = self.expansions.get(&key) {
             return Ok(*node);
         }
+        self.expansions_made += 1;
+        if self.expansions_made > self.options.limits.expansions {
+            let limit = self.options.limits.expansions;
+            let diag = self
+                .diag(
+                    "timbre::too-many-expansions",
+                    format!("named trees were expanded more than {limit} times"),
+                    origin,
+                )
+                .label(span, "this expansion passes the limit")
+                .help("named trees that call each other several times with different arguments grow exponentially; relax the limit (--no-limits) if this is meant");
+            return Err(self.first_limit(diag, span, origin));
+        }
         let mut scope: Scope = def
             .params
             .iter()
@@ -446,15 +504,20 @@ impl Lowerer<'_> {
             self.lint_constant_phase(call, &args[0], origin);
         }
         let nodes: Vec<NodeId> = args.iter().map(|a| a.node).collect();
-        let result = match build {
-            Build::Unary(op) => self.graph.add(Op::Unary(op), nodes),
-            Build::Binary(op) => self.graph.add(Op::Binary(op), nodes),
-            Build::Ternary(op) => self.graph.add(Op::Ternary(op), nodes),
+        // The nodes this call adds are known by its span from now on.
+        let previous = self.graph.set_origin(Some(NodeOrigin {
+            source: origin.source.clone(),
+            span: call.span,
+        }));
+        let built = match build {
+            Build::Unary(op) => Ok(self.graph.add(Op::Unary(op), nodes)),
+            Build::Binary(op) => Ok(self.graph.add(Op::Binary(op), nodes)),
+            Build::Ternary(op) => Ok(self.graph.add(Op::Ternary(op), nodes)),
             // One argument: its truth value, (and x x).
             Build::Fold(op @ (BinaryOp::And | BinaryOp::Or)) if nodes.len() == 1 => {
-                self.graph.add(Op::Binary(op), vec![nodes[0], nodes[0]])
+                Ok(self.graph.add(Op::Binary(op), vec![nodes[0], nodes[0]]))
             }
-            Build::Fold(op) => self.fold(op, &nodes),
+            Build::Fold(op) => Ok(self.fold(op, &nodes)),
             Build::Args(build) => {
                 let bound = Bound {
                     call,
@@ -462,11 +525,13 @@ impl Lowerer<'_> {
                     seed,
                     origin,
                 };
-                build(self, &bound)?
+                build(self, &bound)
             }
-            Build::Form(form) => form(self, call, origin, scope)?,
+            Build::Form(form) => form(self, call, origin, scope),
         };
-        if self.graph.width(result) > MAX_LANES {
+        self.graph.set_origin(previous);
+        let result = built?;
+        if self.graph.width(result) > self.options.limits.lanes.min(MAX_LANES) {
             let w = self.graph.width(result);
             return Err(self.too_wide(call.span, w, origin));
         }

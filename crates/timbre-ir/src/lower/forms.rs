@@ -315,6 +315,29 @@ impl Lowerer<'_> {
             .help("remove one of the includes in the cycle")
             .in_source(&origin.source));
         }
+        if bytes.len() as u64 > self.options.limits.script_bytes() {
+            let limit = self.options.limits.script_bytes();
+            return Err(Diag::new(
+                "timbre::include-unreadable",
+                format!(
+                    "included file `{path}` has more than {} MiB, the most a script may have",
+                    limit >> 20
+                ),
+            )
+            .label(path_expr.span, "this file")
+            .help("split the file, or relax the limit (--no-limits)")
+            .in_source(&origin.source));
+        }
+        if self.include_stack.len() >= self.options.limits.include_depth {
+            let limit = self.options.limits.include_depth;
+            return Err(Diag::new(
+                "timbre::include-too-deep",
+                format!("includes nest more than {limit} files deep"),
+            )
+            .label(path_expr.span, "this include passes the limit")
+            .help("include the files from one library file instead of a chain")
+            .in_source(&origin.source));
+        }
         if !self.included.insert(resolved.clone()) {
             return Ok(()); // already read through another include
         }

@@ -82,6 +82,8 @@ pub struct CompileOptions<'a> {
     pub seed: Option<u64>,
     pub registry: &'a Registry,
     pub loader: &'a dyn Loader,
+    /// What the script may ask for (nodes, lanes, expansions, include depth).
+    pub limits: crate::limits::Limits,
 }
 
 /// Render settings a file may give with `(scene :sample-rate … :duration … :seed …)`.
@@ -185,11 +187,17 @@ pub(crate) struct Lowerer<'a> {
     /// Files being read, to catch include cycles; and files read already.
     include_stack: Vec<PathBuf>,
     included: HashSet<PathBuf>,
+    /// Names of the instances lowered so far.
+    instance_names: HashSet<String>,
     samples: HashMap<PathBuf, Arc<SampleData>>,
     used_bindings: HashSet<String>,
     /// Named trees being expanded, innermost last, to catch recursion.
     expanding: Vec<String>,
     depth: usize,
+    /// Named-tree expansions so far (see `Limits::expansions`).
+    expansions_made: usize,
+    /// Whether a limit has been reported: later excesses are follow-ons.
+    limit_reported: bool,
     /// Keyframed variables by name.
     keyframes: HashMap<String, Arc<crate::keyframes::KeyframeTrack>>,
     /// Keyframed vectors (positions) by name, one track per coordinate.
@@ -241,10 +249,13 @@ impl<'a> Lowerer<'a> {
             errors: vec![],
             include_stack: vec![],
             included: HashSet::new(),
+            instance_names: HashSet::new(),
             samples: HashMap::new(),
             used_bindings: HashSet::new(),
             expanding: vec![],
             depth: 0,
+            expansions_made: 0,
+            limit_reported: false,
             keyframes: HashMap::new(),
             vector_keyframes: HashMap::new(),
             space: space::Space::default(),

@@ -477,6 +477,18 @@ impl Lowerer<'_> {
         origin: &Origin,
     ) -> Result<Instance, Diag> {
         let items = form.as_list().unwrap_or_default();
+        if self.instances.len() >= self.options.limits.instances {
+            let limit = self.options.limits.instances;
+            let diag = self
+                .diag(
+                    "timbre::too-many-instances",
+                    format!("the scene has more than {limit} instances"),
+                    origin,
+                )
+                .label(form.span, "this instance passes the limit")
+                .help("render fewer instances, or relax the limit (--no-limits)");
+            return Err(self.first_limit(diag, form.span, origin));
+        }
         let usage = "(instance name (class :param value …) :start 0.5 :stop 2 :gain 1)";
         let (Some(name_expr), Some(call)) = (items.get(1), items.get(2)) else {
             return Err(self
@@ -501,7 +513,7 @@ impl Lowerer<'_> {
                 .label(name_expr.span, "expected a name")
                 .help(format!("write {usage}")));
         };
-        if self.instances.iter().any(|i| i.name == name) {
+        if !self.instance_names.insert(name.to_owned()) {
             return Err(self
                 .diag(
                     "timbre::duplicate-instance",

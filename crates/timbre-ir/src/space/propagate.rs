@@ -760,6 +760,14 @@ impl StatefulKernel for Propagation {
         self.receivers.len()
     }
 
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        // The delay line, the record of the source's positions, and the late part.
+        let grid_points = (self.max_delay * ctx.config.sample_rate / GRID as f64).ceil();
+        let line = (self.max_delay * ctx.config.sample_rate).ceil() + (GRID + 8) as f64;
+        let bytes = 8.0 * line + 24.0 * (grid_points + 3.0) + 65_536.0 * ctx.width as f64;
+        bytes.min(1e18) as u64
+    }
+
     fn new_state(&self, ctx: &StateContext) -> PropagationState {
         let sr = ctx.config.sample_rate;
         let length = (self.max_delay * sr).ceil() as usize + GRID + 8;
