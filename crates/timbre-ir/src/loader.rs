@@ -13,7 +13,11 @@ pub const MAX_FILE_BYTES: u64 = 256 << 20;
 /// a pipe or a directory is refused (it may never end), and so is a longer file,
 /// before anything is read (and if it grows while being read).
 pub fn read_bounded(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
-    let file = std::fs::File::open(path)?;
+    read_open_bounded(std::fs::File::open(path)?, limit)
+}
+
+/// [`read_bounded`] of a file already open.
+fn read_open_bounded(file: std::fs::File, limit: u64) -> io::Result<Vec<u8>> {
     let meta = file.metadata()?;
     if !meta.is_file() {
         return Err(io::Error::new(
@@ -63,6 +67,83 @@ impl Loader for FsLoader {
         // One name per file, so that `lib/../lib/a.tt` and `lib/a.tt` are one include.
         let resolved = std::fs::canonicalize(&resolved).unwrap_or(resolved);
         Ok((resolved, bytes))
+    }
+}
+
+/// Reads only inside directories the host allows, capability-style: each directory is
+/// opened once, and every file is opened through it (`cap-std`), so a path that
+/// leaves it by `..`, an absolute path elsewhere, and a symbolic link that leads
+/// outside are all refused by the opening itself, not by comparing strings (which a
+/// link defeats). A link is followed only if it is relative and stays inside.
+/// Relative paths resolve against the naming file, as with [`FsLoader`]; a path
+/// named by no file resolves against the first directory.
+#[derive(Debug)]
+pub struct SandboxLoader {
+    roots: Vec<(PathBuf, cap_std::fs::Dir)>,
+}
+
+impl SandboxLoader {
+    /// A loader confined to `dirs` (each must exist).
+    pub fn new<P: AsRef<Path>>(dirs: impl IntoIterator<Item = P>) -> io::Result<Self> {
+        let roots = dirs
+            .into_iter()
+            .map(|dir| {
+                let path = std::fs::canonicalize(dir.as_ref())?;
+                let opened =
+                    cap_std::fs::Dir::open_ambient_dir(&path, cap_std::ambient_authority())?;
+                Ok((path, opened))
+            })
+            .collect::<io::Result<Vec<_>>>()?;
+        Ok(SandboxLoader { roots })
+    }
+}
+
+/// `path` with `.` and `..` taken out lexically (after an opening that has checked
+/// they stay inside).
+fn normalised(path: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for part in path.components() {
+        match part {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+impl Loader for SandboxLoader {
+    fn load(&self, path: &str, base: Option<&Path>) -> io::Result<(PathBuf, Vec<u8>)> {
+        let requested = Path::new(path);
+        let outside = || {
+            io::Error::new(
+                io::ErrorKind::PermissionDenied,
+                format!("`{path}` is outside the directories this host allows"),
+            )
+        };
+        let full = match base {
+            Some(dir) if requested.is_relative() => dir.join(requested),
+            _ => requested.to_path_buf(),
+        };
+        for (root, dir) in &self.roots {
+            let relative = if full.is_absolute() {
+                match full.strip_prefix(root) {
+                    Ok(relative) => relative.to_path_buf(),
+                    Err(_) => continue,
+                }
+            } else {
+                full.clone()
+            };
+            let file = dir.open(&relative).map_err(|e| match e.kind() {
+                io::ErrorKind::NotFound => e,
+                _ => outside(),
+            })?;
+            let bytes = read_open_bounded(file.into_std(), MAX_FILE_BYTES)?;
+            return Ok((root.join(normalised(&relative)), bytes));
+        }
+        Err(outside())
     }
 }
 

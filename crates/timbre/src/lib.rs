@@ -115,11 +115,36 @@ impl Engine {
         self
     }
 
-    /// Lets scripts read files (`include`, `sample`, CSV keyframes) from disk,
-    /// relative to the file naming them.
+    /// Lets scripts read any file (`include`, `sample`, `conv`, CSV keyframes) the
+    /// process may, relative to the file naming them: for scripts the host trusts.
+    /// See [`Engine::with_file_access_within`] for the others.
     pub fn with_file_access(mut self) -> Self {
         self.loader = Arc::new(FsLoader);
         self
+    }
+
+    /// Lets scripts read files only inside `dirs` (and their subdirectories): what a
+    /// host running untrusted scripts wants. Each directory is opened once and every
+    /// file through it, so `..` out of it, an absolute path elsewhere and a symbolic
+    /// link leading outside are refused (a diagnostic at the `include`, `sample`,
+    /// `conv` or `:csv` that names them). Fails if a directory cannot be opened.
+    ///
+    /// ```
+    /// let dir = std::env::temp_dir().join(format!("timbre-doc-{}", std::process::id()));
+    /// std::fs::create_dir_all(&dir).unwrap();
+    /// std::fs::write(dir.join("lib.tt"), "(define-sound tone (f) (sine (* t f)))").unwrap();
+    /// let engine = timbre::Engine::new(48_000.0).with_file_access_within([&dir]).unwrap();
+    /// assert!(engine.load_library_file(&dir.join("lib.tt")).is_ok());
+    /// let escape = engine.load_library("(include \"../../etc/passwd\")").unwrap_err();
+    /// assert!(escape.to_string().contains("include"));
+    /// # std::fs::remove_dir_all(&dir).unwrap();
+    /// ```
+    pub fn with_file_access_within<P: AsRef<Path>>(
+        mut self,
+        dirs: impl IntoIterator<Item = P>,
+    ) -> std::io::Result<Self> {
+        self.loader = Arc::new(timbre_ir::SandboxLoader::new(dirs)?);
+        Ok(self)
     }
 
     /// Renders with `backend`: the JIT (the default) or the reference interpreter.
@@ -337,7 +362,7 @@ impl Engine {
 }
 
 /// Compiled sound classes; cheap to clone and share between scenes and threads.
-#[derive(Clone)]
+#[derive(Clone, Debug)]
 pub struct SoundLibrary(Arc<Library>);
 
 impl SoundLibrary {

@@ -249,8 +249,7 @@ fn script_errors_are_diagnostics() {
             "(define-sound ok (a) (sine (* t a)))
 (define-sound x (a) (sinee a))",
         )
-        .err()
-        .expect("a typo in a class is a load-time error");
+        .expect_err("a typo in a class is a load-time error");
     assert_eq!(err.0.len(), 1);
     assert_eq!(err.0[0].code, "timbre::unknown-function");
     assert_eq!(err.0[0].help.as_deref(), Some("did you mean `sine`?"));

@@ -33,8 +33,7 @@ fn lowering_stops_at_the_node_lane_and_expansion_limits() {
         ..Limits::default()
     })
     .load_library(&library)
-    .err()
-    .expect("past 500 nodes");
+    .expect_err("past 500 nodes");
     assert_eq!(errors.0.len(), 1, "one error, not one per form: {errors:?}");
     assert_eq!(errors.0[0].code, "timbre::too-many-nodes");
     assert!(
@@ -49,16 +48,14 @@ fn lowering_stops_at_the_node_lane_and_expansion_limits() {
         ..Limits::default()
     })
     .load_library(wide)
-    .err()
-    .expect("past 10 000 lanes");
+    .expect_err("past 10 000 lanes");
     assert_eq!(errors.0[0].code, "timbre::too-many-lanes");
     let errors = limited(Limits {
         lanes: 1000,
         ..Limits::default()
     })
     .load_library(wide)
-    .err()
-    .expect("past 1000 lanes in a node");
+    .expect_err("past 1000 lanes in a node");
     assert_eq!(errors.0[0].code, "timbre::too-wide");
     assert!(errors.0[0].help.as_deref().unwrap().contains("1000"));
 
@@ -76,8 +73,7 @@ fn lowering_stops_at_the_node_lane_and_expansion_limits() {
         ..Limits::default()
     })
     .load_library(&doubling)
-    .err()
-    .expect("past 5000 expansions");
+    .expect_err("past 5000 expansions");
     assert_eq!(errors.0[0].code, "timbre::too-many-expansions");
     let label = &errors.0[0].labels[0].0;
     assert!(
