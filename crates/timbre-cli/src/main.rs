@@ -234,6 +234,11 @@ struct SoundArgs {
           allow_negative_numbers = true, value_parser = parse_finite)]
     normalize: Option<f64>,
 
+    /// Write samples that are not finite (inf or NaN) as silence, counted and
+    /// reported, instead of failing at the first with the node that produced it.
+    #[arg(long)]
+    sanitize: bool,
+
     /// Fade the last SECONDS of the render out (raised cosine).
     #[arg(long, value_name = "SECONDS", value_parser = parse_positive)]
     fade_out: Option<f64>,
@@ -500,6 +505,7 @@ struct Plan<'p> {
     engine: timbre_scene::Engine,
     threads: usize,
     quiet: bool,
+    sanitize: bool,
 }
 
 fn plan<'p>(
@@ -571,6 +577,7 @@ fn plan<'p>(
             |n| n as usize,
         ),
         quiet: args.quiet,
+        sanitize: args.sanitize,
     })
 }
 
@@ -586,6 +593,9 @@ struct Pass<'p> {
     length: u64,
     scale: f64,
     progress: Progress,
+    /// The first sample that was not finite, when that fails the render (no
+    /// `--sanitize`).
+    failed: Option<timbre_scene::Fault>,
 }
 
 impl<'p> Pass<'p> {
@@ -602,6 +612,7 @@ impl<'p> Pass<'p> {
             length,
             scale,
             progress: Progress::new(length, plan.sample_rate, plan.quiet, plan.open_ended),
+            failed: None,
         })
     }
 
@@ -616,6 +627,12 @@ impl<'p> Pass<'p> {
         self.scene
             .render(&mut self.rendered)
             .map_err(|e| format!("{e}; use --engine interp"))?;
+        if !plan.sanitize {
+            if let Some(fault) = self.scene.first_fault() {
+                self.failed = Some(fault);
+                return Err("a sample that is not finite".into());
+            }
+        }
         for (k, (y, x)) in out
             .chunks_exact_mut(to)
             .zip(self.rendered.chunks_exact(from))
@@ -635,6 +652,73 @@ impl<'p> Pass<'p> {
         Ok((plan.open_ended && self.scene.finished())
             .then(|| self.scene.ended_at().saturating_sub(first) as usize))
     }
+}
+
+impl Pass<'_> {
+    /// What a failed pass reports: the sample that was not finite, as a diagnostic at
+    /// the node it came from, or `message`.
+    fn failure(&self, message: String) -> Failure {
+        match self.failed {
+            Some(fault) => {
+                Failure::Diagnostics(Diagnostics::one(not_finite(self.plan, &self.scene, fault)))
+            }
+            None => Failure::Message(message),
+        }
+    }
+}
+
+/// The instance (or the sound) of a fault: its name, root and first scene sample.
+fn faulty<'p>(
+    plan: &Plan<'p>,
+    scene: &timbre_scene::SceneRenderer,
+    fault: &timbre_scene::Fault,
+) -> (String, Option<(timbre_ir::NodeId, u64)>) {
+    let program = plan.program;
+    let index = scene.program_ids().iter().position(|id| *id == fault.id);
+    match (index, program.root) {
+        (Some(_), Some(root)) => ("the sound".into(), Some((root, 0))),
+        (Some(k), None) => match program.instances.get(k) {
+            Some(i) => (
+                format!("instance `{}`", i.name),
+                Some((i.root, (i.start * plan.sample_rate).round() as u64)),
+            ),
+            None => ("an instance".into(), None),
+        },
+        (None, _) => ("an instance".into(), None),
+    }
+}
+
+/// A diagnostic for the first sample of `fault` that was not finite: the instance,
+/// the time, and the node it came from (found by rendering the instance again with
+/// the interpreter up to there: `timbre_ir::trace_non_finite`).
+fn not_finite(
+    plan: &Plan<'_>,
+    scene: &timbre_scene::SceneRenderer,
+    fault: timbre_scene::Fault,
+) -> timbre_ir::Diag {
+    let (who, tree) = faulty(plan, scene, &fault);
+    let seconds = fault.first as f64 / plan.sample_rate;
+    let mut diag = timbre_ir::Diag::new(
+        "timbre::not-finite",
+        format!("{who} produced a sample that is not finite (inf or NaN) at {seconds:.6} s"),
+    )
+    .help(
+        "guard what overflows (a division by something that reaches 0, a log of 0, a power too large), or render with --sanitize to write such samples as silence",
+    );
+    let origin = tree.and_then(|(root, start)| {
+        let local = fault.first.saturating_sub(start);
+        timbre_ir::trace_non_finite(&plan.program.graph, root, plan.config, local)
+            .map(|o| (o, start))
+    });
+    if let Some((origin, start)) = origin {
+        if let Some(at) = plan.program.graph.origin(origin.node) {
+            let when = (origin.sample + start) as f64 / plan.sample_rate;
+            diag = diag
+                .label(at.span, format!("not finite from here, at {when:.6} s"))
+                .in_source(&at.source);
+        }
+    }
+    diag
 }
 
 /// A raised-cosine fade over the last `fade` frames of `length`.
@@ -658,7 +742,7 @@ fn measure(plan: &Plan<'_>, interrupted: &AtomicBool) -> Result<(u64, f64), Fail
         }
         let n = (plan.frames - done).min(8192) as usize;
         let chunk = &mut buffer[..n * plan.channels];
-        let last = pass.next(chunk).map_err(Failure::Message)?;
+        let last = pass.next(chunk).map_err(|e| pass.failure(e))?;
         let kept = last.map_or(n, |k| k.min(n));
         peak = chunk[..kept * plan.channels]
             .iter()
@@ -789,7 +873,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     let mut pass = Pass::new(&plan, length, scale)?;
     let summary = write_audio(&job, |out| pass.next(out)).map_err(|e| match e {
         audio_out::WriteError::Interrupted => Failure::Interrupted,
-        other => Failure::Message(other.to_string()),
+        other => pass.failure(other.to_string()),
     })?;
     report_faults(&plan, &pass.scene);
     drop(pass);
@@ -1001,7 +1085,7 @@ fn render_to_memory(
             return Err(Failure::Interrupted);
         }
         let n = chunk.len() / plan.channels;
-        let last = pass.next(chunk).map_err(Failure::Message)?;
+        let last = pass.next(chunk).map_err(|e| pass.failure(e))?;
         done += last.map_or(n, |k| k.min(n));
         if last.is_some() {
             break;

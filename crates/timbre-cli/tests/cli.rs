@@ -511,6 +511,7 @@ fn non_finite_samples_are_written_as_silence() {
             "0.05",
             "--format",
             format,
+            "--sanitize",
         ]));
         assert_eq!(wav.samples.len(), 2400);
         assert!(
@@ -532,6 +533,7 @@ fn non_finite_samples_are_warned_about() {
         "0.05",
         "-o",
         out.to_str().unwrap(),
+        "--sanitize",
     ]);
     run.assert_success();
     assert!(
@@ -1685,9 +1687,26 @@ fn an_instance_that_is_not_finite_is_named_with_the_time() {
          (instance bad (broken) :start 0.1 :stop 0.4)",
     )
     .unwrap();
+    // By default the render fails there, at the division.
     let run = run_in(
         Some(dir.path()),
         ["render", "scene.tt", "-d", "0.5", "-o", "out.wav"],
+    );
+    run.assert_code(1)
+        .assert_stderr_has("instance `bad` produced a sample that is not finite")
+        .assert_stderr_has("scene.tt:2:41");
+    assert!(!dir.path().join("out.wav").exists());
+    let run = run_in(
+        Some(dir.path()),
+        [
+            "render",
+            "scene.tt",
+            "-d",
+            "0.5",
+            "-o",
+            "out.wav",
+            "--sanitize",
+        ],
     );
     run.assert_success();
     assert!(

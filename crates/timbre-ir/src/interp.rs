@@ -339,17 +339,27 @@ impl Interpreter {
                     // A multiplication by the sample period, not a division by the
                     // rate: it is on the phase's critical path in compiled code.
                     let period = 1.0 / sr;
+                    // A frequency that is not finite gives NaN at its sample and
+                    // leaves the phase where it was, so the phasor recovers at once.
                     if step.args.len() == 1 {
-                        // No offset: frac(φ + 0) is φ itself, as φ is in [0, 1) or NaN.
+                        // No offset: frac(φ + 0) is φ itself, as φ is in [0, 1).
                         for k in 0..n {
-                            o[k] = *phase;
-                            *phase = frac(*phase + freq[k] * period);
+                            let advance = freq[k] * period;
+                            let finite = advance.is_finite();
+                            o[k] = if finite { *phase } else { f64::NAN };
+                            *phase = frac(*phase + if finite { advance } else { 0.0 });
                         }
                     } else {
                         let offset = self.arg(i, 1, lane, n);
                         for k in 0..n {
-                            o[k] = frac(*phase + offset[k]);
-                            *phase = frac(*phase + freq[k] * period);
+                            let advance = freq[k] * period;
+                            let finite = advance.is_finite();
+                            o[k] = if finite {
+                                frac(*phase + offset[k])
+                            } else {
+                                f64::NAN
+                            };
+                            *phase = frac(*phase + if finite { advance } else { 0.0 });
                         }
                     }
                 }
@@ -483,4 +493,71 @@ fn render_impulse(graph: &Graph, root: NodeId, seconds: f64, config: RenderConfi
     let mut ir = vec![0.0; len];
     Interpreter::new(graph, root, config).render(&mut ir);
     ir
+}
+
+/// Where a sample that is not finite (±∞ or NaN) came from: the node that first
+/// produced one from arguments that were all finite until then, and the instance's
+/// sample where it did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NonFiniteOrigin {
+    pub node: NodeId,
+    /// Samples from the instance's first.
+    pub sample: u64,
+}
+
+/// Finds where the first sample of `root` that is not finite, at or before the
+/// instance's sample `until`, came from: renders `root` with the interpreter up to
+/// there, noting each node's first sample that is not finite, then walks down from
+/// the root through the arguments that went bad first (at or before their parent)
+/// to a node whose arguments were all finite until it went bad. A harmless ∞ off
+/// that path (in `(min 1 (/ 1 0))`, say) is not blamed. `None` if every sample up to
+/// `until` is finite.
+pub fn trace_non_finite(
+    graph: &Graph,
+    root: NodeId,
+    config: RenderConfig,
+    until: u64,
+) -> Option<NonFiniteOrigin> {
+    let schedule = graph.schedule(root);
+    let mut interp = Interpreter::new(graph, root, config);
+    let bs = interp.config.block_size;
+    let mut first_bad: Vec<Option<u64>> = vec![None; interp.steps.len()];
+    let root_step = interp.steps.len() - 1;
+    while interp.position <= until && first_bad[root_step].is_none() {
+        let start = interp.position;
+        let n = bs.min((until - start + 1) as usize);
+        // Constants are filled once, at construction: they are checked like the rest.
+        interp.render_block(n);
+        for (i, buffer) in interp.buffers.iter().enumerate() {
+            if first_bad[i].is_some() {
+                continue;
+            }
+            let width = interp.steps[i].width;
+            let bad = (0..width)
+                .filter_map(|lane| {
+                    let lane = &buffer[lane * bs..lane * bs + n];
+                    lane.iter().position(|x| !x.is_finite())
+                })
+                .min();
+            first_bad[i] = bad.map(|k| start + k as u64);
+        }
+    }
+    let mut at = root_step;
+    let mut sample = first_bad[at]?;
+    loop {
+        let earliest = interp.steps[at]
+            .args
+            .iter()
+            .filter_map(|&a| first_bad[a].filter(|s| *s <= sample).map(|s| (s, a)))
+            .min();
+        match earliest {
+            Some((s, arg)) => (at, sample) = (arg, s),
+            None => {
+                return Some(NonFiniteOrigin {
+                    node: schedule[at],
+                    sample,
+                })
+            }
+        }
+    }
 }

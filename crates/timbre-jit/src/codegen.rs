@@ -450,11 +450,11 @@ impl KernelBuilder<'_, '_> {
                             None => p,
                         };
                         let period = b.ins().stack_load(I64, F64X2, period, 0);
-                        let step = b.ins().fmul(args[0], period);
+                        let (step, finite) = finite_steps(b, args[0], period);
                         let next = b.ins().fadd(p, step);
                         let next = approx::frac(b, next);
                         b.def_var(phase, next);
-                        out
+                        nan_unless(b, finite, out)
                     }
                     other => unreachable!("`{other}` is not compiled inline across lanes"),
                 };
@@ -1336,7 +1336,7 @@ fn phasor(
     i: Value,
     n: Value,
 ) -> Value {
-    let steps = b.ins().fmul(freq, period);
+    let (steps, finite) = finite_steps(b, freq, period);
     let s0 = b.ins().extractlane(steps, 0);
     let s1 = b.ins().extractlane(steps, 1);
     let p0 = b.use_var(phase);
@@ -1350,13 +1350,34 @@ fn phasor(
     b.def_var(phase, p);
     let phases = b.ins().splat(F64X2, p0);
     let phases = b.ins().insertlane(phases, p1, 1);
-    match offset {
+    let out = match offset {
         Some(offset) => {
             let shifted = b.ins().fadd(phases, offset);
             approx::frac(b, shifted)
         }
         None => phases,
-    }
+    };
+    nan_unless(b, finite, out)
+}
+
+/// The phase steps `freq · period`, with 0 where they are not finite (the phase then
+/// stays put, so the phasor recovers at once), and the mask of those that are. Off
+/// the phase's critical path: the steps do not depend on the phase.
+fn finite_steps(b: &mut FunctionBuilder, freq: Value, period: Value) -> (Value, Value) {
+    let steps = b.ins().fmul(freq, period);
+    let zero = b.ins().f64const(0.0);
+    let zero = b.ins().splat(F64X2, zero);
+    let difference = b.ins().fsub(steps, steps);
+    let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
+    (approx::select(b, finite, steps, zero), finite)
+}
+
+/// `x` where `finite` is set, NaN elsewhere: a phasor's output at a step that was not
+/// finite (as the interpreter gives it).
+fn nan_unless(b: &mut FunctionBuilder, finite: Value, x: Value) -> Value {
+    let nan = b.ins().f64const(f64::NAN);
+    let nan = b.ins().splat(F64X2, nan);
+    approx::select(b, finite, x, nan)
 }
 
 /// A stack slot holding `value` (a vector).

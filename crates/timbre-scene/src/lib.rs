@@ -7,6 +7,7 @@
 //! parse or lower: `timbre-ir` turns `define-sound`, `keyframes` and `instance` forms
 //! into trees with a timer at the root.
 
+mod denormals;
 mod mix;
 mod realtime;
 
@@ -390,9 +391,10 @@ impl Active {
                 }
             }
             // Decay is judged on the instance's own sound (with its fade-out), not on
-            // the host's gain: a muted instance goes on.
-            let loudest =
-                (lanes.iter()).fold(0.0f64, |m, x| m.max(finite_or_zero(*x).abs())) * fading;
+            // the host's gain: a muted instance goes on. A sample that is not finite
+            // counts as heard: left out of the mix, it does not end the instance.
+            let level = |x: f64| if x.is_finite() { x.abs() } else { 1.0 };
+            let loudest = (lanes.iter()).fold(0.0f64, |m, x| m.max(level(*x))) * fading;
             if self.decay.as_mut().is_some_and(|d| d.push(loudest)) {
                 // Decayed: this is its last sample, whatever the block.
                 next = from + k as u64 + 1;
@@ -624,6 +626,7 @@ impl SceneRenderer {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .thread_name(|k| format!("timbre-voices-{k}"))
+                .start_handler(|_| denormals::FlushDenormals::for_this_thread())
                 .build()?;
             Some(Arc::new(pool))
         } else {
@@ -669,6 +672,19 @@ impl SceneRenderer {
         let mut faults: Vec<Fault> = self.faults.iter().copied().chain(playing).collect();
         faults.sort_by_key(|f| (f.first, f.id));
         faults
+    }
+
+    /// The first instance to have produced a sample that was not finite (by that
+    /// sample), if any; cheaper than [`SceneRenderer::faults`].
+    pub fn first_fault(&self) -> Option<Fault> {
+        let playing = self.active.iter().filter(|a| a.faults > 0).map(|a| Fault {
+            id: a.id,
+            first: a.first_fault.unwrap_or(0),
+            samples: a.faults,
+        });
+        (self.faults.iter().copied())
+            .chain(playing)
+            .min_by_key(|f| (f.first, f.id))
     }
 
     /// Instances in lanes of batches: playing, or added by a host and yet to start.
@@ -963,6 +979,7 @@ impl SceneRenderer {
     }
 
     fn render_block(&mut self, out: &mut [f64]) -> Result<(), JitError> {
+        let _flush = denormals::FlushDenormals::new();
         self.take_commands();
         out.fill(0.0);
         let channels = self.channels;
