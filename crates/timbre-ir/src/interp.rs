@@ -345,21 +345,17 @@ impl Interpreter {
                         // No offset: frac(φ + 0) is φ itself, as φ is in [0, 1).
                         for k in 0..n {
                             let advance = freq[k] * period;
-                            let finite = advance.is_finite();
-                            o[k] = if finite { *phase } else { f64::NAN };
-                            *phase = frac(*phase + if finite { advance } else { 0.0 });
+                            o[k] = *phase + zero_or_nan(advance);
+                            let advance = if advance.is_finite() { advance } else { 0.0 };
+                            *phase = frac(*phase + advance);
                         }
                     } else {
                         let offset = self.arg(i, 1, lane, n);
                         for k in 0..n {
                             let advance = freq[k] * period;
-                            let finite = advance.is_finite();
-                            o[k] = if finite {
-                                frac(*phase + offset[k])
-                            } else {
-                                f64::NAN
-                            };
-                            *phase = frac(*phase + if finite { advance } else { 0.0 });
+                            o[k] = frac(*phase + offset[k]) + zero_or_nan(advance);
+                            let advance = if advance.is_finite() { advance } else { 0.0 };
+                            *phase = frac(*phase + advance);
                         }
                     }
                 }
@@ -560,4 +556,12 @@ pub fn trace_non_finite(
             }
         }
     }
+}
+
+/// `x − x`: 0 where `x` is finite, NaN where it is not. Added to a phasor's output, it
+/// marks the sample whose step was not finite (the compiled phasor does the same).
+#[allow(clippy::eq_op)]
+#[inline]
+fn zero_or_nan(x: f64) -> f64 {
+    x - x
 }

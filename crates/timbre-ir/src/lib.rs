@@ -31,6 +31,8 @@ pub mod keyframes;
 pub mod limits;
 mod loader;
 mod lower;
+#[cfg(feature = "generate")]
+pub mod mutate;
 pub mod op;
 pub mod optimise;
 pub mod space;

@@ -450,11 +450,11 @@ impl KernelBuilder<'_, '_> {
                             None => p,
                         };
                         let period = b.ins().stack_load(I64, F64X2, period, 0);
-                        let (step, finite) = finite_steps(b, args[0], period);
+                        let (step, difference) = finite_steps(b, args[0], period);
                         let next = b.ins().fadd(p, step);
                         let next = approx::frac(b, next);
                         b.def_var(phase, next);
-                        nan_unless(b, finite, out)
+                        nan_unless(b, difference, out)
                     }
                     other => unreachable!("`{other}` is not compiled inline across lanes"),
                 };
@@ -1336,7 +1336,7 @@ fn phasor(
     i: Value,
     n: Value,
 ) -> Value {
-    let (steps, finite) = finite_steps(b, freq, period);
+    let (steps, difference) = finite_steps(b, freq, period);
     let s0 = b.ins().extractlane(steps, 0);
     let s1 = b.ins().extractlane(steps, 1);
     let p0 = b.use_var(phase);
@@ -1357,27 +1357,26 @@ fn phasor(
         }
         None => phases,
     };
-    nan_unless(b, finite, out)
+    nan_unless(b, difference, out)
 }
 
 /// The phase steps `freq · period`, with 0 where they are not finite (the phase then
-/// stays put, so the phasor recovers at once), and the mask of those that are. Off
-/// the phase's critical path: the steps do not depend on the phase.
+/// stays put, so the phasor recovers at once), and `step − step`: 0, or NaN where the
+/// step is not finite. Off the phase's critical path: the steps do not depend on the
+/// phase.
 fn finite_steps(b: &mut FunctionBuilder, freq: Value, period: Value) -> (Value, Value) {
     let steps = b.ins().fmul(freq, period);
     let zero = b.ins().f64const(0.0);
     let zero = b.ins().splat(F64X2, zero);
     let difference = b.ins().fsub(steps, steps);
     let finite = b.ins().fcmp(FloatCC::Equal, difference, zero);
-    (approx::select(b, finite, steps, zero), finite)
+    (approx::select(b, finite, steps, zero), difference)
 }
 
-/// `x` where `finite` is set, NaN elsewhere: a phasor's output at a step that was not
-/// finite (as the interpreter gives it).
-fn nan_unless(b: &mut FunctionBuilder, finite: Value, x: Value) -> Value {
-    let nan = b.ins().f64const(f64::NAN);
-    let nan = b.ins().splat(F64X2, nan);
-    approx::select(b, finite, x, nan)
+/// `x + (step − step)`: `x` where the step was finite, NaN where it was not (a
+/// phasor's output, as the interpreter gives it).
+fn nan_unless(b: &mut FunctionBuilder, difference: Value, x: Value) -> Value {
+    b.ins().fadd(x, difference)
 }
 
 /// A stack slot holding `value` (a vector).
