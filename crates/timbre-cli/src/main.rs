@@ -12,14 +12,13 @@ mod playback;
 mod plot;
 mod repl;
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use timbre_ir::{compile, CompileOptions, Diagnostics, FsLoader, Program, Registry, SourceFile};
+use timbre::{Diagnostics, FsLoader, SceneFile, SourceFile};
 
 use crate::audio_out::{write_audio, Container, Destination, OutputJob, SampleFormat};
 
@@ -142,11 +141,11 @@ struct SourceArgs {
 }
 
 impl SourceArgs {
-    fn limits(&self) -> timbre_ir::limits::Limits {
+    fn limits(&self) -> timbre::Limits {
         if self.no_limits {
-            timbre_ir::limits::Limits::none()
+            timbre::Limits::none()
         } else {
-            timbre_ir::limits::Limits::default()
+            timbre::Limits::default()
         }
     }
 }
@@ -357,35 +356,52 @@ impl From<Diagnostics> for Failure {
 /// that an output never overwrites something the render reads.
 #[derive(Default)]
 struct RecordingLoader {
-    read: std::cell::RefCell<Vec<PathBuf>>,
+    read: Mutex<Vec<PathBuf>>,
 }
 
-impl timbre_ir::Loader for RecordingLoader {
+impl RecordingLoader {
+    fn record(&self, path: PathBuf) {
+        self.read
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push(path);
+    }
+}
+
+impl timbre::Loader for RecordingLoader {
     fn load(&self, path: &str, base: Option<&Path>) -> std::io::Result<(PathBuf, Vec<u8>)> {
-        let (resolved, bytes) = FsLoader.load(path, base)?;
-        self.read.borrow_mut().push(resolved.clone());
+        let (resolved, bytes) = timbre::Loader::load(&FsLoader, path, base)?;
+        self.record(resolved.clone());
         Ok((resolved, bytes))
     }
 }
 
-/// Compiles the file, standard input (`-`) or expression; also returns every file
+/// A script read and lowered through the `timbre` crate, as a host would, with the
+/// engine that read it (its limits, seed, bindings and file access) and every file it
 /// read (the source and what it includes, samples, tables).
-fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure> {
-    let registry = Registry::new();
-    let bindings: BTreeMap<String, f64> = args.bindings.iter().cloned().collect();
-    let loader = RecordingLoader::default();
-    let options = CompileOptions {
-        bindings,
-        seed: args.seed,
-        registry: &registry,
-        loader: &loader,
-        limits: args.limits(),
-    };
+struct Source {
+    engine: timbre::Engine,
+    file: SceneFile,
+    inputs: Vec<PathBuf>,
+}
+
+/// Reads and lowers the file, standard input (`-`) or expression.
+fn compile_source(args: &SourceArgs) -> Result<Source, Failure> {
+    let loader = Arc::new(RecordingLoader::default());
+    let mut engine = timbre::Engine::new(48_000.0)
+        .with_loader(loader.clone())
+        .with_limits(args.limits());
+    if let Some(seed) = args.seed {
+        engine = engine.with_seed(seed);
+    }
+    for (name, value) in &args.bindings {
+        engine = engine.with_binding(name.clone(), *value);
+    }
+    let limit = args.limits().script_bytes();
     let (source, dir) = match (&args.file, &args.expr) {
         (_, Some(expr)) => (SourceFile::new("<expr>", expr.as_str()), None),
         (Some(path), None) if path.as_os_str() == "-" => {
             let mut bytes = vec![];
-            let limit = options.limits.script_bytes();
             let mut stdin = std::io::Read::take(std::io::stdin(), limit + 1);
             std::io::Read::read_to_end(&mut stdin, &mut bytes)
                 .map_err(|e| Failure::Message(format!("cannot read standard input: {e}")))?;
@@ -405,26 +421,30 @@ fn compile_source(args: &SourceArgs) -> Result<(Program, Vec<PathBuf>), Failure>
             let cannot = |e: &dyn std::fmt::Display| {
                 Failure::Message(format!("cannot read `{}`: {e}", path.display()))
             };
-            let bytes = timbre_ir::read_bounded(path, options.limits.script_bytes())
-                .map_err(|e| cannot(&e))?;
+            let bytes = timbre_ir::read_bounded(path, limit).map_err(|e| cannot(&e))?;
             let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
             if let Ok(canonical) = std::fs::canonicalize(path) {
-                loader.read.borrow_mut().push(canonical);
+                loader.record(canonical);
             }
             let dir = path.parent().map(Path::to_path_buf);
             (SourceFile::new(path.display().to_string(), text), dir)
         }
         (None, None) => unreachable!("clap requires a file or an expression"),
     };
-    let program = compile(source, dir.as_deref(), &options)?;
-    print_diagnostics(program.warnings.iter().cloned());
-    for name in &program.unused_bindings {
-        let close = timbre_ir::did_you_mean(name, program.definitions.iter().map(String::as_str))
+    let file = engine.read_scene_source(source, dir.as_deref())?;
+    print_diagnostics(file.warnings().iter().cloned());
+    for name in file.unused_bindings() {
+        let close = timbre_ir::did_you_mean(name, file.definitions().iter().map(String::as_str))
             .map(|n| format!("; did you mean `--set {n}=…`?"))
             .unwrap_or_default();
         eprintln!("warning: `--set {name}=…` is not used by any expression{close}");
     }
-    Ok((program, loader.read.into_inner()))
+    let inputs = std::mem::take(&mut *loader.read.lock().unwrap_or_else(PoisonError::into_inner));
+    Ok(Source {
+        engine,
+        file,
+        inputs,
+    })
 }
 
 #[derive(Args, Debug)]
@@ -445,13 +465,14 @@ struct GraphArgs {
 }
 
 fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
-    let (program, _) = compile_source(&args.source)?;
+    let source = compile_source(&args.source)?;
+    let program = source.file.program();
     let title = match (&args.source.file, &args.source.expr) {
         (Some(path), _) => path.display().to_string(),
         (None, Some(expr)) => expr.clone(),
         _ => String::new(),
     };
-    let text = graph::dot(&program, &title);
+    let text = graph::dot(program, &title);
     if args.output.as_os_str() == "-" {
         print!("{text}");
         return Ok(());
@@ -460,7 +481,8 @@ fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
 }
 
 fn check(args: CheckArgs) -> Result<(), Failure> {
-    let (program, _) = compile_source(&args.source)?;
+    let source = compile_source(&args.source)?;
+    let program = source.file.program();
     if args.ir {
         let roots: Vec<_> = program.sound_roots().collect();
         print!("{}", timbre_ir::dump(&program.graph, &roots));
@@ -485,12 +507,16 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
 }
 
 /// The longest render of a scene without a duration, seconds.
-const OPEN_SCENE_LIMIT: f64 = 600.0;
+const OPEN_SCENE_LIMIT: f64 = timbre::OPEN_SCENE_SECONDS;
 
 /// What a render makes, worked out before anything is rendered.
 struct Plan<'p> {
-    program: &'p Program,
+    file: &'p SceneFile,
+    /// The engine at the render's rate, block size and backend.
+    engine: timbre::Engine,
     sample_rate: f64,
+    /// Seconds to render at most.
+    duration: f64,
     /// Frames to render at most (exact unless `open_ended`).
     frames: u64,
     /// A scene without a duration: it ends with its last instance.
@@ -501,42 +527,44 @@ struct Plan<'p> {
     gain: f64,
     /// Frames of the fade at the end, if any.
     fade_frames: u64,
-    config: timbre_ir::RenderConfig,
-    engine: timbre_scene::Engine,
     threads: usize,
     quiet: bool,
     sanitize: bool,
+    /// The scene made while checking the plan, for the first pass to render.
+    first_scene: std::cell::Cell<Option<timbre::Scene>>,
 }
 
-fn plan<'p>(
-    program: &'p Program,
-    args: &SoundArgs,
-    limits: &timbre_ir::limits::Limits,
-) -> Result<Plan<'p>, Failure> {
-    if program.root.is_none() && program.instances.is_empty() {
+/// A scene failure as the command line reports it.
+fn scene_failure(error: timbre::Error) -> Failure {
+    match error {
+        timbre::Error::Script(diagnostics) => Failure::Diagnostics(diagnostics),
+        timbre::Error::Compile(e) => Failure::Message(format!("{e}; use --engine interp")),
+        other => Failure::Message(other.to_string()),
+    }
+}
+
+fn plan<'p>(source: &'p Source, args: &SoundArgs) -> Result<Plan<'p>, Failure> {
+    let file = &source.file;
+    if !file.has_sound() {
         return Err(Failure::Message(
             "nothing to render: the file defines trees but has no sound expression or instance (add one, or use --expr)"
                 .into(),
         ));
     }
-    let sample_rate = args
-        .sample_rate
-        .or(program.settings.sample_rate)
-        .unwrap_or(48_000.0);
+    let sample_rate = args.sample_rate.or(file.sample_rate()).unwrap_or(48_000.0);
     // A scene without a duration lasts until its last instance has ended (as a
     // Csound score does), up to OPEN_SCENE_LIMIT; a file's one sound, 1 s.
-    let duration = args.duration.or(program.settings.duration);
-    let open_ended = duration.is_none() && program.root.is_none();
+    let duration = args.duration.or(file.duration());
+    let open_ended = duration.is_none() && !file.is_sound();
     let duration = duration.unwrap_or(if open_ended { OPEN_SCENE_LIMIT } else { 1.0 });
     if !open_ended && !args.quiet {
-        for late in program.instances.iter().filter(|i| i.start >= duration) {
+        for (name, start) in file.instances().filter(|(_, start)| *start >= duration) {
             eprintln!(
-                "warning: instance `{}` starts at {} s, after the render's end at {duration} s; it is not heard (lengthen :duration, or leave it out to render until the last instance ends)",
-                late.name, late.start
+                "warning: instance `{name}` starts at {start} s, after the render's end at {duration} s; it is not heard (lengthen :duration, or leave it out to render until the last instance ends)",
             );
         }
     }
-    let rendered_channels = program.settings.channels.unwrap_or(1);
+    let rendered_channels = file.channels();
     let channels = match args.channels.map(usize::from) {
         None => rendered_channels,
         Some(n) if n == rendered_channels || rendered_channels == 1 || n == 1 => n,
@@ -546,23 +574,22 @@ fn plan<'p>(
             )))
         }
     };
-    let engine = match args.engine {
-        Engine::Jit => timbre_scene::Engine::Jit,
-        Engine::Interp => timbre_scene::Engine::Interpreter,
+    let backend = match args.engine {
+        Engine::Jit => timbre::Backend::Jit,
+        Engine::Interp => timbre::Backend::Interpreter,
     };
-    let config = timbre_ir::RenderConfig {
-        sample_rate,
-        block_size: args.block_size as usize,
-    };
-    let frames = (duration * sample_rate).round() as u64;
-    // What rendering will cost, known before the first sample.
-    timbre_ir::limits::check_length(duration, sample_rate, limits)?;
-    let playing = timbre_scene::playing(program, sample_rate, frames);
-    timbre_ir::limits::check_render(&program.graph, &playing, config, limits)?;
+    let engine = (source.engine.clone())
+        .with_sample_rate(sample_rate)
+        .with_block_size(args.block_size as usize)
+        .with_backend(backend);
+    // What rendering will cost is checked here, before the first sample.
+    let first_scene = engine.scene_from(file, duration).map_err(scene_failure)?;
     Ok(Plan {
-        program,
+        file,
+        engine,
         sample_rate,
-        frames,
+        duration,
+        frames: (duration * sample_rate).round() as u64,
         open_ended,
         rendered_channels,
         channels,
@@ -570,14 +597,13 @@ fn plan<'p>(
         fade_frames: args
             .fade_out
             .map_or(0, |s| (s * sample_rate).round() as u64),
-        config,
-        engine,
         threads: args.threads.map_or_else(
             || std::thread::available_parallelism().map_or(1, |n| n.get()),
             |n| n as usize,
         ),
         quiet: args.quiet,
         sanitize: args.sanitize,
+        first_scene: std::cell::Cell::new(Some(first_scene)),
     })
 }
 
@@ -587,7 +613,7 @@ fn plan<'p>(
 /// fade), `scale` an extra gain (normalisation).
 struct Pass<'p> {
     plan: &'p Plan<'p>,
-    scene: timbre_scene::SceneRenderer,
+    scene: timbre::Scene,
     rendered: Vec<f64>,
     /// Frames of the sound, when known (the fade ends there).
     length: u64,
@@ -595,13 +621,17 @@ struct Pass<'p> {
     progress: Progress,
     /// The first sample that was not finite, when that fails the render (no
     /// `--sanitize`).
-    failed: Option<timbre_scene::Fault>,
+    failed: Option<timbre::Fault>,
 }
 
 impl<'p> Pass<'p> {
     fn new(plan: &'p Plan<'p>, length: u64, scale: f64) -> Result<Self, Failure> {
-        let mut scene = timbre_scene::SceneRenderer::new(plan.program, plan.config, plan.engine)
-            .map_err(|e| Failure::Message(format!("{e}; use --engine interp")))?;
+        let mut scene = match plan.first_scene.take() {
+            Some(scene) => scene,
+            None => (plan.engine)
+                .scene_from(plan.file, plan.duration)
+                .map_err(scene_failure)?,
+        };
         scene
             .set_threads(plan.threads)
             .map_err(|e| Failure::Message(format!("cannot start {} threads: {e}", plan.threads)))?;
@@ -623,10 +653,11 @@ impl<'p> Pass<'p> {
         let (from, to) = (plan.rendered_channels, plan.channels);
         let n = out.len() / to;
         self.rendered.resize(n * from, 0.0);
-        let first = self.scene.position();
-        self.scene
-            .render(&mut self.rendered)
-            .map_err(|e| format!("{e}; use --engine interp"))?;
+        let first = self.scene.frame();
+        self.scene.render(&mut self.rendered).map_err(|e| match e {
+            timbre::Error::Compile(e) => format!("{e}; use --engine interp"),
+            other => other.to_string(),
+        })?;
         if !plan.sanitize {
             if let Some(fault) = self.scene.first_fault() {
                 self.failed = Some(fault);
@@ -650,75 +681,17 @@ impl<'p> Pass<'p> {
         self.progress.advance(n as u64);
         // An open-ended scene is over once its last instance has ended.
         Ok((plan.open_ended && self.scene.finished())
-            .then(|| self.scene.ended_at().saturating_sub(first) as usize))
+            .then(|| self.scene.ended_at_frame().saturating_sub(first) as usize))
     }
-}
 
-impl Pass<'_> {
     /// What a failed pass reports: the sample that was not finite, as a diagnostic at
-    /// the node it came from, or `message`.
+    /// the node it came from (`timbre::Scene::explain`), or `message`.
     fn failure(&self, message: String) -> Failure {
-        match self.failed {
-            Some(fault) => {
-                Failure::Diagnostics(Diagnostics::one(not_finite(self.plan, &self.scene, fault)))
-            }
+        match &self.failed {
+            Some(fault) => Failure::Diagnostics(Diagnostics::one(self.scene.explain(fault))),
             None => Failure::Message(message),
         }
     }
-}
-
-/// The instance (or the sound) of a fault: its name, root and first scene sample.
-fn faulty<'p>(
-    plan: &Plan<'p>,
-    scene: &timbre_scene::SceneRenderer,
-    fault: &timbre_scene::Fault,
-) -> (String, Option<(timbre_ir::NodeId, u64)>) {
-    let program = plan.program;
-    let index = scene.program_ids().iter().position(|id| *id == fault.id);
-    match (index, program.root) {
-        (Some(_), Some(root)) => ("the sound".into(), Some((root, 0))),
-        (Some(k), None) => match program.instances.get(k) {
-            Some(i) => (
-                format!("instance `{}`", i.name),
-                Some((i.root, (i.start * plan.sample_rate).round() as u64)),
-            ),
-            None => ("an instance".into(), None),
-        },
-        (None, _) => ("an instance".into(), None),
-    }
-}
-
-/// A diagnostic for the first sample of `fault` that was not finite: the instance,
-/// the time, and the node it came from (found by rendering the instance again with
-/// the interpreter up to there: `timbre_ir::trace_non_finite`).
-fn not_finite(
-    plan: &Plan<'_>,
-    scene: &timbre_scene::SceneRenderer,
-    fault: timbre_scene::Fault,
-) -> timbre_ir::Diag {
-    let (who, tree) = faulty(plan, scene, &fault);
-    let seconds = fault.first as f64 / plan.sample_rate;
-    let mut diag = timbre_ir::Diag::new(
-        "timbre::not-finite",
-        format!("{who} produced a sample that is not finite (inf or NaN) at {seconds:.6} s"),
-    )
-    .help(
-        "guard what overflows (a division by something that reaches 0, a log of 0, a power too large), or render with --sanitize to write such samples as silence",
-    );
-    let origin = tree.and_then(|(root, start)| {
-        let local = fault.first.saturating_sub(start);
-        timbre_ir::trace_non_finite(&plan.program.graph, root, plan.config, local)
-            .map(|o| (o, start))
-    });
-    if let Some((origin, start)) = origin {
-        if let Some(at) = plan.program.graph.origin(origin.node) {
-            let when = (origin.sample + start) as f64 / plan.sample_rate;
-            diag = diag
-                .label(at.span, format!("not finite from here, at {when:.6} s"))
-                .in_source(&at.source);
-        }
-    }
-    diag
 }
 
 /// A raised-cosine fade over the last `fade` frames of `length`.
@@ -758,11 +731,11 @@ fn measure(plan: &Plan<'_>, interrupted: &AtomicBool) -> Result<(u64, f64), Fail
 
 /// Diagnostics printed before the rest are only counted: a file of junk can have
 /// thousands, and the first ones explain the rest.
-const MAX_DIAGNOSTICS_SHOWN: usize = 20;
+const MAX_DIAGNOSTICS_SHOWN: usize = timbre::MAX_DIAGNOSTICS_SHOWN;
 
 /// Prints diagnostics (miette's graphical form) to standard error, at most
 /// [`MAX_DIAGNOSTICS_SHOWN`] of them and then how many more there were.
-pub(crate) fn print_diagnostics(diagnostics: impl IntoIterator<Item = timbre_ir::Diag>) {
+pub(crate) fn print_diagnostics(diagnostics: impl IntoIterator<Item = timbre::Diag>) {
     let mut more = 0;
     for (k, diag) in diagnostics.into_iter().enumerate() {
         if k < MAX_DIAGNOSTICS_SHOWN {
@@ -805,7 +778,8 @@ fn canonical_target(path: &Path) -> Option<PathBuf> {
 }
 
 fn render(args: RenderArgs) -> Result<(), Failure> {
-    let (program, inputs) = compile_source(&args.source)?;
+    let source = compile_source(&args.source)?;
+    let inputs = &source.inputs;
     let resolved = audio_out::output_file(&args.output).unwrap_or_else(|_| args.output.clone());
     if let Some(target) = canonical_target(&resolved).filter(|_| args.output.as_os_str() != "-") {
         if inputs.contains(&target) {
@@ -840,7 +814,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         (_, Some(Format::S16)) => SampleFormat::S16,
         (_, Some(Format::S24)) | (Container::Flac, None) => SampleFormat::S24,
     };
-    let plan = plan(&program, &args.sound, &args.source.limits())?;
+    let plan = plan(&source, &args.sound)?;
     // A WAV file's sizes are 32-bit: refuse before rendering rather than write a file
     // whose header lies about its length.
     let bytes_per_frame = format.bytes() * plan.channels as u64;
@@ -937,15 +911,14 @@ fn measured(
 
 /// Warns of each instance (or the sound) that produced samples that were not finite:
 /// the scene renderer left them out of the mix, so the rest was heard.
-fn report_faults(plan: &Plan<'_>, scene: &timbre_scene::SceneRenderer) {
+fn report_faults(plan: &Plan<'_>, scene: &timbre::Scene) {
     if plan.quiet {
         return;
     }
     let faults = scene.faults();
     for fault in faults.iter().take(MAX_DIAGNOSTICS_SHOWN) {
-        let index = scene.program_ids().iter().position(|id| *id == fault.id);
-        let who = match index.and_then(|k| plan.program.instances.get(k)) {
-            Some(instance) => format!("instance `{}`", instance.name),
+        let who = match scene.instance_name(fault.id) {
+            Some(name) => format!("instance `{name}`"),
             None => "the sound".to_string(),
         };
         let (n, these) = match fault.samples {
@@ -1019,8 +992,8 @@ fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, ou
 
 /// Renders and plays; without a way to play, writes the WAV and says why.
 fn play(args: PlayArgs) -> Result<(), Failure> {
-    let (program, _) = compile_source(&args.source)?;
-    let plan = plan(&program, &args.sound, &args.source.limits())?;
+    let source = compile_source(&args.source)?;
+    let plan = plan(&source, &args.sound)?;
     let interrupted = interrupt_flag();
     let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;
     let samples = render_to_memory(&plan, length, scale, &interrupted)?;

@@ -166,14 +166,14 @@ fn a_scene_file_beyond_the_limits_is_refused_when_loaded() {
         ..Limits::default()
     });
     let work = "(scene :duration 60)\n(define-sound s () (* 1e-4 (combine (sine (* t (iota 1000))))))\n(instance a (s))";
-    let error = engine.load_scene(work).err().expect("60 s of 1000 lanes");
+    let error = engine.load_scene(work).expect_err("60 s of 1000 lanes");
     assert_eq!(code(&error), "timbre::too-much-work");
     let big = format!("(sine (* t {}))", "1".repeat(2000));
     let engine = limited(Limits {
         source_bytes: 1000,
         ..Limits::default()
     });
-    let error = engine.load_scene(&big).err().expect("a script of 2 KB");
+    let error = engine.load_scene(&big).expect_err("a script of 2 KB");
     assert_eq!(code(&error), "timbre::script-too-large");
     assert!(engine.load_library(&big).is_err());
 }

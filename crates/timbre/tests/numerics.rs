@@ -132,3 +132,40 @@ fn stateful_nodes_recover_from_an_infinite_input() {
         }
     }
 }
+
+/// A sample that is not finite is reported at the node that made it, in the instance
+/// that played it, at the scene time it first appeared: in both engines, and the
+/// rest of the scene is still heard.
+#[test]
+fn a_fault_is_explained_with_its_node_instance_and_time() {
+    let source = "(define-sound tone () (* 0.1 (sine (* t 300))))
+                  (define-sound pole () (* 0.1 (log (- t 0.25))))
+                  (instance steady (tone) :stop 1)
+                  (instance broken (pole) :start 0.5 :stop 1)";
+    let pole = source.find("(log (- t 0.25))").unwrap();
+    for backend in [Backend::Jit, Backend::Interpreter] {
+        let engine = Engine::new(8_000.0).with_backend(backend);
+        let mut scene = engine.load_scene(source).unwrap();
+        let samples = scene.render_offline(1.0).unwrap();
+        let fault = scene
+            .first_fault()
+            .expect("the log of 0 and below is not finite");
+        // The instance starts at scene sample 4 000; its log's argument is 0 at its
+        // own t = 0.25 and negative before: its first sample is already NaN.
+        assert_eq!(fault.first, 4_000, "{backend:?}");
+        assert_eq!(scene.instance_name(fault.id), Some("broken"));
+        let diag = scene.explain(&fault);
+        assert_eq!(diag.code, "timbre::not-finite");
+        assert!(diag.message.contains("instance `broken`") && diag.message.contains("0.500000 s"));
+        let (span, label) = &diag.labels[0];
+        assert_eq!(
+            (span.start, span.end),
+            (pole, pole + "(log (- t 0.25))".len()),
+            "{backend:?}: {label}"
+        );
+        assert!(label.contains("0.500000 s"), "{label}");
+        // The other instance was heard all along, the faulty one left out.
+        assert!(samples.iter().all(|x| x.is_finite()));
+        assert!(samples[6_000..7_000].iter().any(|x| x.abs() > 0.05));
+    }
+}
