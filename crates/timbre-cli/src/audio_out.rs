@@ -392,6 +392,24 @@ fn quantise(y: f64, bits: u32, clipped: &mut u64) -> i32 {
     (y.clamp(-1.0, 1.0) * full_scale).round() as i32
 }
 
+/// Replaces the file at `path` (or creates it) with `bytes`: written to a temporary
+/// file beside it and renamed over it, keeping the old file's permissions, so that a
+/// failure leaves the old file whole. Refuses what `output_file` refuses.
+pub fn replace_file(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let target = output_file(path)?;
+    let temp = temp_path(&target);
+    let result = std::fs::write(&temp, bytes).and_then(|()| {
+        if let Ok(old) = std::fs::metadata(&target) {
+            std::fs::set_permissions(&temp, old.permissions())?;
+        }
+        std::fs::rename(&temp, &target)
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temp);
+    }
+    result.map_err(|e| e.to_string())
+}
+
 /// The file an output named `path` is written to: `path`, or the file a symbolic link
 /// at `path` leads to (the link is kept). Anything else that exists there is refused,
 /// since the output replaces it: a directory, a device such as `/dev/null`, a named

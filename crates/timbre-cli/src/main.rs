@@ -7,6 +7,7 @@
 
 mod audio_out;
 mod bench;
+mod fmt;
 mod graph;
 mod playback;
 mod plot;
@@ -82,6 +83,19 @@ enum Command {
     ///   timbre graph examples/bell.tt -o bell.svg
     #[command(verbatim_doc_comment)]
     Graph(GraphArgs),
+    /// Lay out .tt files in the canonical layout, keeping their comments.
+    ///
+    /// A form that fits in 88 columns is written on one line; a longer one keeps its
+    /// head and first argument on the first line and the rest aligned under it, or,
+    /// for forms with a body (define, define-sound, let, instance …), indented by two.
+    /// Comments, the spelling of numbers and single blank lines between forms are kept.
+    ///
+    /// Examples:
+    ///   timbre fmt examples/bell.tt
+    ///   timbre fmt --write examples/bell.tt
+    ///   timbre fmt --check examples/*.tt
+    #[command(verbatim_doc_comment)]
+    Fmt(fmt::FmtArgs),
     /// Draw a WAV file's spectrogram and/or waveform as PNG pictures with labelled axes.
     ///
     /// Several channels are drawn as their mean. `timbre render` takes the same
@@ -319,6 +333,7 @@ fn main() -> ExitCode {
         Command::Play(args) => play(args),
         Command::Check(args) => check(args),
         Command::Graph(args) => draw_graph(args),
+        Command::Fmt(args) => fmt::fmt(args),
         Command::Plot(args) => plot::plot(args).map_err(Failure::Message),
         Command::Repl(args) => repl::run(args.audition).map_err(Failure::Message),
         Command::Bench(args) => bench::bench(args),
@@ -340,7 +355,7 @@ fn main() -> ExitCode {
     }
 }
 
-enum Failure {
+pub(crate) enum Failure {
     Diagnostics(Diagnostics),
     Message(String),
     Interrupted,

@@ -9,7 +9,9 @@ mod ast;
 mod error;
 mod lexer;
 mod parser;
+mod print;
 
 pub use ast::{Expr, ExprKind, Span};
 pub use error::SyntaxError;
 pub use parser::{parse, Parse, MAX_DEPTH};
+pub use print::{format_source, number, print, WIDTH};

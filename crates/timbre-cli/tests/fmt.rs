@@ -1,0 +1,78 @@
+//! `timbre fmt`: prints, checks and rewrites files in the canonical layout, keeping
+//! their comments, and leaves a file with syntax errors as it was.
+
+mod common;
+
+use common::run_in;
+
+const MESSY: &str = concat!(
+    "; A bee, written in a hurry.\n",
+    "(define-sound bee (f)   ; its pitch\n",
+    "        (* 0.5\n",
+    "   (sine (* t f))))\n",
+    "\n",
+    "\n",
+    "; Two of them.\n",
+    "(instance a (bee 220) :start 0 :stop 1)   (instance b (bee 330)\n",
+    " :start 0.5 :stop 1.5)\n",
+);
+
+const TIDY: &str = concat!(
+    "; A bee, written in a hurry.\n",
+    "(define-sound bee (f) ; its pitch\n",
+    "  (* 0.5 (sine (* t f))))\n",
+    "\n",
+    "; Two of them.\n",
+    "(instance a (bee 220) :start 0 :stop 1)\n",
+    "(instance b (bee 330) :start 0.5 :stop 1.5)\n",
+);
+
+#[test]
+fn fmt_prints_checks_and_rewrites_keeping_comments() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bees.tt");
+    std::fs::write(&path, MESSY).unwrap();
+
+    let printed = run_in(Some(dir.path()), ["fmt", "bees.tt"]);
+    printed.assert_success();
+    assert_eq!(printed.stdout, TIDY);
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        MESSY,
+        "printing rewrote"
+    );
+
+    run_in(Some(dir.path()), ["fmt", "--check", "bees.tt"])
+        .assert_code(1)
+        .assert_stderr_has("not in the canonical layout");
+
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
+    }
+    run_in(Some(dir.path()), ["fmt", "--write", "bees.tt"]).assert_success();
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), TIDY);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o640, "permissions kept");
+    }
+    run_in(Some(dir.path()), ["fmt", "--check", "bees.tt"]).assert_success();
+    let entries: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(entries.len(), 1, "no temporary file left behind");
+}
+
+#[test]
+fn a_file_with_syntax_errors_is_left_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.tt");
+    let broken = "(define-sound bee (f)\n  (* 0.5 (sine (* t f)))\n";
+    std::fs::write(&path, broken).unwrap();
+    run_in(Some(dir.path()), ["fmt", "--write", "broken.tt"])
+        .assert_code(1)
+        .assert_stderr_has("unclosed")
+        .assert_stderr_has("left as it is");
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), broken);
+}
