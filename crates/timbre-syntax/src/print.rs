@@ -256,6 +256,10 @@ impl<'s, 'c> Builder<'s, 'c> {
                 ExprKind::List(children) => {
                     let (mut list, dangling) =
                         self.items(children, expr.span.start + 1, expr.span.end - 1);
+                    // A blank line before a list's first element is not kept.
+                    if let Some(first) = list.first_mut() {
+                        first.blank_before = false;
+                    }
                     // A comment after the last element on its line follows the list's
                     // `)`: a `)` after it would be commented out.
                     let moved = list.last_mut().and_then(|last| last.trailing.take());
@@ -749,6 +753,7 @@ mod tests {
     fn a_blank_line_between_a_keyword_and_its_value_is_kept() {
         assert_eq!(stable("(c :g\n\ne)"), "(c :g\n\n     e)\n");
         assert_eq!(stable("(d :p\n;\n\n1)"), "(d :p\n   ;\n\n   1)\n");
+        assert_eq!(stable("((\n\ns) a)"), "((s) a)\n");
     }
 
     #[test]
