@@ -392,6 +392,35 @@ fn quantise(y: f64, bits: u32, clipped: &mut u64) -> i32 {
     (y.clamp(-1.0, 1.0) * full_scale).round() as i32
 }
 
+/// Writes interleaved samples already in memory as a 32-bit float WAV file, through
+/// a temporary file like every output.
+pub fn write_wav_samples(
+    path: &Path,
+    samples: &[f64],
+    channels: usize,
+    sample_rate: f64,
+) -> Result<(), String> {
+    let interrupted = std::sync::atomic::AtomicBool::new(false);
+    let channels = channels.max(1);
+    let job = OutputJob {
+        destination: Destination::File(path),
+        container: Container::Wav,
+        sample_rate: sample_rate as u32,
+        channels: channels as u16,
+        format: SampleFormat::F32,
+        frames: (samples.len() / channels) as u64,
+        interrupted: &interrupted,
+    };
+    let mut written = 0;
+    write_audio(&job, |out: &mut [f64]| {
+        out.copy_from_slice(&samples[written..written + out.len()]);
+        written += out.len();
+        Ok(None)
+    })
+    .map(|_| ())
+    .map_err(|e| e.to_string())
+}
+
 /// Replaces the file at `path` (or creates it) with `bytes`: written to a temporary
 /// file beside it and renamed over it, keeping the old file's permissions, so that a
 /// failure leaves the old file whole. Refuses what `output_file` refuses.

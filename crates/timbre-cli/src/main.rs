@@ -7,6 +7,7 @@
 
 mod audio_out;
 mod bench;
+mod evolve;
 mod fmt;
 mod graph;
 mod playback;
@@ -96,6 +97,19 @@ enum Command {
     ///   timbre fmt --check examples/*.tt
     #[command(verbatim_doc_comment)]
     Fmt(fmt::FmtArgs),
+    /// Breed a sound class by ear: rate each candidate 0-9, the best breed the next.
+    ///
+    /// Each candidate is played (as `timbre play` plays) or, when nothing can play,
+    /// written as a numbered WAV. Type a rating 0-9 for each; `r` replays it, `s` saves
+    /// it, `q` stops. Every generation's trees (renderable scene files) and a lineage
+    /// file are kept in the output folder; the same --seed and ratings give the same
+    /// trees. lang-spec/evolution.md lists the mutations and the checks.
+    ///
+    /// Examples:
+    ///   timbre evolve examples/cubes.tt
+    ///   timbre evolve examples/passing-car.tt --population 6 --seed 7 -o cars
+    #[command(verbatim_doc_comment)]
+    Evolve(evolve::EvolveArgs),
     /// Draw a WAV file's spectrogram and/or waveform as PNG pictures with labelled axes.
     ///
     /// Several channels are drawn as their mean. `timbre render` takes the same
@@ -310,7 +324,7 @@ fn parse_finite(text: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_positive(text: &str) -> Result<f64, String> {
+pub(crate) fn parse_positive(text: &str) -> Result<f64, String> {
     match parse_finite(text)? {
         x if x > 0.0 => Ok(x),
         _ => Err(format!("`{text}` must be greater than 0")),
@@ -334,6 +348,7 @@ fn main() -> ExitCode {
         Command::Check(args) => check(args),
         Command::Graph(args) => draw_graph(args),
         Command::Fmt(args) => fmt::fmt(args),
+        Command::Evolve(args) => evolve::evolve(args),
         Command::Plot(args) => plot::plot(args).map_err(Failure::Message),
         Command::Repl(args) => repl::run(args.audition).map_err(Failure::Message),
         Command::Bench(args) => bench::bench(args),

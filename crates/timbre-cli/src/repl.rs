@@ -27,8 +27,6 @@ use timbre_ir::{
 };
 use timbre_syntax::{Expr, ExprKind};
 
-use crate::audio_out::{write_audio, Container, Destination, OutputJob, SampleFormat};
-
 const PROMPT: &str = "timbre> ";
 /// Shown while an input's parentheses are still open.
 const CONTINUATION: &str = "   ...> ";
@@ -340,25 +338,12 @@ impl Session {
     }
 
     fn write_wav(&self, path: &Path) -> Result<(), String> {
-        let interrupted = AtomicBool::new(false);
-        let channels = self.last_channels.max(1);
-        let job = OutputJob {
-            destination: Destination::File(path),
-            container: Container::Wav,
-            sample_rate: self.last_rate as u32,
-            channels: channels as u16,
-            format: SampleFormat::F32,
-            frames: (self.last_samples.len() / channels) as u64,
-            interrupted: &interrupted,
-        };
-        let mut written = 0;
-        write_audio(&job, |out: &mut [f64]| {
-            out.copy_from_slice(&self.last_samples[written..written + out.len()]);
-            written += out.len();
-            Ok(None)
-        })
-        .map(|_| ())
-        .map_err(|e| e.to_string())
+        crate::audio_out::write_wav_samples(
+            path,
+            &self.last_samples,
+            self.last_channels,
+            self.last_rate,
+        )
     }
 }
 

@@ -1,0 +1,271 @@
+//! `timbre evolve`: breeding a sound class by ear, as the 1993 paper and Sims' genetic
+//! images do. Each generation's candidates are rendered and played (or written as
+//! numbered WAVs), rated 0–9, and the best breed the next generation by mutation and
+//! crossover (`timbre-evolve`). Every generation's trees and a lineage file are kept;
+//! the same seed and the same ratings give the same trees.
+
+use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use clap::Args;
+use rand::{RngExt, SeedableRng};
+use timbre_evolve::{crossover, mutate, Genome, Settings};
+
+use crate::Failure;
+
+#[derive(Args, Debug)]
+pub struct EvolveArgs {
+    /// The file holding the class to start from (its other definitions are kept).
+    seed_file: PathBuf,
+
+    /// The class to evolve (default: the file's first `define-sound`).
+    #[arg(long)]
+    class: Option<String>,
+
+    /// Candidates per generation.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(2..=64))]
+    population: u32,
+
+    /// Seed of every random choice: the same seed and ratings give the same trees.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+
+    /// Where each generation's trees, the lineage and saved candidates go.
+    #[arg(long, short = 'o', default_value = "evolve-out")]
+    out: PathBuf,
+
+    /// Seconds of each candidate to play.
+    #[arg(long, default_value_t = 2.0, value_parser = crate::parse_positive)]
+    seconds: f64,
+
+    /// Largest tree, in expressions (lists and atoms) of the class body.
+    #[arg(long, default_value_t = 120)]
+    max_size: usize,
+}
+
+/// One candidate of a generation.
+struct Candidate {
+    genome: Genome,
+    /// How it was made: `seed`, `copy of 2.3`, `2.3 NewExpression+Wrap`, `2.3 x 2.5`.
+    origin: String,
+    rating: Option<u8>,
+}
+
+const SAMPLE_RATE: f64 = 48_000.0;
+
+pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
+    let text = std::fs::read_to_string(&args.seed_file).map_err(|e| {
+        Failure::Message(format!("cannot read `{}`: {e}", args.seed_file.display()))
+    })?;
+    let seed = Genome::from_source(&text, args.class.as_deref())
+        .map_err(|e| Failure::Message(format!("`{}`: {e}", args.seed_file.display())))?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| Failure::Message(format!("cannot create `{}`: {e}", args.out.display())))?;
+    let settings = Settings {
+        max_size: args.max_size,
+        ..Settings::default()
+    };
+    let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
+    let mut lineage = String::from("generation\tcandidate\torigin\trating\n");
+    let population = args.population as usize;
+    // The first generation: the seed and its mutants.
+    let mut candidates = vec![Candidate {
+        genome: seed.clone(),
+        origin: "seed".into(),
+        rating: None,
+    }];
+    while candidates.len() < population {
+        candidates.push(offspring(&mut rng, &[(&seed, "seed".into(), 1)], &settings));
+    }
+    let stdin = std::io::stdin();
+    let mut input = stdin.lock().lines();
+    let mut played_once = false;
+    for generation in 0.. {
+        let dir = args.out.join(format!("gen-{generation:03}"));
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| Failure::Message(format!("cannot create `{}`: {e}", dir.display())))?;
+        for (k, candidate) in candidates.iter().enumerate() {
+            write(
+                &dir.join(format!("{:02}.tt", k + 1)),
+                &candidate.genome,
+                args.seconds,
+            )?;
+        }
+        println!(
+            "generation {generation}: {} candidates in {}",
+            candidates.len(),
+            dir.display()
+        );
+        let mut quit = false;
+        'rating: for (k, candidate) in candidates.iter_mut().enumerate() {
+            let label = format!("{generation}.{}", k + 1);
+            let samples = render(&candidate.genome, args.seconds)?;
+            let wav = dir.join(format!("{:02}.wav", k + 1));
+            audition(&samples, &wav, &mut played_once)?;
+            loop {
+                print!(
+                    "candidate {label} ({}): rate 0-9, r replay, s save, q quit > ",
+                    candidate.origin
+                );
+                let _ = std::io::stdout().flush();
+                let Some(Ok(line)) = input.next() else {
+                    quit = true;
+                    break 'rating;
+                };
+                match line.trim() {
+                    "q" => {
+                        quit = true;
+                        break 'rating;
+                    }
+                    "r" => audition(&samples, &wav, &mut played_once)?,
+                    "s" => {
+                        let saved = args
+                            .out
+                            .join(format!("saved-{generation:03}-{:02}.tt", k + 1));
+                        write(&saved, &candidate.genome, args.seconds)?;
+                        println!("saved {}", saved.display());
+                    }
+                    digit if digit.len() == 1 && digit.as_bytes()[0].is_ascii_digit() => {
+                        candidate.rating = Some(digit.as_bytes()[0] - b'0');
+                        break;
+                    }
+                    other => println!("`{other}`: type a rating 0-9, r, s or q"),
+                }
+            }
+        }
+        for (k, c) in candidates.iter().enumerate() {
+            let rating = c.rating.map_or("-".to_owned(), |r| r.to_string());
+            lineage.push_str(&format!(
+                "{generation}\t{}\t{}\t{rating}\n",
+                k + 1,
+                c.origin
+            ));
+        }
+        crate::audio_out::replace_file(&args.out.join("lineage.tsv"), lineage.as_bytes())
+            .map_err(|e| Failure::Message(format!("cannot write the lineage: {e}")))?;
+        if quit {
+            println!("stopped; every generation is in {}", args.out.display());
+            return Ok(());
+        }
+        candidates = next_generation(&mut rng, generation, &candidates, population, &settings);
+    }
+    Ok(())
+}
+
+/// The next generation: the best candidate kept as it is, the rest bred from the
+/// rated ones, each chosen in proportion to its rating.
+fn next_generation(
+    rng: &mut impl rand::Rng,
+    generation: usize,
+    candidates: &[Candidate],
+    population: usize,
+    settings: &Settings,
+) -> Vec<Candidate> {
+    let label = |k: usize| format!("{generation}.{}", k + 1);
+    let mut parents: Vec<(&Genome, String, u8)> = (candidates.iter().enumerate())
+        .filter_map(|(k, c)| Some((&c.genome, label(k), c.rating.filter(|r| *r > 0)?)))
+        .collect();
+    if parents.is_empty() {
+        // Nothing liked: start again from the first candidate (the last best).
+        parents.push((&candidates[0].genome, label(0), 1));
+    }
+    // The best, the first of them on a tie.
+    let best = (parents.iter().rev())
+        .max_by_key(|(_, _, rating)| *rating)
+        .expect("one parent at least");
+    let mut next = vec![Candidate {
+        genome: best.0.clone(),
+        origin: format!("copy of {}", best.1),
+        rating: None,
+    }];
+    while next.len() < population {
+        next.push(offspring(rng, &parents, settings));
+    }
+    next
+}
+
+/// A mutant of one parent, or with probability 0.3 (given two) a crossover of two;
+/// parents (a genome, its label, its rating) are drawn in proportion to their rating.
+fn offspring(
+    rng: &mut impl rand::Rng,
+    parents: &[(&Genome, String, u8)],
+    settings: &Settings,
+) -> Candidate {
+    let draw = |rng: &mut dyn rand::Rng| -> usize {
+        let total: u32 = parents.iter().map(|(_, _, r)| u32::from(*r)).sum();
+        let mut x = rng.random_range(0..total.max(1));
+        for (i, (_, _, r)) in parents.iter().enumerate() {
+            if x < u32::from(*r) {
+                return i;
+            }
+            x -= u32::from(*r);
+        }
+        0
+    };
+    let a = draw(rng);
+    let (parent, k, _) = &parents[a];
+    if parents.len() > 1 && rng.random_bool(0.3) {
+        let b = draw(rng);
+        if b != a {
+            let (other, j, _) = &parents[b];
+            if let Ok(child) = crossover(rng, parent, other, settings) {
+                return Candidate {
+                    genome: child.genome,
+                    origin: format!("{k} x {j}"),
+                    rating: None,
+                };
+            }
+        }
+    }
+    match mutate(rng, parent, settings) {
+        Ok(child) => {
+            let operators: Vec<String> = child.operators.iter().map(|o| format!("{o:?}")).collect();
+            Candidate {
+                genome: child.genome,
+                origin: format!("{k} {}", operators.join("+")),
+                rating: None,
+            }
+        }
+        Err(_) => Candidate {
+            genome: (*parent).clone(),
+            origin: format!("copy of {k} (no mutant passed the checks)"),
+            rating: None,
+        },
+    }
+}
+
+/// A candidate as a scene file: its class and an instance of it.
+fn write(path: &Path, genome: &Genome, seconds: f64) -> Result<(), Failure> {
+    crate::audio_out::replace_file(path, genome.scene_source(seconds).as_bytes())
+        .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", path.display())))
+}
+
+/// A candidate's sound, through the `timbre` crate as `timbre render` makes it.
+fn render(genome: &Genome, seconds: f64) -> Result<Vec<f64>, Failure> {
+    let engine = timbre::Engine::new(SAMPLE_RATE);
+    let mut scene = engine
+        .load_scene(&genome.scene_source(seconds))
+        .map_err(|e| Failure::Message(e.report()))?;
+    scene
+        .render_offline(seconds)
+        .map_err(|e| Failure::Message(e.report()))
+}
+
+/// Plays a candidate; without a way to play, writes its WAV (and says so once).
+fn audition(samples: &[f64], wav: &Path, played_once: &mut bool) -> Result<(), Failure> {
+    let cancel = AtomicBool::new(false);
+    match crate::playback::play(samples, 1, SAMPLE_RATE, &cancel) {
+        Ok(_) => Ok(()),
+        Err(why) => {
+            crate::audio_out::write_wav_samples(wav, samples, 1, SAMPLE_RATE)
+                .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", wav.display())))?;
+            if !*played_once {
+                println!("cannot play ({why}): each candidate is written as a WAV to listen to");
+                *played_once = true;
+            }
+            println!("wrote {}", wav.display());
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,110 @@
+//! `timbre evolve` driven in a pseudo-terminal with scripted ratings, as a person
+//! would rate: every generation's trees are kept and render, the lineage records the
+//! ratings, a saved candidate is written, and the same seed and ratings give the same
+//! trees.
+
+use std::path::Path;
+use std::process::Command;
+
+use rexpect::session::spawn_command;
+
+/// What is typed at each prompt: ratings, a save, a replay, and quit.
+const SCRIPT: &[&str] = &["7", "s", "3", "0", "r", "5", "9", "1", "2", "4", "q"];
+
+fn session(dir: &Path) {
+    let seed = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/cubes.tt");
+    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    command
+        .args([
+            "evolve",
+            "--class",
+            "bee",
+            "--population",
+            "3",
+            "--seed",
+            "5",
+        ])
+        .args(["--seconds", "0.5", "-o", "out"])
+        .arg(seed)
+        .current_dir(dir)
+        .env("TIMBRE_PLAYER", "none")
+        .env("NO_COLOR", "1");
+    let mut evolve = spawn_command(command, Some(60_000)).unwrap();
+    evolve
+        .exp_string("each candidate is written as a WAV")
+        .unwrap();
+    for answer in SCRIPT {
+        evolve.exp_string("q quit > ").unwrap();
+        evolve.send_line(answer).unwrap();
+    }
+    evolve.exp_string("stopped").unwrap();
+    evolve.exp_eof().unwrap();
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn rated_generations_are_kept_and_reproducible() {
+    let first = tempfile::tempdir().unwrap();
+    session(first.path());
+    let out = first.path().join("out");
+
+    let lineage = read(&out.join("lineage.tsv"));
+    let ratings: Vec<&str> = lineage
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit('\t').next().unwrap())
+        .collect();
+    assert_eq!(
+        ratings,
+        ["7", "3", "0", "5", "9", "1", "2", "4", "-"],
+        "{lineage}"
+    );
+    assert!(
+        lineage.contains("1\t1\tcopy of 0.1\t"),
+        "the best is kept: {lineage}"
+    );
+    assert!(
+        lineage.contains("2\t1\tcopy of 1.2\t"),
+        "the new best is kept: {lineage}"
+    );
+
+    // Every candidate of every generation is a scene that checks, with its WAV.
+    for generation in 0..3 {
+        for k in 1..=3 {
+            let tree = out.join(format!("gen-{generation:03}/{k:02}.tt"));
+            let status = Command::new(env!("CARGO_BIN_EXE_timbre"))
+                .arg("check")
+                .arg(&tree)
+                .output()
+                .unwrap();
+            assert!(status.status.success(), "{}: {:?}", tree.display(), status);
+            let wav = timbre_testkit::read_wav(&tree.with_extension("wav"));
+            assert!(
+                timbre_testkit::rms(&wav.samples) > 1e-4,
+                "{}",
+                tree.display()
+            );
+        }
+    }
+    assert_eq!(
+        read(&out.join("saved-000-02.tt")),
+        read(&out.join("gen-000/02.tt"))
+    );
+
+    // The same seed and ratings: the same trees.
+    let second = tempfile::tempdir().unwrap();
+    session(second.path());
+    for generation in 0..3 {
+        for k in 1..=3 {
+            let name = format!("out/gen-{generation:03}/{k:02}.tt");
+            assert_eq!(
+                read(&first.path().join(&name)),
+                read(&second.path().join(&name))
+            );
+        }
+    }
+    assert_eq!(lineage, read(&second.path().join("out/lineage.tsv")));
+}
