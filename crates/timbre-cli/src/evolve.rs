@@ -10,7 +10,7 @@ use std::sync::atomic::AtomicBool;
 
 use clap::Args;
 use rand::{RngExt, SeedableRng};
-use timbre_evolve::{crossover, mutate, Genome, Settings};
+use timbre_evolve::{crossover, mutate, tune, Genome, Knobs, Search, Settings, Target};
 
 use crate::Failure;
 
@@ -31,13 +31,29 @@ pub struct EvolveArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
 
-    /// Where each generation's trees, the lineage and saved candidates go.
-    #[arg(long, short = 'o', default_value = "evolve-out")]
-    out: PathBuf,
+    /// By ear: the folder for each generation's trees, the lineage and saved
+    /// candidates (default evolve-out). Toward a target: the best tree's file
+    /// (default best.tt).
+    #[arg(long, short = 'o')]
+    out: Option<PathBuf>,
 
-    /// Seconds of each candidate to play.
+    /// Seconds of each candidate to play (by ear), or of the target to match.
     #[arg(long, default_value_t = 2.0, value_parser = crate::parse_positive)]
     seconds: f64,
+
+    /// Search toward this recording (a WAV file) instead of by ear: candidates are
+    /// scored by a multi-resolution spectral distance (lang-spec/evolution.md).
+    #[arg(long, value_name = "FILE.wav")]
+    target: Option<PathBuf>,
+
+    /// Generations of the search toward a target.
+    #[arg(long, default_value_t = 10, requires = "target")]
+    generations: usize,
+
+    /// Toward a target, tune only the numbers of the tree as it is: its parameters'
+    /// values (an instance of the class), or its constants if it has no parameters.
+    #[arg(long, requires = "target")]
+    match_params: bool,
 
     /// Largest tree, in expressions (lists and atoms) of the class body.
     #[arg(long, default_value_t = 120)]
@@ -60,8 +76,103 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
     })?;
     let seed = Genome::from_source(&text, args.class.as_deref())
         .map_err(|e| Failure::Message(format!("`{}`: {e}", args.seed_file.display())))?;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| Failure::Message(format!("cannot create `{}`: {e}", args.out.display())))?;
+    match &args.target {
+        Some(target) => toward(&args, seed, target),
+        None => by_ear(&args, seed),
+    }
+}
+
+/// The search toward a recording: `--match-params` tunes the tree's numbers; else
+/// genetic programming with the best of each generation tuned.
+fn toward(args: &EvolveArgs, seed: Genome, path: &Path) -> Result<(), Failure> {
+    let (samples, rate) = read_mono(path)?;
+    let target = Target::new(&samples, rate, args.seconds);
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("best.tt"));
+    let started = std::time::Instant::now();
+    let before = timbre_evolve::check::render(&seed, target.audition())
+        .map_or(f64::MAX, |s| target.distance(&s));
+    let (best, after, renders) = if args.match_params {
+        let which = if seed.params.is_empty() {
+            Knobs::Constants
+        } else {
+            Knobs::Values
+        };
+        let tuned = tune(&seed, &target, which, 200);
+        (tuned.genome, tuned.distance, tuned.renders)
+    } else {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
+        let search = Search {
+            generations: args.generations,
+            population: args.population as usize,
+            settings: Settings {
+                max_size: args.max_size,
+                ..Settings::default()
+            },
+            ..Search::default()
+        };
+        let found = timbre_evolve::search(&mut rng, &seed, &target, &search);
+        for (k, d) in found.history.iter().enumerate().skip(2) {
+            println!("generation {}: distance {d:.4}", k - 1);
+        }
+        (found.best, found.distance, found.renders)
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    crate::audio_out::replace_file(
+        &out,
+        best.scene_source(target.audition().seconds).as_bytes(),
+    )
+    .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", out.display())))?;
+    if !best.values.is_empty() {
+        let values: Vec<String> = (best.params.iter().zip(&best.values))
+            .map(|(p, v)| format!("{p} = {v:.6}"))
+            .collect();
+        println!("values: {}", values.join(", "));
+    }
+    println!(
+        "distance {before:.4} → {after:.4} ({:.1}× closer); {renders} renders in {seconds:.1} s ({:.0} renders/s); wrote {}",
+        before / after.max(1e-12),
+        renders as f64 / seconds.max(1e-9),
+        out.display()
+    );
+    Ok(())
+}
+
+/// A WAV file's samples, its channels averaged, and its rate.
+fn read_mono(path: &Path) -> Result<(Vec<f64>, f64), Failure> {
+    let fail = |e: hound::Error| Failure::Message(format!("cannot read `{}`: {e}", path.display()));
+    let mut reader = hound::WavReader::open(path).map_err(fail)?;
+    let spec = reader.spec();
+    let raw: Vec<f64> = match spec.sample_format {
+        hound::SampleFormat::Float => reader
+            .samples::<f32>()
+            .map(|x| x.map(f64::from))
+            .collect::<Result<_, _>>()
+            .map_err(fail)?,
+        hound::SampleFormat::Int => {
+            let full = ((1i64 << (spec.bits_per_sample - 1)) - 1) as f64;
+            reader
+                .samples::<i32>()
+                .map(|x| x.map(|x| x as f64 / full))
+                .collect::<Result<_, _>>()
+                .map_err(fail)?
+        }
+    };
+    let channels = usize::from(spec.channels.max(1));
+    let mono = raw
+        .chunks(channels)
+        .map(|frame| frame.iter().sum::<f64>() / channels as f64)
+        .collect();
+    Ok((mono, f64::from(spec.sample_rate)))
+}
+
+/// The by-ear loop.
+fn by_ear(args: &EvolveArgs, seed: Genome) -> Result<(), Failure> {
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("evolve-out"));
+    std::fs::create_dir_all(&out)
+        .map_err(|e| Failure::Message(format!("cannot create `{}`: {e}", out.display())))?;
     let settings = Settings {
         max_size: args.max_size,
         ..Settings::default()
@@ -82,7 +193,7 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
     let mut input = stdin.lock().lines();
     let mut played_once = false;
     for generation in 0.. {
-        let dir = args.out.join(format!("gen-{generation:03}"));
+        let dir = out.join(format!("gen-{generation:03}"));
         std::fs::create_dir_all(&dir)
             .map_err(|e| Failure::Message(format!("cannot create `{}`: {e}", dir.display())))?;
         for (k, candidate) in candidates.iter().enumerate() {
@@ -120,9 +231,7 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
                     }
                     "r" => audition(&samples, &wav, &mut played_once)?,
                     "s" => {
-                        let saved = args
-                            .out
-                            .join(format!("saved-{generation:03}-{:02}.tt", k + 1));
+                        let saved = out.join(format!("saved-{generation:03}-{:02}.tt", k + 1));
                         write(&saved, &candidate.genome, args.seconds)?;
                         println!("saved {}", saved.display());
                     }
@@ -142,10 +251,10 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
                 c.origin
             ));
         }
-        crate::audio_out::replace_file(&args.out.join("lineage.tsv"), lineage.as_bytes())
+        crate::audio_out::replace_file(&out.join("lineage.tsv"), lineage.as_bytes())
             .map_err(|e| Failure::Message(format!("cannot write the lineage: {e}")))?;
         if quit {
-            println!("stopped; every generation is in {}", args.out.display());
+            println!("stopped; every generation is in {}", out.display());
             return Ok(());
         }
         candidates = next_generation(&mut rng, generation, &candidates, population, &settings);

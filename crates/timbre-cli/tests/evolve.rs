@@ -108,3 +108,50 @@ fn rated_generations_are_kept_and_reproducible() {
     }
     assert_eq!(lineage, read(&second.path().join("out/lineage.tsv")));
 }
+
+/// Toward a recording: `--match-params` finds the frequency of a tone an octave
+/// above the seed's, and writes the tuned tree as a scene that renders at it.
+#[test]
+fn match_params_finds_a_target_frequency() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tone.tt"),
+        "(define-sound tone (f) (* 0.5 (sine (* t f))))\n(instance a (tone 261.63))\n",
+    )
+    .unwrap();
+    let timbre = || {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+        command.current_dir(dir.path());
+        command
+    };
+    let render = timbre()
+        .args(["render", "-q", "--expr", "(* 0.5 (sine (* t 523.25)))"])
+        .args(["-d", "1", "-r", "16000", "-o", "target.wav"])
+        .status()
+        .unwrap();
+    assert!(render.success());
+    let run = timbre()
+        .args(["evolve", "tone.tt", "--target", "target.wav", "--match-params"])
+        .args(["--seconds", "0.5", "-o", "best.tt"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}{}", String::from_utf8_lossy(&run.stderr));
+    let f: f64 = stdout
+        .split("f = ")
+        .nth(1)
+        .and_then(|rest| rest.split(|c: char| c.is_whitespace() || c == ',').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!((f / 523.25 - 1.0).abs() < 0.005, "{f} Hz");
+    assert!(stdout.contains("renders/s"), "{stdout}");
+    // The tree written renders at the frequency found.
+    let wav = timbre()
+        .args(["render", "-q", "best.tt", "-r", "16000", "-o", "best.wav"])
+        .status()
+        .unwrap();
+    assert!(wav.success());
+    let samples = timbre_testkit::read_wav(&dir.path().join("best.wav")).samples;
+    let peak = timbre_testkit::strongest_peak_in(&samples, 16_000.0, 100.0, 2_000.0);
+    assert!((peak / 523.25 - 1.0).abs() < 0.01, "{peak} Hz");
+}

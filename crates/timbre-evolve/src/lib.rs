@@ -20,7 +20,9 @@
 pub mod check;
 pub mod genome;
 pub mod mutate;
+pub mod target;
 
 pub use check::{check, Audition, Checked, Refusal};
 pub use genome::{Genome, GenomeError};
 pub use mutate::{apply, crossover, mutate, perturb, Barren, Offspring, Operator, Settings};
+pub use target::{search, tune, Found, Knobs, Search, Target, Tuned};
