@@ -131,12 +131,22 @@ fn match_params_finds_a_target_frequency() {
         .unwrap();
     assert!(render.success());
     let run = timbre()
-        .args(["evolve", "tone.tt", "--target", "target.wav", "--match-params"])
+        .args([
+            "evolve",
+            "tone.tt",
+            "--target",
+            "target.wav",
+            "--match-params",
+        ])
         .args(["--seconds", "0.5", "-o", "best.tt"])
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(run.status.success(), "{stdout}{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let f: f64 = stdout
         .split("f = ")
         .nth(1)

@@ -258,3 +258,19 @@ fn check_accepts_every_example() {
         );
     }
 }
+
+#[test]
+fn morph_turns_a_bee_into_a_chainsaw() {
+    let wav = render_example("morph", &[]);
+    // The bee's pitch at the start, the chainsaw's at the end.
+    let bee = strongest_peak_in(wav.seconds(0.0, 1.0), SR, 150.0, 300.0);
+    let saw = strongest_peak_in(wav.seconds(5.0, 6.0), SR, 40.0, 80.0);
+    assert!((bee / 220.0 - 1.0).abs() < 0.05, "bee at {bee:.1} Hz");
+    assert!((saw / 55.0 - 1.0).abs() < 0.08, "chainsaw at {saw:.1} Hz");
+    // Halfway through the move (3 s) the pitch is between, near the geometric mean.
+    let middle = strongest_peak_in(wav.seconds(2.9, 3.1), SR, 60.0, 220.0);
+    assert!(middle > 70.0 && middle < 200.0, "halfway at {middle:.1} Hz");
+    // Louder (amp 0.3 → 0.45, and more rasp) at the end.
+    let (start, end) = (rms(wav.seconds(0.0, 1.0)), rms(wav.seconds(5.0, 6.0)));
+    assert!(end > 1.3 * start, "rms {start:.3} → {end:.3}");
+}

@@ -237,6 +237,7 @@ impl Lowerer<'_> {
         };
         match name {
             "let" => return self.lower_let(&call, origin, scope),
+            "morph" => return self.lower_morph(&call, origin, scope),
             _ if super::FORMS.contains(&name) => {
                 return Err(self
                     .diag(
@@ -362,17 +363,6 @@ impl Lowerer<'_> {
         origin: &Origin,
         caller_scope: &mut Scope,
     ) -> Result<NodeId, Diag> {
-        if self.expanding.iter().any(|n| n == name) {
-            return Err(self
-                .diag(
-                    "timbre::recursive-define",
-                    format!("`{name}` uses itself"),
-                    origin,
-                )
-                .label(span, "recursive use")
-                .help("timbre trees are finite: a named tree cannot contain itself"));
-        }
-        self.expanded.insert(name.to_owned());
         let params: Vec<Param> = def
             .params
             .iter()
@@ -384,6 +374,29 @@ impl Lowerer<'_> {
         let call = Call { name, span, args };
         let bound = self.bind_args(&call, &params, false, false, origin, caller_scope)?;
         let arg_nodes: Vec<NodeId> = bound.args.iter().flatten().map(|a| a.node).collect();
+        self.expand_bound(name, def, arg_nodes, span, origin)
+    }
+
+    /// Expands a named tree with its parameters bound to `arg_nodes`, in order.
+    pub(crate) fn expand_bound(
+        &mut self,
+        name: &str,
+        def: &Definition,
+        arg_nodes: Vec<NodeId>,
+        span: Span,
+        origin: &Origin,
+    ) -> Result<NodeId, Diag> {
+        if self.expanding.iter().any(|n| n == name) {
+            return Err(self
+                .diag(
+                    "timbre::recursive-define",
+                    format!("`{name}` uses itself"),
+                    origin,
+                )
+                .label(span, "recursive use")
+                .help("timbre trees are finite: a named tree cannot contain itself"));
+        }
+        self.expanded.insert(name.to_owned());
         // The body depends only on the arguments (and, through keyframes, on the
         // instance's start): the same call again is the same node.
         let key = (name.to_owned(), arg_nodes, self.time_offset.to_bits());

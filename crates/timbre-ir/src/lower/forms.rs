@@ -13,6 +13,7 @@ use crate::error::{Diag, SourceFile};
 /// top level of a file. Their names, `t` and `pi` are reserved.
 pub const FORMS: &[&str] = &[
     "let",
+    "morph",
     "define",
     "define-sound",
     "include",

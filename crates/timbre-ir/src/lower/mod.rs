@@ -18,6 +18,7 @@ mod expr;
 mod files;
 mod forms;
 mod library;
+mod morph;
 mod scene;
 mod space;
 
