@@ -255,7 +255,7 @@ pub fn apply(
                     number(perturb(rng, value, settings.sigma))
                 }
                 _ => {
-                    let node = wrapper(rng, &old);
+                    let node = wrapper(rng);
                     wrap(rng, node, old.clone(), genome, settings)
                 }
             }
@@ -288,7 +288,7 @@ pub fn apply(
             items[*pick(rng, &positional(items))].clone()
         }
         Operator::Wrap => {
-            let node = wrapper(rng, &old);
+            let node = wrapper(rng);
             wrap(rng, node, old.clone(), genome, settings)
         }
         Operator::CopyNode => {
@@ -376,8 +376,9 @@ fn replacement(rng: &mut impl Rng, spec: &'static NodeSpec, args: usize) -> &'st
     }
 }
 
-/// A node that can take `expr` as its first argument.
-fn wrapper(rng: &mut impl Rng, _expr: &Expr) -> &'static NodeSpec {
+/// A node to wrap an expression in (as its first argument): any that takes an
+/// argument and is neither computed while lowering nor a form.
+fn wrapper(rng: &mut impl Rng) -> &'static NodeSpec {
     let usable: Vec<&NodeSpec> = (catalogue::NODES.iter())
         .filter(|n| !n.params.is_empty() && n.kind != Kind::Constant && !is_form(n))
         .filter(|n| !n.example.is_empty())
