@@ -329,17 +329,55 @@ pub fn tune(genome: &Genome, target: &Target, which: Knobs, iterations: u64) -> 
             (best.0, best.1, renders)
         })
         .collect();
-    let renders = results.iter().map(|r| r.2).sum();
+    let renders: usize = results.iter().map(|r| r.2).sum();
     // The first of the best, so the choice does not depend on the threads.
     let (best, distance, _) = results
         .into_iter()
         .reduce(|a, b| if b.1 < a.1 { b } else { a })
         .expect("three starts");
+    // Seven significant digits keep the printed tree readable; the distance is
+    // measured again for the numbers written.
+    let tuned = round_knobs(&with_knobs(genome, &at, &best, &positive), &at);
+    let rounded = render(&tuned, &target.audition).map_or(f64::MAX, |s| target.distance(&s));
+    if rounded <= distance * 1.001 + 1e-9 {
+        return Tuned {
+            genome: tuned,
+            distance: rounded,
+            renders: renders + 1,
+        };
+    }
     Tuned {
         genome: with_knobs(genome, &at, &best, &positive),
         distance,
-        renders,
+        renders: renders + 1,
     }
+}
+
+/// `genome` with the numbers at `at` rounded to 7 significant digits.
+fn round_knobs(genome: &Genome, at: &[Knob]) -> Genome {
+    let round = |x: f64| {
+        if x == 0.0 || !x.is_finite() {
+            return x;
+        }
+        let scale = 10f64.powi(6 - x.abs().log10().floor() as i32);
+        let y = (x * scale).round() / scale;
+        if y.is_finite() {
+            y
+        } else {
+            x
+        }
+    };
+    let mut rounded = genome.clone();
+    for knob in at {
+        match knob {
+            Knob::Constant(path) => {
+                let value = round(knob_value(genome, knob));
+                *get_mut(&mut rounded.body, path) = number(value);
+            }
+            Knob::Value(k) => rounded.values[*k] = round(genome.values[*k]),
+        }
+    }
+    rounded
 }
 
 /// Nelder–Mead from `start`: the first simplex is the start and a step of 0.1 (a
