@@ -128,34 +128,37 @@ fn escape(text: &str) -> String {
 /// Writes DOT to `path`, or for `.svg`/`.png` renders it with `dot`.
 pub fn write(text: &str, path: &Path) -> Result<(), String> {
     let format = path.extension().and_then(|e| e.to_str()).unwrap_or("dot");
-    match format {
+    let bytes = match format {
         "svg" | "png" => {
             use std::io::Write as _;
             let mut child = std::process::Command::new("dot")
                 .arg(format!("-T{format}"))
-                .arg("-o")
-                .arg(path)
                 .stdin(std::process::Stdio::piped())
+                .stdout(std::process::Stdio::piped())
                 .spawn()
                 .map_err(|e| {
                     format!(
                         "cannot run Graphviz's `dot` ({e}); install graphviz, or write a .dot file"
                     )
                 })?;
-            child
-                .stdin
-                .take()
-                .ok_or("cannot write to `dot`")?
-                .write_all(text.as_bytes())
+            // Fed from a thread of its own while its output is collected, so neither
+            // pipe can fill and stop the other.
+            let mut stdin = child.stdin.take().ok_or("cannot write to `dot`")?;
+            let input = text.to_owned();
+            let feeder = std::thread::spawn(move || stdin.write_all(input.as_bytes()));
+            let output = child.wait_with_output().map_err(|e| e.to_string())?;
+            feeder
+                .join()
+                .map_err(|_| "cannot write to `dot`".to_string())?
                 .map_err(|e| e.to_string())?;
-            let status = child.wait().map_err(|e| e.to_string())?;
-            if status.success() {
-                Ok(())
-            } else {
-                Err(format!("`dot` failed ({status})"))
+            if !output.status.success() {
+                return Err(format!("`dot` failed ({})", output.status));
             }
+            output.stdout
         }
-        _ => std::fs::write(path, text)
-            .map_err(|e| format!("cannot write `{}`: {e}", path.display())),
-    }
+        _ => text.as_bytes().to_vec(),
+    };
+    // Written beside it and renamed over it: never a half-drawn picture.
+    crate::audio_out::replace_file(path, &bytes)
+        .map_err(|e| format!("cannot write `{}`: {e}", path.display()))
 }
