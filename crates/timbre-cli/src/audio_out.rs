@@ -399,8 +399,8 @@ pub fn write_wav_samples(
     samples: &[f64],
     channels: usize,
     sample_rate: f64,
+    interrupted: &std::sync::atomic::AtomicBool,
 ) -> Result<(), String> {
-    let interrupted = std::sync::atomic::AtomicBool::new(false);
     let channels = channels.max(1);
     let job = OutputJob {
         destination: Destination::File(path),
@@ -409,7 +409,7 @@ pub fn write_wav_samples(
         channels: channels as u16,
         format: SampleFormat::F32,
         frames: (samples.len() / channels) as u64,
-        interrupted: &interrupted,
+        interrupted,
     };
     let mut written = 0;
     write_audio(&job, |out: &mut [f64]| {

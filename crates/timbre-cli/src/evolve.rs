@@ -89,8 +89,7 @@ fn toward(args: &EvolveArgs, seed: Genome, path: &Path) -> Result<(), Failure> {
     let target = Target::new(&samples, rate, args.seconds);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("best.tt"));
     let started = std::time::Instant::now();
-    let before = timbre_evolve::check::render(&seed, target.audition())
-        .map_or(f64::MAX, |s| target.distance(&s));
+    let before = target.measure(&seed);
     let (best, after, renders) = if args.match_params {
         let which = if seed.params.is_empty() {
             Knobs::Constants
@@ -139,24 +138,7 @@ fn toward(args: &EvolveArgs, seed: Genome, path: &Path) -> Result<(), Failure> {
 
 /// A WAV file's samples, its channels averaged, and its rate.
 fn read_mono(path: &Path) -> Result<(Vec<f64>, f64), Failure> {
-    let fail = |e: hound::Error| Failure::Message(format!("cannot read `{}`: {e}", path.display()));
-    let mut reader = hound::WavReader::open(path).map_err(fail)?;
-    let spec = reader.spec();
-    let raw: Vec<f64> = match spec.sample_format {
-        hound::SampleFormat::Float => reader
-            .samples::<f32>()
-            .map(|x| x.map(f64::from))
-            .collect::<Result<_, _>>()
-            .map_err(fail)?,
-        hound::SampleFormat::Int => {
-            let full = ((1i64 << (spec.bits_per_sample - 1)) - 1) as f64;
-            reader
-                .samples::<i32>()
-                .map(|x| x.map(|x| x as f64 / full))
-                .collect::<Result<_, _>>()
-                .map_err(fail)?
-        }
-    };
+    let (raw, spec) = crate::read_wav(path)?;
     let channels = usize::from(spec.channels.max(1));
     let mono = raw
         .chunks(channels)
@@ -367,7 +349,7 @@ fn audition(samples: &[f64], wav: &Path, played_once: &mut bool) -> Result<(), F
     match crate::playback::play(samples, 1, SAMPLE_RATE, &cancel) {
         Ok(_) => Ok(()),
         Err(why) => {
-            crate::audio_out::write_wav_samples(wav, samples, 1, SAMPLE_RATE)
+            crate::audio_out::write_wav_samples(wav, samples, 1, SAMPLE_RATE, &cancel)
                 .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", wav.display())))?;
             if !*played_once {
                 println!("cannot play ({why}): each candidate is written as a WAV to listen to");

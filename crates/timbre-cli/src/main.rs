@@ -904,7 +904,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         // What was written, as written; a FLAC file is rendered again instead of
         // decoded (the same samples before they were made integers).
         let samples = match container {
-            Container::Wav => read_back(&args.output)?,
+            Container::Wav => read_wav(&args.output)?.0,
             Container::Flac => render_to_memory(&plan, length, scale, &interrupted)?,
         };
         play_samples(&samples, plan.channels, plan.sample_rate, &interrupted)?;
@@ -1048,22 +1048,14 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
                     args.output.display()
                 )));
             }
-            let job = OutputJob {
-                destination: Destination::File(&args.output),
-                container: Container::Wav,
-                sample_rate: plan.sample_rate as u32,
-                channels: plan.channels as u16,
-                format: SampleFormat::F32,
-                frames: done as u64,
-                interrupted: &interrupted,
-            };
-            let mut written = 0;
-            write_audio(&job, |out| {
-                out.copy_from_slice(&samples[written..written + out.len()]);
-                written += out.len();
-                Ok(None)
-            })
-            .map_err(|e| Failure::Message(e.to_string()))?;
+            audio_out::write_wav_samples(
+                &args.output,
+                &samples,
+                plan.channels,
+                plan.sample_rate,
+                &interrupted,
+            )
+            .map_err(Failure::Message)?;
             eprintln!(
                 "cannot play: {why}; wrote {} instead",
                 args.output.display()
@@ -1098,12 +1090,12 @@ fn render_to_memory(
     Ok(samples)
 }
 
-/// The samples of a WAV file just written, interleaved.
-fn read_back(path: &Path) -> Result<Vec<f64>, Failure> {
+/// The samples of a WAV file, interleaved (scaled to ±1), and its format.
+pub(crate) fn read_wav(path: &Path) -> Result<(Vec<f64>, hound::WavSpec), Failure> {
     let fail = |e: hound::Error| Failure::Message(format!("cannot read `{}`: {e}", path.display()));
     let mut reader = hound::WavReader::open(path).map_err(fail)?;
     let spec = reader.spec();
-    match spec.sample_format {
+    let samples: Result<Vec<f64>, Failure> = match spec.sample_format {
         hound::SampleFormat::Float => reader
             .samples::<f32>()
             .map(|x| x.map(f64::from).map_err(fail))
@@ -1115,7 +1107,8 @@ fn read_back(path: &Path) -> Result<Vec<f64>, Failure> {
                 .map(|x| x.map(|x| x as f64 / full).map_err(fail))
                 .collect()
         }
-    }
+    };
+    Ok((samples?, spec))
 }
 
 fn play_samples(

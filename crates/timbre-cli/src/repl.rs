@@ -343,6 +343,7 @@ impl Session {
             &self.last_samples,
             self.last_channels,
             self.last_rate,
+            &AtomicBool::new(false),
         )
     }
 }

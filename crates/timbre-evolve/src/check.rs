@@ -6,7 +6,7 @@ use timbre_ir::{
     CompileOptions, Interpreter, Library, NoFiles, ParamValue, Registry, RenderConfig,
 };
 
-use crate::genome::{list, number, symbol, Genome};
+use crate::genome::{list, number, significant, symbol, Genome};
 
 /// How a genome is auditioned to be checked.
 #[derive(Clone, Debug, PartialEq)]
@@ -81,7 +81,7 @@ pub fn check(genome: &mut Genome, audition: &Audition) -> Result<Checked, Refusa
         });
     }
     // Three significant digits, so the printed tree stays readable.
-    let k = round_to_digits(REPAIRED_PEAK / peak, 3);
+    let k = significant(REPAIRED_PEAK / peak, 3, f64::floor);
     let body = std::mem::replace(&mut genome.body, number(0.0));
     genome.body = list(vec![symbol("*"), number(k), body]);
     Ok(Checked {
@@ -124,9 +124,4 @@ pub fn render(genome: &Genome, audition: &Audition) -> Result<Vec<f64>, Refusal>
         return Err(Refusal::NotFinite);
     }
     Ok(samples)
-}
-
-fn round_to_digits(x: f64, digits: i32) -> f64 {
-    let scale = 10f64.powi(digits - 1 - x.abs().log10().floor() as i32);
-    (x * scale).floor() / scale
 }

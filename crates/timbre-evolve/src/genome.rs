@@ -191,6 +191,23 @@ pub fn list(items: Vec<Expr>) -> Expr {
     Expr::new(ExprKind::List(items), Span::default())
 }
 
+/// `x` to `digits` significant digits by `round` (`f64::round`, or `f64::floor` to
+/// stay below), so printed trees stay readable; 0, values that are not finite and
+/// values the rounding would overflow are kept.
+pub fn significant(x: f64, digits: i32, round: fn(f64) -> f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let exponent = (digits - 1 - x.abs().log10().floor() as i32).clamp(-300, 300);
+    let scale = 10f64.powi(exponent);
+    let y = round(x * scale) / scale;
+    if y.is_finite() {
+        y
+    } else {
+        x
+    }
+}
+
 pub fn size(expr: &Expr) -> usize {
     1 + expr
         .as_list()

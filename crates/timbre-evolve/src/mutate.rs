@@ -8,7 +8,7 @@ use timbre_ir::generate::{random_tree, GenConfig};
 use timbre_syntax::{parse, Expr, ExprKind};
 
 use crate::check::{check, Audition, Checked, Refusal};
-use crate::genome::{get, get_mut, list, number, sites, strip, symbol, Genome, Path};
+use crate::genome::{get, get_mut, list, number, significant, sites, strip, symbol, Genome, Path};
 
 /// One kind of change.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -104,8 +104,7 @@ pub fn mutate(
     parent: &Genome,
     settings: &Settings,
 ) -> Result<Offspring, Barren> {
-    let mut last = Refusal::Silent;
-    for _ in 0..settings.attempts {
+    first_accepted(settings, || {
         let mut child = parent.clone();
         let mut operators = vec![];
         loop {
@@ -120,20 +119,7 @@ pub fn mutate(
                 break;
             }
         }
-        match accept(&mut child, settings) {
-            Ok(checked) => {
-                return Ok(Offspring {
-                    genome: child,
-                    operators,
-                    checked,
-                })
-            }
-            Err(why) => last = why,
-        }
-    }
-    Err(Barren {
-        attempts: settings.attempts,
-        last,
+        Some((child, operators))
     })
 }
 
@@ -145,20 +131,32 @@ pub fn crossover(
     b: &Genome,
     settings: &Settings,
 ) -> Result<Offspring, Barren> {
-    let mut last = Refusal::Silent;
-    for _ in 0..settings.attempts {
+    first_accepted(settings, || {
         let mut child = a.clone();
         let here = pick(rng, &sites(&child.body)).clone();
         let there = pick(rng, &sites(&b.body)).clone();
         *get_mut(&mut child.body, &here) = get(&b.body, &there).clone();
-        if child.body == a.body {
+        (child.body != a.body).then_some((child, vec![]))
+    })
+}
+
+/// Draws offspring until one passes [`accept`], at most `settings.attempts` times;
+/// `draw` gives a child and the operators that made it, or `None` when it changed
+/// nothing.
+fn first_accepted(
+    settings: &Settings,
+    mut draw: impl FnMut() -> Option<(Genome, Vec<Operator>)>,
+) -> Result<Offspring, Barren> {
+    let mut last = Refusal::Silent;
+    for _ in 0..settings.attempts {
+        let Some((mut genome, operators)) = draw() else {
             continue;
-        }
-        match accept(&mut child, settings) {
+        };
+        match accept(&mut genome, settings) {
             Ok(checked) => {
                 return Ok(Offspring {
-                    genome: child,
-                    operators: vec![],
+                    genome,
+                    operators,
                     checked,
                 })
             }
@@ -441,15 +439,7 @@ pub fn perturb(rng: &mut impl Rng, x: f64, sigma: f64) -> f64 {
     } else {
         x * normal.exp()
     };
-    // Four significant digits keep printed trees readable.
-    let digits = 4 - 1 - y.abs().log10().floor() as i32;
-    let scale = 10f64.powi(digits.clamp(-300, 300));
-    let rounded = (y * scale).round() / scale;
-    if rounded.is_finite() {
-        rounded
-    } else {
-        y
-    }
+    significant(y, 4, f64::round)
 }
 
 /// A standard normal deviate (Box–Muller).

@@ -22,7 +22,7 @@ use realfft::RealFftPlanner;
 use timbre_syntax::ExprKind;
 
 use crate::check::{render, Audition};
-use crate::genome::{get, get_mut, number, sites, Genome, Path};
+use crate::genome::{get, get_mut, number, significant, sites, Genome, Path};
 use crate::mutate::{crossover, mutate, Settings};
 
 /// FFT sizes of the spectral terms, at the audition's rate.
@@ -69,6 +69,12 @@ impl Target {
     /// How candidates are auditioned to be compared.
     pub fn audition(&self) -> &Audition {
         &self.audition
+    }
+
+    /// The distance of `genome`'s audition from the target; as far as can be when
+    /// it does not render.
+    pub fn measure(&self, genome: &Genome) -> f64 {
+        render(genome, &self.audition).map_or(f64::MAX, |s| self.distance(&s))
     }
 
     /// The distance of `samples` (auditioned as [`Target::audition`] says) from the
@@ -273,11 +279,8 @@ impl CostFunction for Cost<'_> {
         self.renders
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let candidate = with_knobs(self.genome, self.at, coded, self.positive);
-        Ok(match render(&candidate, &self.target.audition) {
-            Ok(samples) => self.target.distance(&samples),
-            // A tree that fails at these constants is as far as can be.
-            Err(_) => f64::MAX / 4.0,
-        })
+        // A tree that fails at these constants is as far as can be.
+        Ok(self.target.measure(&candidate))
     }
 }
 
@@ -288,7 +291,7 @@ impl CostFunction for Cost<'_> {
 pub fn tune(genome: &Genome, target: &Target, which: Knobs, iterations: u64) -> Tuned {
     let at = knobs(genome, which);
     if at.is_empty() {
-        let distance = render(genome, &target.audition).map_or(f64::MAX, |s| target.distance(&s));
+        let distance = target.measure(genome);
         return Tuned {
             genome: genome.clone(),
             distance,
@@ -338,7 +341,7 @@ pub fn tune(genome: &Genome, target: &Target, which: Knobs, iterations: u64) -> 
     // Seven significant digits keep the printed tree readable; the distance is
     // measured again for the numbers written.
     let tuned = round_knobs(&with_knobs(genome, &at, &best, &positive), &at);
-    let rounded = render(&tuned, &target.audition).map_or(f64::MAX, |s| target.distance(&s));
+    let rounded = target.measure(&tuned);
     if rounded <= distance * 1.001 + 1e-9 {
         return Tuned {
             genome: tuned,
@@ -355,18 +358,7 @@ pub fn tune(genome: &Genome, target: &Target, which: Knobs, iterations: u64) -> 
 
 /// `genome` with the numbers at `at` rounded to 7 significant digits.
 fn round_knobs(genome: &Genome, at: &[Knob]) -> Genome {
-    let round = |x: f64| {
-        if x == 0.0 || !x.is_finite() {
-            return x;
-        }
-        let scale = 10f64.powi(6 - x.abs().log10().floor() as i32);
-        let y = (x * scale).round() / scale;
-        if y.is_finite() {
-            y
-        } else {
-            x
-        }
-    };
+    let round = |x: f64| significant(x, 7, f64::round);
     let mut rounded = genome.clone();
     for knob in at {
         match knob {
@@ -448,7 +440,7 @@ pub fn search(rng: &mut impl Rng, seed: &Genome, target: &Target, search: &Searc
         audition: target.audition.clone(),
         ..search.settings.clone()
     };
-    let untuned = render(seed, &target.audition).map_or(f64::MAX, |s| target.distance(&s));
+    let untuned = target.measure(seed);
     let first = tune(seed, target, Knobs::Constants, search.tune_iterations);
     let mut renders = 1 + first.renders;
     let mut best = (first.genome.clone(), first.distance);
@@ -484,7 +476,7 @@ pub fn search(rng: &mut impl Rng, seed: &Genome, target: &Target, search: &Searc
         let measured: Vec<(Genome, f64)> = children
             .into_par_iter()
             .map(|g| {
-                let d = render(&g, &target.audition).map_or(f64::MAX, |s| target.distance(&s));
+                let d = target.measure(&g);
                 (g, d)
             })
             .collect();

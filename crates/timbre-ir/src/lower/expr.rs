@@ -363,6 +363,21 @@ impl Lowerer<'_> {
         origin: &Origin,
         caller_scope: &mut Scope,
     ) -> Result<NodeId, Diag> {
+        let arg_nodes = self.bind_tree_args(name, def, args, span, origin, caller_scope)?;
+        self.expand_bound(name, def, arg_nodes, span, origin)
+    }
+
+    /// The arguments of a call of a named tree, bound to its parameters (by position
+    /// or `:name`) and lowered in the caller's scope, in the parameters' order.
+    pub(crate) fn bind_tree_args(
+        &mut self,
+        name: &str,
+        def: &Definition,
+        args: &[Expr],
+        span: Span,
+        origin: &Origin,
+        caller_scope: &mut Scope,
+    ) -> Result<Vec<NodeId>, Diag> {
         let params: Vec<Param> = def
             .params
             .iter()
@@ -373,8 +388,7 @@ impl Lowerer<'_> {
             .collect();
         let call = Call { name, span, args };
         let bound = self.bind_args(&call, &params, false, false, origin, caller_scope)?;
-        let arg_nodes: Vec<NodeId> = bound.args.iter().flatten().map(|a| a.node).collect();
-        self.expand_bound(name, def, arg_nodes, span, origin)
+        Ok(bound.args.iter().flatten().map(|a| a.node).collect())
     }
 
     /// Expands a named tree with its parameters bound to `arg_nodes`, in order.

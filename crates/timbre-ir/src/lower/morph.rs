@@ -4,8 +4,7 @@
 
 use timbre_syntax::{Expr, ExprKind};
 
-use super::{Call, Diag, Lowerer, NodeId, Origin, Scope};
-use crate::catalogue::Param;
+use super::{Call, Definition, Diag, Lowerer, NodeId, Origin, Scope};
 use crate::op::{BinaryOp, Op, TernaryOp};
 
 /// A frequency, for the default interpolation: both ends constant and at least this.
@@ -31,12 +30,9 @@ impl Lowerer<'_> {
                 .help(shape));
         };
         let (log, linear) = self.morph_options(options, origin, shape)?;
-        let (class_a, nodes_a) = self.morph_end(a, origin, scope, shape)?;
-        let (class_b, nodes_b) = self.morph_end(b, origin, scope, shape)?;
-        let def_a = self.definitions[&class_a].clone();
-        let def_b = self.definitions[&class_b].clone();
-        let names =
-            |d: &super::Definition| d.params.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();
+        let (class_a, def_a, nodes_a) = self.morph_end(a, origin, scope, shape)?;
+        let (class_b, def_b, nodes_b) = self.morph_end(b, origin, scope, shape)?;
+        let names = |d: &Definition| d.params.iter().map(|(p, _)| p.clone()).collect::<Vec<_>>();
         let params = names(&def_a);
         if params != names(&def_b) {
             return Err(self
@@ -117,7 +113,7 @@ impl Lowerer<'_> {
         origin: &Origin,
         scope: &mut Scope,
         shape: &str,
-    ) -> Result<(String, Vec<NodeId>), Diag> {
+    ) -> Result<(String, Definition, Vec<NodeId>), Diag> {
         let items = end.as_list().unwrap_or_default();
         let name = items.first().and_then(Expr::as_symbol);
         let Some(def) = name.and_then(|n| self.definitions.get(n)).cloned() else {
@@ -131,20 +127,8 @@ impl Lowerer<'_> {
                 .help(shape));
         };
         let name = name.unwrap_or_default().to_owned();
-        let params: Vec<Param> = (def.params.iter())
-            .map(|(p, _)| Param {
-                name: p,
-                default: None,
-            })
-            .collect();
-        let call = Call {
-            name: &name,
-            span: end.span,
-            args: &items[1..],
-        };
-        let bound = self.bind_args(&call, &params, false, false, origin, scope)?;
-        let nodes = bound.args.iter().flatten().map(|a| a.node).collect();
-        Ok((name, nodes))
+        let nodes = self.bind_tree_args(&name, &def, &items[1..], end.span, origin, scope)?;
+        Ok((name, def, nodes))
     }
 
     /// `:log (names…)` and `:linear (names…)`.
