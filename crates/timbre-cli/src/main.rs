@@ -68,11 +68,13 @@ enum Command {
     /// Parse and check a file (or one expression) without rendering it.
     ///
     /// With --ir, print the graph its sounds are rendered from instead: one line per
-    /// node, `%ID = OP ARGS… [WIDTH]`, arguments before their users.
+    /// node, `%ID = OP ARGS… [WIDTH]`, arguments before their users. With --lowered,
+    /// print each sound as lowered, as source that lowers back to the same graph.
     ///
     /// Examples:
     ///   timbre check examples/bell.tt
     ///   timbre check --ir --expr '(sine (* t 440))'
+    ///   timbre check --lowered examples/morph.tt
     #[command(verbatim_doc_comment)]
     Check(CheckArgs),
     /// Draw the timbre trees of a file as a schematic (Graphviz DOT, or SVG/PNG with `dot`).
@@ -185,8 +187,13 @@ struct CheckArgs {
 
     /// Print the graph reachable from the sounds (the file's sound, or each instance),
     /// one node per line, instead of the summary.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "lowered")]
     ir: bool,
+
+    /// Print each sound as lowered (the file's sound, or each instance's tree with its
+    /// parameters bound) as timbre source that lowers back to the same graph.
+    #[arg(long)]
+    lowered: bool,
 }
 
 #[derive(Args, Debug)]
@@ -504,8 +511,7 @@ fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
     };
     let text = graph::dot(program, &title);
     if args.output.as_os_str() == "-" {
-        print!("{text}");
-        return Ok(());
+        return write_stdout(&text);
     }
     graph::write(&text, &args.output).map_err(Failure::Message)
 }
@@ -515,8 +521,10 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     let program = source.file.program();
     if args.ir {
         let roots: Vec<_> = program.sound_roots().collect();
-        print!("{}", timbre_ir::dump(&program.graph, &roots));
-        return Ok(());
+        return write_stdout(&timbre_ir::dump(&program.graph, &roots));
+    }
+    if args.lowered {
+        return print_lowered(program);
     }
     let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let what = match program.root {
@@ -534,6 +542,49 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
         plural(program.definitions.len(), "definition")
     );
     Ok(())
+}
+
+/// `timbre check --lowered`: the file's sound, or each instance's sound under its
+/// timer (with its parameters bound, keyframes read at its own scene time).
+fn print_lowered(program: &timbre_ir::Program) -> Result<(), Failure> {
+    let graph = &program.graph;
+    let print = |root| {
+        timbre_ir::print_tree(graph, root, &program.variables).map_err(|e| {
+            Failure::Message(format!(
+                "{e}\nhint: `timbre check --ir` shows every node of the graph"
+            ))
+        })
+    };
+    let mut text = String::new();
+    if let Some(root) = program.root {
+        text += &print(root)?;
+    }
+    for instance in &program.instances {
+        if !text.is_empty() {
+            text.push('\n');
+        }
+        text += &format!(
+            "; instance {} ({}), from {} s\n",
+            instance.name,
+            instance.class,
+            timbre_syntax::number(instance.start)
+        );
+        text += &print(instance.sound(graph))?;
+    }
+    write_stdout(&text)
+}
+
+/// Writes `text` to standard output. A reader that stops early (`| head`) is not
+/// an error: what it read was written.
+fn write_stdout(text: &str) -> Result<(), Failure> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Failure::Message(format!(
+            "cannot write to standard output: {e}"
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The longest render of a scene without a duration, seconds.

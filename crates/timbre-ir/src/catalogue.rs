@@ -811,24 +811,24 @@ fn divide(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
 }
 
 fn noise(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
-    let seed = l.random_seed("noise", b.seed, &b.nodes());
+    let seed = l.random_seed("noise", b, &b.nodes());
     Ok(l.graph.add(Op::Noise { seed }, b.nodes()))
 }
 
 fn white(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     let lanes = l.const_count(&b.args[0], "the number of lanes", b.origin)?;
-    let seed = l.random_seed("white", b.seed, &[]);
+    let seed = l.random_seed("white", b, &[]);
     let seeds = (0..lanes as u64).map(|k| seed.wrapping_add(k)).collect();
     Ok(l.graph.add(Op::White { seeds }, vec![]))
 }
 
 fn pink(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
-    let seed = l.random_seed("pink", b.seed, &[]);
+    let seed = l.random_seed("pink", b, &[]);
     Ok(l.stateful(PinkNoise { seed }, vec![]))
 }
 
 fn markov(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
-    let seed = l.random_seed("markov", b.seed, &b.nodes());
+    let seed = l.random_seed("markov", b, &b.nodes());
     Ok(l.stateful(MarkovNoise { seed }, b.nodes()))
 }
 
@@ -851,7 +851,7 @@ fn rvector(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
             .label(all[0].span, format!("{n} lanes"))
             .help("the bounds must be one lane, or one per lane of the vector"));
     }
-    let seed = l.random_seed("rvector", b.seed, &b.nodes());
+    let seed = l.random_seed("rvector", b, &b.nodes());
     let unit: Vec<f64> = (0..n as u64)
         .map(|i| (hash2(seed, i) >> 11) as f64 * (1.0 / (1u64 << 53) as f64))
         .collect();

@@ -35,6 +35,7 @@ mod lower;
 pub mod mutate;
 pub mod op;
 pub mod optimise;
+mod print;
 pub mod space;
 
 pub use custom::{BlockContext, CustomNode, Lanes};
@@ -47,6 +48,7 @@ pub use lower::{
     compile, compile_after, did_you_mean, CompileOptions, Instance, Instantiated, Library,
     ParamValue, Program, Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
 };
+pub use print::{print_tree, same_tree, Unprintable, MAX_INLINE_DEPTH};
 
 impl<'a> CompileOptions<'a> {
     /// Options with no bindings and the file's own seed.

@@ -3,7 +3,7 @@
 
 use timbre_syntax::{ExprKind, Span};
 
-use super::{plural, Arg, Call, Lowerer, Origin, Scope, MAX_LANES};
+use super::{plural, Arg, Call, Lowerer, Origin, Scope, Seed, MAX_LANES};
 use crate::catalogue::Param;
 use crate::error::Diag;
 use crate::graph::{NodeId, StableHasher};
@@ -12,6 +12,8 @@ use crate::graph::{NodeId, StableHasher};
 pub(crate) struct BoundArgs {
     pub args: Vec<Option<Arg>>,
     pub keyword_seed: Option<Arg>,
+    /// `:seed-bits "…"`: the node's 64-bit seed itself, as the printer writes it.
+    pub seed_bits: Option<u64>,
 }
 
 impl Lowerer<'_> {
@@ -32,6 +34,7 @@ impl Lowerer<'_> {
         let mut bound: Vec<Option<Arg>> = vec![None; params.len()];
         let mut extra: Vec<Arg> = vec![];
         let mut keyword_seed = None;
+        let mut seed_bits = None;
         let mut positional = 0;
         let mut i = 0;
         while i < call.args.len() {
@@ -51,7 +54,29 @@ impl Lowerer<'_> {
                         .label(arg.span, "needs a value after it")
                         .help(format!("write `:{key} VALUE`")));
                 };
+                if key == "seed-bits" && accepts_seed {
+                    if seed_bits.is_some() || keyword_seed.is_some() {
+                        return Err(self.seed_given_twice(arg.span, origin));
+                    }
+                    seed_bits = Some(self.seed_bits(value, origin)?);
+                    i += 2;
+                    continue;
+                }
                 let slot = params.iter().position(|p| p.name == key);
+                let is_seed = slot.is_none() && key == "seed" && accepts_seed;
+                if slot.is_none() && !is_seed {
+                    return Err(self.unknown_keyword(
+                        call,
+                        params,
+                        accepts_seed,
+                        key,
+                        arg.span,
+                        origin,
+                    ));
+                }
+                if is_seed && (keyword_seed.is_some() || seed_bits.is_some()) {
+                    return Err(self.seed_given_twice(arg.span, origin));
+                }
                 let node = self.lower(value, origin, scope)?;
                 let new = Arg {
                     node,
@@ -70,35 +95,7 @@ impl Lowerer<'_> {
                             .label(arg.span, "given again here")
                             .help("give each argument once"))
                     }
-                    None if key == "seed" && accepts_seed && keyword_seed.is_none() => {
-                        keyword_seed = Some(new)
-                    }
-                    None => {
-                        let mut names: Vec<String> =
-                            params.iter().map(|p| format!(":{}", p.name)).collect();
-                        if accepts_seed {
-                            names.push(":seed".into());
-                        }
-                        return Err(self
-                            .diag(
-                                "timbre::unknown-keyword",
-                                format!("`{}` has no argument `:{key}`", call.name),
-                                origin,
-                            )
-                            .label(arg.span, "unknown argument")
-                            .help(
-                                match super::did_you_mean(
-                                    &format!(":{key}"),
-                                    names.iter().map(String::as_str),
-                                ) {
-                                    Some(close) => format!(
-                                        "did you mean `{close}`? its arguments are {}",
-                                        names.join(" ")
-                                    ),
-                                    None => format!("its arguments are {}", names.join(" ")),
-                                },
-                            ));
-                    }
+                    None => keyword_seed = Some(new),
                 }
                 i += 2;
                 continue;
@@ -184,7 +181,66 @@ impl Lowerer<'_> {
         Ok(BoundArgs {
             args: bound,
             keyword_seed,
+            seed_bits,
         })
+    }
+
+    /// The value of `:seed-bits`: a string of 1 to 16 hexadecimal digits.
+    fn seed_bits(&self, value: &timbre_syntax::Expr, origin: &Origin) -> Result<u64, Diag> {
+        let parsed = match &value.kind {
+            ExprKind::Str(text) if (1..=16).contains(&text.len()) => {
+                u64::from_str_radix(text, 16).ok()
+            }
+            _ => None,
+        };
+        parsed.ok_or_else(|| {
+            self.diag(
+                "timbre::bad-count",
+                format!("`:seed-bits` must be hexadecimal digits, not {}", value.describe()),
+                origin,
+            )
+            .label(value.span, "not a 64-bit seed")
+            .help("write the seed as 1 to 16 hexadecimal digits in quotes: :seed-bits \"9e3779b97f4a7c15\"")
+        })
+    }
+
+    fn unknown_keyword(
+        &self,
+        call: &Call<'_>,
+        params: &[Param<'_>],
+        accepts_seed: bool,
+        key: &str,
+        span: Span,
+        origin: &Origin,
+    ) -> Diag {
+        let mut names: Vec<String> = params.iter().map(|p| format!(":{}", p.name)).collect();
+        if accepts_seed {
+            names.push(":seed".into());
+        }
+        let help = match super::did_you_mean(&format!(":{key}"), names.iter().map(String::as_str)) {
+            Some(close) => format!(
+                "did you mean `{close}`? its arguments are {}",
+                names.join(" ")
+            ),
+            None => format!("its arguments are {}", names.join(" ")),
+        };
+        self.diag(
+            "timbre::unknown-keyword",
+            format!("`{}` has no argument `:{key}`", call.name),
+            origin,
+        )
+        .label(span, "unknown argument")
+        .help(help)
+    }
+
+    fn seed_given_twice(&self, span: Span, origin: &Origin) -> Diag {
+        self.diag(
+            "timbre::duplicate-argument",
+            "the seed is given twice",
+            origin,
+        )
+        .label(span, "a second seed")
+        .help("give either `:seed k` (a key the seed is derived from) or `:seed-bits` (the seed itself)")
     }
 
     pub(crate) fn arity_error(
@@ -336,7 +392,11 @@ impl Lowerer<'_> {
     /// The seed of a random node: a function of the scene seed, the node kind, its
     /// arguments' structure and an optional `:seed` key, so identical random
     /// expressions are the same value and `:seed` makes an independent copy.
-    pub(crate) fn random_seed(&self, kind: &str, key: Option<u64>, args: &[NodeId]) -> u64 {
+    pub(crate) fn random_seed(&self, kind: &str, b: &super::Bound<'_>, args: &[NodeId]) -> u64 {
+        let key = match b.seed {
+            Seed::Bits(bits) => return bits,
+            Seed::Key(key) => key,
+        };
         let mut h = StableHasher::new();
         h.write_u64(self.settings.seed);
         h.write_str(kind);

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use timbre_syntax::{Expr, ExprKind, Span};
 
 use super::{
-    plural, Arg, Bound, Call, Definition, Lowerer, Origin, Scope, MAX_LANES, MAX_LOWER_DEPTH,
+    plural, Arg, Bound, Call, Definition, Lowerer, Origin, Scope, Seed, MAX_LANES, MAX_LOWER_DEPTH,
 };
 use crate::catalogue::{self, Build, NodeSpec, Param, Width};
 use crate::custom::CustomNode;
@@ -256,6 +256,12 @@ impl Lowerer<'_> {
             let def = def.clone();
             return self.expand(name, &def, call.args, expr.span, origin, scope);
         }
+        let bound_by_let = scope.iter().any(|(n, _)| n == name);
+        if !bound_by_let
+            && (self.keyframes.contains_key(name) || self.vector_keyframes.contains_key(name))
+        {
+            return self.lower_track_at(&call, origin, scope);
+        }
         if let Some(spec) = catalogue::lookup(name) {
             return self.lower_builtin(&call, spec, origin, scope);
         }
@@ -284,6 +290,31 @@ impl Lowerer<'_> {
             )
             .label(head.span, "not a node or a defined tree")
             .help(help))
+    }
+
+    /// `(name time)`: a keyframed variable read at a scene time of the caller's
+    /// choosing (the bare `name` reads it at the instance's own scene time).
+    fn lower_track_at(
+        &mut self,
+        call: &Call<'_>,
+        origin: &Origin,
+        scope: &mut Scope,
+    ) -> Result<NodeId, Diag> {
+        let bound = self.bind_args(call, &[catalogue::p("time")], false, false, origin, scope)?;
+        let time = bound.args[0]
+            .as_ref()
+            .expect("a required parameter is bound");
+        self.check_one_lane(time, "the time a keyframed variable is read at", origin)?;
+        if let Some(track) = self.keyframes.get(call.name) {
+            let track = Op::Keyframe(track.clone());
+            return Ok(self.graph.add(track, vec![time.node]));
+        }
+        let tracks = self.vector_keyframes[call.name].clone();
+        let lanes = tracks
+            .iter()
+            .map(|track| self.graph.add(Op::Keyframe(track.clone()), vec![time.node]))
+            .collect();
+        Ok(self.graph.add(Op::Concat, lanes))
     }
 
     pub(crate) fn lower_let(
@@ -519,9 +550,10 @@ impl Lowerer<'_> {
             build => build,
         };
         let bound = self.bind_args(call, spec.params, spec.variadic, spec.random, origin, scope)?;
-        let seed = match &bound.keyword_seed {
-            Some(arg) => Some(self.const_integer(arg, "seed", origin)?),
-            None => None,
+        let seed = match (&bound.keyword_seed, bound.seed_bits) {
+            (_, Some(bits)) => Seed::Bits(bits),
+            (Some(arg), None) => Seed::Key(Some(self.const_integer(arg, "seed", origin)?)),
+            (None, None) => Seed::Key(None),
         };
         let args: Vec<Arg> = bound.args.into_iter().flatten().collect();
         if spec.width == Width::Broadcast {

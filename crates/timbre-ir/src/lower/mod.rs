@@ -524,9 +524,19 @@ pub(crate) struct Bound<'a> {
     pub call: &'a Call<'a>,
     /// One per parameter (defaults filled in), then any further variadic ones.
     pub args: Vec<Arg>,
-    /// The `:seed` key of a random node.
-    pub seed: Option<u64>,
+    /// The seed a random node was given.
+    pub seed: Seed,
     pub origin: &'a Origin,
+}
+
+/// How a random node's seed is given.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Seed {
+    /// Derived from the render's seed, the node's kind, this `:seed` key (if any)
+    /// and the node's arguments.
+    Key(Option<u64>),
+    /// `:seed-bits`: the seed itself.
+    Bits(u64),
 }
 
 impl Bound<'_> {

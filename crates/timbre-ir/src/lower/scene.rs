@@ -16,7 +16,7 @@ use timbre_syntax::{Expr, ExprKind, Span};
 
 use super::{Lowerer, Origin, Scope};
 use crate::error::Diag;
-use crate::graph::NodeId;
+use crate::graph::{Graph, NodeId};
 use crate::keyframes::{CsvTime, Interpolation, KeyframeError, KeyframeTrack};
 use crate::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 
@@ -90,6 +90,22 @@ pub struct Instance {
     /// Seconds it may still be heard after its stop: the sound's longest way from
     /// its source to a receiver, and its room's reverberation.
     pub tail: f64,
+}
+
+impl Instance {
+    /// Its sound: the class tree with its parameters bound, as its timer lets it
+    /// out (below the gain, routing and propagation the scene adds).
+    pub fn sound(&self, graph: &Graph) -> NodeId {
+        let mut pending = vec![self.root];
+        while let Some(id) = pending.pop() {
+            let node = graph.node(id);
+            if matches!(node.op, Op::Timer { .. }) {
+                return node.args[0];
+            }
+            pending.extend(node.args.iter().copied());
+        }
+        unreachable!("every instance is under a timer")
+    }
 }
 
 /// The options of a scene form: `:key value` pairs after the fixed parts.
