@@ -23,6 +23,7 @@ use crate::dsp::expressive::{
 };
 use crate::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator};
 use crate::dsp::noise::{hash2, MarkovNoise, PinkNoise};
+use crate::dsp::tube::{Quantity, Tube, TubeError, ALUMINIUM};
 use crate::error::Diag;
 use crate::graph::NodeId;
 use crate::lower::{Bound, Call, Lowerer, Origin, Scope, MAX_BUFFER_SECONDS, MAX_LANES};
@@ -182,6 +183,7 @@ const DELAYS: &str = "Delays";
 const CONTROL: &str = "Control";
 const ENVELOPES: &str = "Envelopes";
 const EXPRESSIVE: &str = "Expressive nodes";
+const PHYSICAL: &str = "Physical models";
 
 const X: &[Param<'static>] = &[p("x")];
 const AB: &[Param<'static>] = &[p("a"), p("b")];
@@ -788,6 +790,23 @@ pub static NODES: &[NodeSpec] = &[
     )
     .stateful()
     .own_width(),
+    // Physical models (constants computed from physical quantities).
+    NodeSpec::new(
+        "tube-modes",
+        &[
+            p("n"),
+            p("length"),
+            p("outer"),
+            p("inner"),
+            opt("youngs", ALUMINIUM.youngs),
+            opt("density", ALUMINIUM.density),
+        ],
+        PHYSICAL,
+        Build::Args(tube_modes),
+        "(* 0.1 (combine (* (sine (* t (tube-modes 5 0.3 0.025 0.022))) (damp (* t 3)))))",
+    )
+    .constant()
+    .own_width(),
 ];
 
 // ------------------------------------------------------------------ builders
@@ -1119,6 +1138,69 @@ fn sputter(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     };
     Ok(l.stateful(Sputter { curve }, b.nodes()[..3].to_vec()))
 }
+
+/// The modal frequencies of a tube (`dsp::tube`): `n` constant lanes, in Hz.
+fn tube_modes(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let what = [
+        "the number of modes",
+        Quantity::Length.describe(),
+        Quantity::Outer.describe(),
+        Quantity::Inner.describe(),
+        Quantity::Youngs.describe(),
+        Quantity::Density.describe(),
+    ];
+    for (arg, what) in b.args.iter().zip(what) {
+        l.check_one_lane(arg, what, b.origin)?;
+    }
+    let n = l.const_count(&b.args[0], what[0], b.origin)?;
+    let mut values = [0.0; 5];
+    for (k, value) in values.iter_mut().enumerate() {
+        *value = l.const_number(&b.args[k + 1], what[k + 1], b.origin)?;
+    }
+    let [length, outer, inner, youngs, density] = values;
+    let tube = Tube {
+        length,
+        outer,
+        inner,
+        youngs,
+        density,
+    };
+    let error = match tube.modes(n) {
+        Ok(modes) => return Ok(l.graph.const_vector(modes)),
+        Err(error) => error,
+    };
+    let bad = |message: String| l.diag("timbre::bad-tube", message, b.origin);
+    Err(match error {
+        TubeError::OutOfRange(quantity, x) => {
+            let (arg, bound, label, help) = match quantity {
+                Quantity::Length => (1, "above 0", "not above 0", DIMENSIONS),
+                Quantity::Outer => (2, "above 0", "not above 0", DIMENSIONS),
+                Quantity::Inner => (3, "0 (a solid rod) or more", "below 0", DIMENSIONS),
+                Quantity::Youngs => (4, "above 0", "not above 0", MATERIAL),
+                Quantity::Density => (5, "above 0", "not above 0", MATERIAL),
+            };
+            bad(format!("{} must be {bound}, not {x}", quantity.describe()))
+                .label(b.args[arg].span, label)
+                .help(help)
+        }
+        TubeError::InnerNotBelowOuter { outer, inner } => bad(format!(
+            "the tube's inner diameter {inner} m is not less than its outer diameter {outer} m"
+        ))
+        .label(b.args[3].span, "the inner diameter")
+        .label(b.args[2].span, "the outer diameter")
+        .help("the inner diameter is the bore: less than the outer one, or 0 for a solid rod"),
+        TubeError::NotFinite { mode, hz } => bad(format!(
+            "the tube's mode {mode} is {hz} Hz: the quantities are out of range"
+        ))
+        .label(b.call.span, "no finite frequency above 0 Hz")
+        .help(format!("{DIMENSIONS}; {MATERIAL}")),
+    })
+}
+
+/// Help for a tube's dimensions, and for its material.
+const DIMENSIONS: &str = "lengths and diameters are in metres: (tube-modes 5 0.3 0.025 0.022)";
+const MATERIAL: &str =
+    "Young's modulus is in pascals and the density in kg/m³: aluminium is :youngs 69e9 :density 2700";
 
 /// The longest delay of a delay line, in seconds: the `max` argument (at `max`) if
 /// given, else the longest of a constant delay time (at `time`).

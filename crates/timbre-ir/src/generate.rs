@@ -33,6 +33,9 @@
 //!   `inverse-importance` get constant, locked (`importance-locked`) or positive
 //!   weights, `pan` one lane (two lanes out, or one of them, or their sum), `gain-db`
 //!   the gains `dbamp` gets.
+//! - **Constant frequencies** of several lanes are `rvector`s, `vector`s, `iota`
+//!   series or, where their spread fits the range, the modes of a tube (`tube-modes`,
+//!   its length solved for a first mode in range).
 //! - **Every node of the catalogue** but `sample` (which reads a file) has a place;
 //!   `tests/generate.rs` checks that they are all reached.
 //! - **`smooth_only`** keeps the tree free of constructions that turn tiny rounding
@@ -55,6 +58,8 @@
 
 use rand::{Rng, RngExt};
 
+use crate::dsp::tube::{mode_number, Tube, ALUMINIUM, MATERIALS};
+
 /// What [`random_tree`] generates.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GenConfig {
@@ -76,16 +81,16 @@ pub struct GenConfig {
     /// An exact value is one that any engine doing the same IEEE operations (without
     /// fused multiply-add contraction) gets bit for bit: numbers, `t`, `pi`, and
     /// `+ - * abs min max clamp floor frac mod`, comparisons, `and or not`, `if`,
-    /// `sawtooth square pulse triangle`, the vector nodes, `latch` and `let` names, of
-    /// exact values. Everything else (`sine sin cos tan tanh exp log sqrt pow / damp`,
-    /// `dbamp ampdb midihz hzmidi`, noises, `env`, the other stateful nodes) is
-    /// inexact: it may flow into smooth consumers (arithmetic, `sine`, `triangle`,
-    /// `triangle-bl`, `noise`, filters, delay times and gains, `lag`, `env`, what a
-    /// `latch` holds), but never into `floor frac mod`, a comparison, `and or not`,
-    /// the condition of `if`, the phase of `sawtooth square pulse saw-bl square-bl`
-    /// (the band-limited two turn a phase error into an error over the phase's step
-    /// per sample), the width of `pulse`, the lane of `index`, the trigger of `latch`
-    /// or any argument of `adsr`.
+    /// `sawtooth square pulse triangle`, the vector nodes, `tube-modes` (a constant),
+    /// `latch` and `let` names, of exact values. Everything else
+    /// (`sine sin cos tan tanh exp log sqrt pow / damp`, `dbamp ampdb midihz hzmidi`,
+    /// noises, `env`, the other stateful nodes) is inexact: it may flow into smooth
+    /// consumers (arithmetic, `sine`, `triangle`, `triangle-bl`, `noise`, filters,
+    /// delay times and gains, `lag`, `env`, what a `latch` holds), but never into
+    /// `floor frac mod`, a comparison, `and or not`, the condition of `if`, the phase
+    /// of `sawtooth square pulse saw-bl square-bl` (the band-limited two turn a phase
+    /// error into an error over the phase's step per sample), the width of `pulse`,
+    /// the lane of `index`, the trigger of `latch` or any argument of `adsr`.
     pub smooth_only: bool,
     /// Allow the stateful nodes: filters, `delay`, `comb`, `allpass`, `conv`, `pink`,
     /// `markov`, `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`,
@@ -439,7 +444,14 @@ impl<'a, R: Rng> Gen<'a, R> {
         if w == 1 {
             return num(self.logu(lo, hi));
         }
-        match self.int(0, 4) {
+        // A tube's modes spread by (2w + 1)²/3.011²: only where that fits the range.
+        let spread = (mode_number(w) / mode_number(1)).powi(2);
+        let choices = if lo * spread < hi { 5 } else { 4 };
+        match self.int(0, choices) {
+            5 => {
+                let f1 = self.logu(lo, hi / spread);
+                self.tube_modes(w, f1)
+            }
             0 => {
                 let seed = self.seed();
                 format!("(rvector {w} {} {}{seed})", num(lo), num(hi))
@@ -466,6 +478,40 @@ impl<'a, R: Rng> Gen<'a, R> {
                 )
             }
         }
+    }
+
+    /// `tube-modes` of `w` lanes whose first mode is about `f1` Hz: a random material,
+    /// section and default or explicit constants, and the length that tunes it.
+    fn tube_modes(&mut self, w: usize, f1: f64) -> String {
+        let material = self.pick(&MATERIALS);
+        let outer: f64 = num(self.logu(0.003, 0.1)).parse().unwrap_or(0.01);
+        let inner: f64 = if self.p(0.2) {
+            0.0
+        } else {
+            num(outer * self.uni(0.3, 0.95)).parse().unwrap_or(0.0)
+        };
+        let default = self.p(0.4);
+        let material = if default { ALUMINIUM } else { material };
+        // f₁ = (π K / (8 L²)) · √(E/ρ) · 3.011², so L = √(π K √(E/ρ) · 3.011² / (8 f₁)).
+        let unit = Tube::new(1.0, outer, inner, &material).scale() * mode_number(1).powi(2);
+        let length = num((unit / f1).sqrt());
+        let (youngs, density) = if default {
+            (None, None)
+        } else {
+            (Some(num(material.youngs)), Some(num(material.density)))
+        };
+        self.call(
+            "tube-modes",
+            &[
+                ("n", Some(w.to_string())),
+                ("length", Some(length)),
+                ("outer", Some(num(outer))),
+                ("inner", Some(num(inner))),
+                ("youngs", youngs),
+                ("density", density),
+            ],
+            "",
+        )
     }
 
     /// Oscillator rates for the current mode.

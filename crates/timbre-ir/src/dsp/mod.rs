@@ -24,6 +24,8 @@
 //! - [`blep`]: band-limited sawtooth, square and triangle (PolyBLEP / PolyBLAMP).
 //! - [`rotator`]: damped sines as complex rotators, and banks of them summed (made by
 //!   `optimise`).
+//! - [`tube`]: the modal frequencies of a hollow tube or a rod with free ends (a wind
+//!   chime), and a small table of materials (`tube-modes`).
 //!
 //! The stateful nodes' kernels ([`crate::kernel::StatefulKernel`]) live beside
 //! the building blocks they use.
@@ -41,6 +43,7 @@ pub mod filter;
 pub mod noise;
 pub mod rotator;
 pub mod sample;
+pub mod tube;
 pub mod wav;
 
 /// Default sample rate substituted for a non-finite sample rate.
