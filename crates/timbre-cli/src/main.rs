@@ -13,6 +13,7 @@ mod graph;
 mod playback;
 mod plot;
 mod repl;
+mod score;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -52,7 +53,7 @@ enum Command {
     ///   timbre render --expr '(sine (* t 440))' --duration 2 -o a440.wav
     ///   timbre render examples/bee.tt --set nominal-freq=180 -o bee.wav
     #[command(verbatim_doc_comment)]
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Render a file's sound (or one expression) and play it.
     ///
     /// Plays through the sound device when built with the `playback` feature, else
@@ -192,8 +193,12 @@ struct CheckArgs {
 
     /// Print each sound as lowered (the file's sound, or each instance's tree with its
     /// parameters bound) as timbre source that lowers back to the same graph.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "notes")]
     lowered: bool,
+
+    /// Print the notes of the file's scores (what `render --notes` writes).
+    #[arg(long, conflicts_with = "ir")]
+    notes: bool,
 }
 
 #[derive(Args, Debug)]
@@ -221,6 +226,14 @@ struct RenderArgs {
     /// Pictures of the rendered sound, drawn from the WAV file once it is written.
     #[command(flatten)]
     pictures: plot::PictureArgs,
+
+    /// Also write the scene's scores as a Standard MIDI File (a track per part).
+    #[arg(long, value_name = "FILE.mid")]
+    midi: Option<PathBuf>,
+
+    /// Also write the scene's scores as a listing of their notes (`-`: standard output).
+    #[arg(long, value_name = "FILE")]
+    notes: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -350,7 +363,7 @@ fn parse_sample_rate(text: &str) -> Result<f64, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => render(args),
+        Command::Render(args) => render(*args),
         Command::Play(args) => play(args),
         Command::Check(args) => check(args),
         Command::Graph(args) => draw_graph(args),
@@ -526,6 +539,9 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     if args.lowered {
         return print_lowered(program);
     }
+    if args.notes {
+        return write_scores(program, None, Some(Path::new("-")));
+    }
     let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let what = match program.root {
         Some(root) => format!(
@@ -542,6 +558,29 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
         plural(program.definitions.len(), "definition")
     );
     Ok(())
+}
+
+/// `--midi` and `--notes`: the scores of the scene, each written whole or not at all.
+fn write_scores(
+    program: &timbre_ir::Program,
+    midi: Option<&Path>,
+    notes: Option<&Path>,
+) -> Result<(), Failure> {
+    if (midi.is_some() || notes.is_some()) && program.scores.is_empty() {
+        return Err(Failure::Message(
+            "the file has no `score` form, so it has no notes to write".into(),
+        ));
+    }
+    if let Some(path) = midi {
+        audio_out::replace_file(path, &score::midi_file(&program.scores))
+            .map_err(Failure::Message)?;
+    }
+    match notes {
+        Some(path) if path.as_os_str() == "-" => write_stdout(&score::listing(&program.scores)),
+        Some(path) => audio_out::replace_file(path, score::listing(&program.scores).as_bytes())
+            .map_err(Failure::Message),
+        None => Ok(()),
+    }
 }
 
 /// `timbre check --lowered`: the file's sound, or each instance's sound under its
@@ -951,6 +990,11 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     if !to_stdout && container == Container::Wav {
         plot::draw_pictures(&args.output, &args.pictures, plan.quiet).map_err(Failure::Message)?;
     }
+    write_scores(
+        source.file.program(),
+        args.midi.as_deref(),
+        args.notes.as_deref(),
+    )?;
     if args.play && !to_stdout {
         // What was written, as written; a FLAC file is rendered again instead of
         // decoded (the same samples before they were made integers).

@@ -31,6 +31,7 @@ pub mod keyframes;
 pub mod limits;
 mod loader;
 mod lower;
+pub mod music;
 #[cfg(feature = "generate")]
 pub mod mutate;
 pub mod op;

@@ -21,6 +21,7 @@ pub const FORMS: &[&str] = &[
     "keyframes",
     "instance",
     "instances",
+    "score",
     "listener",
     "microphone",
     "source",
@@ -73,7 +74,7 @@ impl Lowerer<'_> {
             Some("define") => self.read_define(&form, origin, false),
             Some("define-sound") => self.read_define(&form, origin, true),
             Some("keyframes") => self.read_keyframes(&form, origin),
-            Some("instance" | "instances") if included_at.is_none() => {
+            Some("instance" | "instances" | "score") if included_at.is_none() => {
                 self.instance_forms.push((form, origin.clone()));
                 Ok(())
             }

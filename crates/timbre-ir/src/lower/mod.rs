@@ -20,6 +20,7 @@ mod forms;
 mod library;
 mod morph;
 mod scene;
+mod score;
 mod space;
 
 pub(crate) use forms::is_reserved;
@@ -115,6 +116,8 @@ pub struct Program {
     /// The keyframed variables by name (a vector's coordinates as `name.x`, `.y`,
     /// `.z`), for tools that show a graph's keyframe nodes by name.
     pub variables: Vec<(String, Arc<crate::keyframes::KeyframeTrack>)>,
+    /// The notes of its `score` forms (each note is also an instance).
+    pub scores: Vec<crate::music::Score>,
 }
 
 impl Program {
@@ -190,6 +193,8 @@ pub(crate) struct Lowerer<'a> {
     included: HashSet<PathBuf>,
     /// Names of the instances lowered so far.
     instance_names: HashSet<String>,
+    /// The `score` forms' notes, in the order written.
+    scores: Vec<crate::music::Score>,
     samples: HashMap<PathBuf, Arc<SampleData>>,
     used_bindings: HashSet<String>,
     /// Named trees being expanded, innermost last, to catch recursion.
@@ -251,6 +256,7 @@ impl<'a> Lowerer<'a> {
             include_stack: vec![],
             included: HashSet::new(),
             instance_names: HashSet::new(),
+            scores: vec![],
             samples: HashMap::new(),
             used_bindings: HashSet::new(),
             expanding: vec![],
@@ -325,6 +331,7 @@ impl<'a> Lowerer<'a> {
                 .and_then(Expr::as_symbol);
             let lowered = match head {
                 Some("instances") => self.lower_instances(form, origin),
+                Some("score") => self.lower_score(form, origin),
                 _ => self
                     .lower_instance(form, origin)
                     .map(|instance| self.instances.push(instance)),
@@ -377,6 +384,7 @@ impl<'a> Lowerer<'a> {
             instances: self.instances,
             warnings: self.warnings,
             variables,
+            scores: self.scores,
         })
     }
 

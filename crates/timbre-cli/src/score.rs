@@ -1,0 +1,130 @@
+//! A scene's scores written out: a Standard MIDI File (one track per part, through
+//! timbre's own tempo map) and a readable listing of the notes.
+
+use midly::num::{u15, u24, u28, u4, u7};
+use midly::{Format, Header, MetaMessage, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
+use timbre_ir::music::scale::note_name;
+use timbre_ir::music::tempo::TempoMap;
+use timbre_ir::music::Score;
+
+/// Ticks to a quarter note in the files written.
+pub const TICKS_PER_QUARTER: u16 = 960;
+
+/// The tempo map the file is written with: the first score's quarter note.
+pub fn tempo_map(scores: &[Score]) -> TempoMap {
+    let quarter = scores.first().map_or(0.5, |s| s.quarter_seconds);
+    TempoMap::with_quarter_seconds(TICKS_PER_QUARTER, quarter)
+}
+
+/// The scores as a format-1 Standard MIDI File: a first track with the tempo, then
+/// a track per part, named after its score and part, on its own channel (skipping
+/// channel 10, percussion in General MIDI).
+pub fn midi_file(scores: &[Score]) -> Vec<u8> {
+    let map = tempo_map(scores);
+    let micros = map.changes()[0].1;
+    let mut tracks = vec![vec![
+        meta(0, MetaMessage::Tempo(u24::new(micros))),
+        meta(0, MetaMessage::TimeSignature(4, 2, 24, 8)),
+        meta(0, MetaMessage::EndOfTrack),
+    ]];
+    let parts: Vec<_> = scores
+        .iter()
+        .flat_map(|s| s.parts.iter().map(move |p| (s, p)))
+        .collect();
+    let names: Vec<String> = parts
+        .iter()
+        .map(|(score, part)| format!("{} {}", score.name, part.name))
+        .collect();
+    for (index, (_, part)) in parts.iter().enumerate() {
+        let channel = [0u8, 1, 2, 3, 4, 5, 6, 7, 8, 10, 11, 12, 13, 14, 15][index % 15];
+        // (tick, off before on at one tick, key, velocity)
+        let mut events: Vec<(u64, bool, u8, u8)> = vec![];
+        for note in &part.notes {
+            let on = map.tick(note.start);
+            let off = map.tick(note.start + note.duration).max(on + 1);
+            events.push((on, true, note.key, note.velocity));
+            events.push((off, false, note.key, 0));
+        }
+        events.sort_by_key(|(tick, on, key, _)| (*tick, *on, *key));
+        let mut track = vec![meta(0, MetaMessage::TrackName(names[index].as_bytes()))];
+        let mut previous = 0;
+        for (tick, on, key, velocity) in events {
+            let message = if on {
+                MidiMessage::NoteOn {
+                    key: u7::new(key),
+                    vel: u7::new(velocity),
+                }
+            } else {
+                MidiMessage::NoteOff {
+                    key: u7::new(key),
+                    vel: u7::new(64),
+                }
+            };
+            track.push(TrackEvent {
+                delta: u28::new((tick - previous) as u32),
+                kind: TrackEventKind::Midi {
+                    channel: u4::new(channel),
+                    message,
+                },
+            });
+            previous = tick;
+        }
+        track.push(meta(0, MetaMessage::EndOfTrack));
+        tracks.push(track);
+    }
+    let smf = Smf {
+        header: Header::new(
+            Format::Parallel,
+            Timing::Metrical(u15::new(TICKS_PER_QUARTER)),
+        ),
+        tracks,
+    };
+    let mut bytes = vec![];
+    smf.write_std(&mut bytes)
+        .expect("writing to memory cannot fail");
+    bytes
+}
+
+fn meta(delta: u32, message: MetaMessage<'_>) -> TrackEvent<'_> {
+    TrackEvent {
+        delta: u28::new(delta),
+        kind: TrackEventKind::Meta(message),
+    }
+}
+
+/// The notes, part by part: onset and length in seconds, note name, MIDI key,
+/// frequency and velocity.
+pub fn listing(scores: &[Score]) -> String {
+    let mut text = String::new();
+    for score in scores {
+        text += &format!(
+            "score {}: quarter note {} s ({} bpm)\n",
+            score.name,
+            timbre_syntax::number(score.quarter_seconds),
+            timbre_syntax::number((60.0 / score.quarter_seconds * 1000.0).round() / 1000.0)
+        );
+        for part in &score.parts {
+            let n = part.notes.len();
+            text += &format!(
+                "\npart {} ({}): {n} note{}\n",
+                part.name,
+                part.class,
+                if n == 1 { "" } else { "s" }
+            );
+            text += "   start s  length s  note  key   freq Hz  velocity\n";
+            for note in &part.notes {
+                let hz = 440.0 * ((f64::from(note.key) - 69.0) / 12.0).exp2();
+                text += &format!(
+                    "{:>10.3}{:>10.3}  {:<4}{:>5}{:>10.2}{:>10}\n",
+                    note.start,
+                    note.duration,
+                    note_name(note.key),
+                    note.key,
+                    hz,
+                    note.velocity
+                );
+            }
+        }
+    }
+    text
+}

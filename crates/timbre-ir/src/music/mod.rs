@@ -1,0 +1,352 @@
+//! Music from motion (Hahn et al. 1995, "Mapping motion parameters to music"): a
+//! keyframed variable sampled every beat, transformed to a pitch, snapped to a
+//! scale, and cut into notes by a rhythm. The `score` form (`lower/score.rs`) turns
+//! the notes into instances of an instrument class; the command line writes them as
+//! a Standard MIDI File through [`tempo::TempoMap`] and as a listing.
+
+pub mod scale;
+pub mod tempo;
+
+use crate::dsp::noise::hash2;
+use crate::keyframes::KeyframeTrack;
+use scale::Scale;
+
+/// A score: its parts and the length of its quarter note (the MIDI tempo).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Score {
+    pub name: String,
+    /// Seconds per quarter note: the beat, or 60 / tempo.
+    pub quarter_seconds: f64,
+    pub parts: Vec<Part>,
+}
+
+/// One part: the notes of one variable, played by one instrument class.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    pub name: String,
+    pub class: String,
+    pub notes: Vec<Note>,
+}
+
+/// One note, on the scene's timeline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Note {
+    /// Scene time of its onset (after the attack delay), seconds.
+    pub start: f64,
+    /// Seconds its gate is open (the tail sounds after).
+    pub duration: f64,
+    /// MIDI note number.
+    pub key: u8,
+    /// MIDI velocity, 1 to 127.
+    pub velocity: u8,
+}
+
+/// How a variable's value becomes a note.
+#[derive(Clone, Debug)]
+pub struct Mapping {
+    /// Semitones per unit of the variable.
+    pub semitones: f64,
+    /// The pitch (MIDI note number) at value 0.
+    pub offset: f64,
+    /// Exponent on the value's magnitude, keeping its sign (1: linear).
+    pub curve: f64,
+    pub scale: Scale,
+    /// The key's pitch class, 0 = C.
+    pub key: f64,
+    /// Lowest and highest MIDI note allowed.
+    pub low: f64,
+    pub high: f64,
+}
+
+impl Mapping {
+    /// The pitch before quantising: offset + semitones · sign(v)·|v|^curve.
+    pub fn pitch(&self, value: f64) -> f64 {
+        self.offset + self.semitones * value.signum() * value.abs().powf(self.curve)
+    }
+
+    /// The note: the pitch snapped to the scale, then moved by octaves into range.
+    pub fn note(&self, value: f64) -> f64 {
+        let snapped = self.scale.snap(self.pitch(value), self.key);
+        scale::into_range(snapped, self.low, self.high)
+    }
+}
+
+/// Beat marks of a rhythm pattern.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mark {
+    /// `x`: a note (slurred into the sounding one when the pitch repeats).
+    On,
+    /// `-`: the sounding note goes on, at its pitch.
+    Hold,
+    /// `.`: a rest.
+    Off,
+}
+
+/// Where a part's notes start.
+#[derive(Clone, Debug)]
+pub enum Rhythm {
+    /// A mark per beat, the pattern repeated.
+    Pattern(Vec<Mark>),
+    /// A random mark per beat: on with probability `on`, hold with `hold`, else off.
+    Random { on: f64, hold: f64, seed: u64 },
+    /// A note wherever the variable moves faster than `threshold` units per second
+    /// (read `frame_rate` times a second), at least `min_duration` after the last
+    /// note's start; each lasts to the next.
+    Motion {
+        threshold: f64,
+        min_duration: f64,
+        frame_rate: f64,
+    },
+}
+
+impl Rhythm {
+    /// The mark of beat `k` (for the beat rhythms).
+    fn mark(&self, k: u64) -> Mark {
+        match self {
+            Rhythm::Pattern(marks) => marks[(k % marks.len() as u64) as usize],
+            Rhythm::Random { on, hold, seed } => {
+                let u = (hash2(*seed, k) >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+                if u < *on {
+                    Mark::On
+                } else if u < on + hold {
+                    Mark::Hold
+                } else {
+                    Mark::Off
+                }
+            }
+            Rhythm::Motion { .. } => Mark::On,
+        }
+    }
+}
+
+/// How a part is played: its rhythm and timing.
+#[derive(Clone, Debug)]
+pub struct Playing {
+    pub rhythm: Rhythm,
+    /// Seconds per beat.
+    pub beat: f64,
+    /// Scene times the part spans.
+    pub start: f64,
+    pub end: f64,
+    /// Seconds from a beat (or frame) to its note's onset.
+    pub delay: f64,
+    /// Whether a note repeating the sounding pitch extends it.
+    pub slur: bool,
+    pub velocity: u8,
+}
+
+/// The notes of one part: the variable read every beat (or every frame, for a
+/// motion rhythm) from `playing.start` to `playing.end`.
+pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec<Note> {
+    let Playing {
+        ref rhythm,
+        beat,
+        start,
+        end,
+        delay,
+        slur,
+        velocity,
+    } = *playing;
+    let key = |value: f64| mapping.note(value).round().clamp(0.0, 127.0) as u8;
+    let mut notes: Vec<Note> = vec![];
+    if let Rhythm::Motion {
+        threshold,
+        min_duration,
+        frame_rate,
+    } = rhythm
+    {
+        let frames = ((end - start) * frame_rate).floor() as u64;
+        let (threshold, min_duration, frame_rate) = (*threshold, *min_duration, *frame_rate);
+        let mut previous = track.value(start);
+        for j in 1..=frames {
+            let time = start + j as f64 / frame_rate;
+            let value = track.value(time);
+            let speed = (value - previous).abs() * frame_rate;
+            previous = value;
+            let rested = notes
+                .last()
+                .is_none_or(|n| time + delay - n.start >= min_duration - 1e-9);
+            if speed > threshold && rested {
+                if let Some(last) = notes.last_mut() {
+                    last.duration = time + delay - last.start;
+                }
+                notes.push(Note {
+                    start: time + delay,
+                    duration: 0.0,
+                    key: key(value),
+                    velocity,
+                });
+            }
+        }
+        if let Some(last) = notes.last_mut() {
+            last.duration = end - (last.start - delay);
+        }
+        return notes;
+    }
+    let beats = ((end - start) / beat - 1e-9).ceil().max(0.0) as u64;
+    // Whether the last note is still sounding at the beat being read.
+    let mut sounding = false;
+    for k in 0..beats {
+        let time = start + k as f64 * beat;
+        let length = beat.min(end - time);
+        match rhythm.mark(k) {
+            Mark::Off => sounding = false,
+            Mark::Hold if sounding => notes.last_mut().unwrap().duration += length,
+            Mark::Hold => {}
+            Mark::On => {
+                let note = key(track.value(time));
+                match notes.last_mut() {
+                    Some(last) if sounding && slur && last.key == note => last.duration += length,
+                    _ => {
+                        notes.push(Note {
+                            start: time + delay,
+                            duration: length,
+                            key: note,
+                            velocity,
+                        });
+                        sounding = true;
+                    }
+                }
+            }
+        }
+    }
+    notes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::keyframes::Interpolation;
+
+    fn ramp(from: f64, to: f64, seconds: f64) -> KeyframeTrack {
+        KeyframeTrack::new(vec![0.0, seconds], vec![from, to], Interpolation::Linear).unwrap()
+    }
+
+    fn playing(rhythm: Rhythm, beat: f64, end: f64, delay: f64, slur: bool) -> Playing {
+        Playing {
+            rhythm,
+            beat,
+            start: 0.0,
+            end,
+            delay,
+            slur,
+            velocity: 100,
+        }
+    }
+
+    fn mapping(scale: &str) -> Mapping {
+        Mapping {
+            semitones: 12.0,
+            offset: 60.0,
+            curve: 1.0,
+            scale: Scale::named(scale).unwrap(),
+            key: 0.0,
+            low: 0.0,
+            high: 127.0,
+        }
+    }
+
+    #[test]
+    fn a_rising_variable_gives_rising_notes_in_the_scale() {
+        let track = ramp(0.0, 2.0, 8.0);
+        let every = Rhythm::Pattern(vec![Mark::On]);
+        let notes = notes(
+            &track,
+            &mapping("blues"),
+            &playing(every, 0.5, 8.0, 0.0, true),
+        );
+        let keys: Vec<u8> = notes.iter().map(|n| n.key).collect();
+        assert!(keys.windows(2).all(|w| w[1] > w[0]), "{keys:?}");
+        for k in &keys {
+            assert!(
+                [0, 3, 5, 6, 7, 10].contains(&(k % 12)),
+                "{k} is not in C blues"
+            );
+        }
+        assert_eq!(keys[0], 60);
+        // Slurred notes fill the time: the durations add up to the whole.
+        let total: f64 = notes.iter().map(|n| n.duration).sum();
+        assert!((total - 8.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn patterns_hold_rest_and_slur() {
+        let still = ramp(0.0, 0.0, 4.0);
+        let m = mapping("major");
+        let pattern = Rhythm::Pattern(vec![Mark::On, Mark::Hold, Mark::Off, Mark::On]);
+        let played = notes(&still, &m, &playing(pattern.clone(), 0.25, 2.0, 0.01, true));
+        // x - . x | x - . x: the x after the rest starts a note, the next x (same
+        // pitch, still sounding) is slurred into it.
+        let cents = |x: f64| (x * 100.0).round() as i64;
+        let shape: Vec<(i64, i64)> = played
+            .iter()
+            .map(|n| (cents(n.start), cents(n.duration)))
+            .collect();
+        assert_eq!(shape, vec![(1, 50), (76, 75), (176, 25)]);
+        let unslurred = notes(&still, &m, &playing(pattern, 0.25, 2.0, 0.0, false));
+        assert_eq!(unslurred.len(), 4);
+    }
+
+    #[test]
+    fn random_rhythms_follow_their_seed() {
+        let track = ramp(0.0, 3.0, 30.0);
+        let m = mapping("chromatic");
+        let random = |seed| Rhythm::Random {
+            on: 0.5,
+            hold: 0.3,
+            seed,
+        };
+        let play = |seed| notes(&track, &m, &playing(random(seed), 0.25, 30.0, 0.0, false));
+        let (a, b, c) = (play(1), play(1), play(2));
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        // Half the 120 beats start a note.
+        assert!((45..75).contains(&a.len()), "{}", a.len());
+    }
+}
+
+#[cfg(test)]
+mod motion_tests {
+    use super::*;
+    use crate::keyframes::Interpolation;
+
+    #[test]
+    fn motion_starts_notes_where_the_variable_moves_fast_enough() {
+        // Still, a jump at 1 s, still, a jump at 1.1 s (too soon), a jump at 2 s.
+        let times = vec![0.0, 1.0, 1.02, 1.1, 1.12, 2.0, 2.02, 3.0];
+        let values = vec![0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 0.5, 0.5];
+        let track = KeyframeTrack::new(times, values, Interpolation::Linear).unwrap();
+        let mapping = Mapping {
+            semitones: 12.0,
+            offset: 60.0,
+            curve: 1.0,
+            scale: Scale::named("chromatic").unwrap(),
+            key: 0.0,
+            low: 0.0,
+            high: 127.0,
+        };
+        let playing = Playing {
+            rhythm: Rhythm::Motion {
+                threshold: 10.0,
+                min_duration: 0.25,
+                frame_rate: 100.0,
+            },
+            beat: 0.5,
+            start: 0.0,
+            end: 3.0,
+            delay: 0.0,
+            slur: false,
+            velocity: 64,
+        };
+        let notes = notes(&track, &mapping, &playing);
+        let onsets: Vec<i64> = notes
+            .iter()
+            .map(|n| (n.start * 100.0).round() as i64)
+            .collect();
+        // Frames 101 (the first frame of the jump) and 201; 111 is within 0.25 s.
+        assert_eq!(onsets, vec![101, 201]);
+        assert_eq!(notes[0].key, 60 + 6); // half-way up the first jump: 0.5 → 66
+        assert!((notes[0].duration - 1.0).abs() < 1e-9);
+        assert!((notes[1].start + notes[1].duration - 3.0).abs() < 1e-9);
+    }
+}
