@@ -274,3 +274,64 @@ fn morph_turns_a_bee_into_a_chainsaw() {
     let (start, end) = (rms(wav.seconds(0.0, 1.0)), rms(wav.seconds(5.0, 6.0)));
     assert!(end > 1.3 * start, "rms {start:.3} → {end:.3}");
 }
+
+/// The wind-chime example's data is what the simulation in `timbre-testkit` writes
+/// (run with TIMBRE_WRITE_DATA=1 to write it again after changing the simulation).
+#[test]
+fn wind_chime_data_is_the_simulation() {
+    let (hits, frames) = timbre_testkit::chimes::simulate();
+    let files = [
+        ("chime-hits.csv", timbre_testkit::chimes::hits_csv(&hits)),
+        (
+            "chime-motion.csv",
+            timbre_testkit::chimes::motion_csv(&frames),
+        ),
+    ];
+    for (name, text) in files {
+        let path = workspace_root().join("examples/data").join(name);
+        if std::env::var_os("TIMBRE_WRITE_DATA").is_some() {
+            std::fs::write(&path, &text).unwrap();
+        }
+        let written = std::fs::read_to_string(&path).unwrap();
+        assert!(written == text, "{name} is not what the simulation writes");
+    }
+}
+
+/// Figures 7–8: every chime rings at its tube's first mode, f₁ = (πK/8L²)·√(E/ρ)·3.011²
+/// (aluminium, 25/22 mm), the music is in C blues, and each hit is an instance.
+#[test]
+fn wind_chimes_ring_at_their_tube_modes_over_blues_music() {
+    let wav = render_example("wind-chimes", &[]);
+    let k = (0.025f64.powi(2) + 0.022f64.powi(2)).sqrt() / 4.0;
+    let bar_speed = (69e9f64 / 2700.0).sqrt();
+    for length in timbre_testkit::chimes::LENGTHS {
+        let f1 = std::f64::consts::PI * k / (8.0 * length * length) * bar_speed * 3.011f64.powi(2);
+        let measured = strongest_peak_in(&wav.samples, SR, f1 * 0.99, f1 * 1.01);
+        assert!(
+            (measured / f1 - 1.0).abs() < 0.005,
+            "the {length} m chime rings at {measured:.1} Hz, not {f1:.1}"
+        );
+    }
+    let notes = run(["check", "--notes", example("wind-chimes").to_str().unwrap()]);
+    notes.assert_success();
+    let keys: Vec<u8> = notes
+        .stdout
+        .lines()
+        .filter(|line| line.starts_with("  "))
+        .filter_map(|line| line.split_whitespace().nth(3)?.parse().ok())
+        .collect();
+    assert!(keys.len() > 40, "{}", notes.stdout);
+    assert!(keys.iter().all(|k| [0, 3, 5, 6, 7, 10].contains(&(k % 12))));
+    let summary = run(["check", example("wind-chimes").to_str().unwrap()]);
+    let hits = std::fs::read_to_string(workspace_root().join("examples/data/chime-hits.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    let expected = format!("ok: a scene of {} instances", hits + 1 + keys.len());
+    assert!(
+        summary.stdout.starts_with(&expected),
+        "{} vs {expected}",
+        summary.stdout
+    );
+}

@@ -9,6 +9,8 @@
 //!
 //! Only tests depend on this crate; it is not published.
 
+pub mod chimes;
+
 use std::path::Path;
 
 use realfft::RealFftPlanner;
