@@ -14,6 +14,7 @@ mod playback;
 mod plot;
 mod repl;
 mod score;
+mod sonify;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -113,6 +114,21 @@ enum Command {
     ///   timbre evolve examples/passing-car.tt --population 6 --seed 7 -o cars
     #[command(verbatim_doc_comment)]
     Evolve(evolve::EvolveArgs),
+    /// Sound from moving images: each frame's regions become panned voices whose pitch
+    /// follows their brightness, loudness their motion, noise their roughness.
+    ///
+    /// FRAMES is a folder of PNG or JPEG files (in name order), a pattern with `*`, or a
+    /// numbered pattern such as frames/f-%03d.png. The scene that maps the frames to
+    /// sound (the `frames` form and a voice per region, with the defaults of Unemi 2012)
+    /// is rendered, or printed with --print-scene to keep and edit. With --scale the
+    /// sound is quantised to notes of the scale, in a rhythm.
+    ///
+    /// Examples:
+    ///   timbre sonify examples/frames --fps 24 -o sunrise.wav
+    ///   timbre sonify 'shots/*.jpg' --fps 12 --scale minor-pentatonic -o shots.wav
+    ///   timbre sonify examples/frames --print-scene > sunrise.tt
+    #[command(verbatim_doc_comment)]
+    Sonify(Box<SonifyArgs>),
     /// Draw a WAV file's spectrogram and/or waveform as PNG pictures with labelled axes.
     ///
     /// Several channels are drawn as their mean. `timbre render` takes the same
@@ -234,6 +250,67 @@ struct RenderArgs {
     /// Also write the scene's scores as a listing of their notes (`-`: standard output).
     #[arg(long, value_name = "FILE")]
     notes: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+struct SonifyArgs {
+    /// The frames: a folder, `frames/*.png`, or `frames/f-%03d.png`.
+    frames: String,
+
+    /// Frames per second of the animation.
+    #[arg(long, default_value_t = 24.0, value_parser = parse_positive)]
+    fps: f64,
+
+    /// Output file, as for `timbre render` (required unless --print-scene).
+    #[arg(
+        long,
+        short = 'o',
+        value_name = "FILE",
+        required_unless_present = "print_scene"
+    )]
+    output: Option<PathBuf>,
+
+    /// Print the scene instead of rendering it.
+    #[arg(long)]
+    print_scene: bool,
+
+    #[command(flatten)]
+    mappings: sonify::Mappings,
+
+    #[command(flatten)]
+    sound: SoundArgs,
+
+    /// With --scale: also write the notes as a Standard MIDI File.
+    #[arg(long, value_name = "FILE.mid")]
+    midi: Option<PathBuf>,
+
+    #[command(flatten)]
+    pictures: plot::PictureArgs,
+}
+
+/// `timbre sonify`: the scene for the frames, rendered as `timbre render` would.
+fn sonify(args: SonifyArgs) -> Result<(), Failure> {
+    let files = sonify::frame_files(&args.frames).map_err(Failure::Message)?;
+    let scene = sonify::scene(&args.frames, &files, args.fps, &args.mappings);
+    let Some(output) = args.output.filter(|_| !args.print_scene) else {
+        return write_stdout(&scene);
+    };
+    render(RenderArgs {
+        source: SourceArgs {
+            file: None,
+            expr: Some(scene),
+            bindings: vec![],
+            seed: None,
+            no_limits: false,
+        },
+        output,
+        sound: args.sound,
+        format: None,
+        play: false,
+        pictures: args.pictures,
+        midi: args.midi,
+        notes: None,
+    })
 }
 
 #[derive(Args, Debug)]
@@ -369,6 +446,7 @@ fn main() -> ExitCode {
         Command::Graph(args) => draw_graph(args),
         Command::Fmt(args) => fmt::fmt(args),
         Command::Evolve(args) => evolve::evolve(args),
+        Command::Sonify(args) => sonify(*args),
         Command::Plot(args) => plot::plot(args).map_err(Failure::Message),
         Command::Repl(args) => repl::run(args.audition).map_err(Failure::Message),
         Command::Bench(args) => bench::bench(args),

@@ -335,3 +335,73 @@ fn wind_chimes_ring_at_their_tube_modes_over_blues_music() {
         summary.stdout
     );
 }
+
+/// `examples/frames/` is the animation `timbre_testkit::frames::example_pixel` draws
+/// (TIMBRE_WRITE_DATA=1 writes it again).
+#[test]
+fn example_frames_are_the_drawn_animation() {
+    let dir = workspace_root().join("examples/frames");
+    let fresh = tempfile::tempdir().unwrap();
+    let draw = |dir: &std::path::Path| {
+        timbre_testkit::frames::write_animation(
+            dir,
+            48,
+            (64, 48),
+            timbre_testkit::frames::example_pixel,
+        )
+    };
+    if std::env::var_os("TIMBRE_WRITE_DATA").is_some() {
+        draw(&dir);
+    }
+    draw(fresh.path());
+    for k in 0..48 {
+        let name = format!("f-{k:03}.png");
+        let (kept, drawn) = (
+            std::fs::read(dir.join(&name)).unwrap(),
+            std::fs::read(fresh.path().join(&name)).unwrap(),
+        );
+        assert!(
+            kept == drawn,
+            "examples/frames/{name} is not what the drawing makes"
+        );
+    }
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 48);
+}
+
+/// `examples/sunrise.tt` is the scene `timbre sonify` writes for `examples/frames`:
+/// both render the same samples, and the left, where the sun rises and brightens,
+/// climbs in pitch.
+#[test]
+fn sunrise_is_what_sonify_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.wav"), dir.path().join("b.wav"));
+    run([
+        "sonify",
+        "examples/frames",
+        "--fps",
+        "24",
+        "-o",
+        a.to_str().unwrap(),
+    ])
+    .assert_success();
+    run([
+        "render",
+        example("sunrise").to_str().unwrap(),
+        "-o",
+        b.to_str().unwrap(),
+    ])
+    .assert_success();
+    let (a, b) = (timbre_testkit::read_wav(&a), timbre_testkit::read_wav(&b));
+    assert_eq!(a.spec.channels, 2);
+    assert_eq!(a.samples.len(), 2 * 96_000);
+    assert!(a.samples == b.samples, "sonify and the example differ");
+    // The leftmost region's voice (panned hard left) rises with the sun.
+    let left: Vec<f64> = a.samples.iter().step_by(2).copied().collect();
+    let pitch = |from: usize| strongest_peak_in(&left[from..from + 16_384], SR, 100.0, 1000.0);
+    assert!(
+        pitch(79_000) > 1.2 * pitch(0),
+        "{} then {}",
+        pitch(0),
+        pitch(79_000)
+    );
+}

@@ -22,6 +22,7 @@ pub mod custom;
 pub mod dsp;
 mod dump;
 mod error;
+pub mod frames;
 #[cfg(feature = "generate")]
 pub mod generate;
 mod graph;

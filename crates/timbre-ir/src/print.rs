@@ -55,8 +55,9 @@ impl fmt::Display for Unprintable {
 
 impl std::error::Error for Unprintable {}
 
-/// The tree at `root` as a source file: `keyframes` definitions for the tracks it
-/// reads, then the expression, in the canonical layout. `names` gives keyframed
+/// The tree at `root` as a source file: `(scene :channels n)` if it is n lanes wide,
+/// `keyframes` definitions for the tracks it reads, then the expression, in the
+/// canonical layout. `names` gives keyframed
 /// variables their names (as [`crate::Program::variables`] holds them); a track
 /// without one is called `track-1`, `track-2`, ….
 ///
@@ -80,11 +81,23 @@ pub fn print_tree(
         bindings: 0,
     };
     let expr = printer.expression(graph, root)?;
-    let mut forms: Vec<Expr> = printer
-        .tracks
-        .iter()
-        .map(|(name, track)| keyframes_form(name, track))
-        .collect();
+    let mut forms: Vec<Expr> = vec![];
+    // A file's sound of several lanes is one per channel.
+    let width = graph.width(root);
+    if (2..=64).contains(&width) {
+        forms.push(call(
+            "scene",
+            vec![keyword("channels"), number(width as f64)],
+        ));
+    }
+    // By name: the order nodes were made in is not the text's to keep.
+    printer.tracks.sort_by(|a, b| a.0.cmp(&b.0));
+    forms.extend(
+        printer
+            .tracks
+            .iter()
+            .map(|(name, track)| keyframes_form(name, track)),
+    );
     forms.push(expr);
     Ok(timbre_syntax::print(&forms))
 }

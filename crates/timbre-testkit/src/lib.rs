@@ -10,6 +10,7 @@
 //! Only tests depend on this crate; it is not published.
 
 pub mod chimes;
+pub mod frames;
 
 use std::path::Path;
 

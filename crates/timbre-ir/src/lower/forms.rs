@@ -19,6 +19,7 @@ pub const FORMS: &[&str] = &[
     "include",
     "scene",
     "keyframes",
+    "frames",
     "instance",
     "instances",
     "score",
@@ -74,6 +75,7 @@ impl Lowerer<'_> {
             Some("define") => self.read_define(&form, origin, false),
             Some("define-sound") => self.read_define(&form, origin, true),
             Some("keyframes") => self.read_keyframes(&form, origin),
+            Some("frames") => self.read_frames(&form, origin),
             Some("instance" | "instances" | "score") if included_at.is_none() => {
                 self.instance_forms.push((form, origin.clone()));
                 Ok(())
@@ -103,7 +105,7 @@ impl Lowerer<'_> {
         };
         if let Err(diag) = result {
             match head {
-                Some("include") => self.names_incomplete = true,
+                Some("include" | "frames") => self.names_incomplete = true,
                 Some("define" | "define-sound" | "keyframes") => {
                     self.failed_names.extend(defined);
                 }

@@ -17,6 +17,7 @@ mod events;
 mod expr;
 mod files;
 mod forms;
+mod frames;
 mod library;
 mod morph;
 mod scene;

@@ -11,7 +11,7 @@ use timbre_syntax::{Expr, ExprKind, Span};
 use super::{Lowerer, Origin};
 use crate::error::Diag;
 use crate::music::scale::{self, Scale};
-use crate::music::{self, Mapping, Mark, Playing, Rhythm, Score};
+use crate::music::{self, Amount, Mapping, Mark, Playing, Rhythm, Score};
 
 const USAGE: &str = "(score name :beat 0.5 (part name class variable :scale major :key C))";
 
@@ -338,8 +338,11 @@ impl Lowerer<'_> {
             },
         };
         let velocity = number(self, "velocity", 0.8)?.clamp(0.0, 1.0);
-        let delay = number(self, "delay", 0.0)?.max(0.0);
-        let tail = number(self, "tail", 0.25)?.max(0.0);
+        let delay = self.amount(options.get("delay"), "delay", origin)?;
+        let tail = self
+            .amount(options.get("tail"), "tail", origin)?
+            .unwrap_or(Amount::Fixed(0.25));
+        let delay = delay.unwrap_or(Amount::Fixed(0.0));
         let bend = number(self, "bend", 0.0)?;
         let slur = match options.get("slur").map(|e| (e, e.as_symbol())) {
             None | Some((_, Some("on"))) => true,
@@ -366,7 +369,6 @@ impl Lowerer<'_> {
             velocity: ((velocity * 127.0).round() as u8).max(1),
         };
         let notes = music::notes(&track, &mapping, &playing);
-
         // Each note an instance: (class :freq … :amp … :gate (< t duration)).
         let span = form.span;
         let num = |x: f64| atom(ExprKind::Number(x), span);
@@ -380,7 +382,7 @@ impl Lowerer<'_> {
             } else {
                 // Toward the unquantised pitch, moved by the octaves the range moved
                 // the note: key + bend·(pitch(v(t)) + shift − key).
-                let value = track.value(note.start - delay);
+                let value = track.value(note.beat);
                 let snapped = mapping.scale.snap(mapping.pitch(value), key);
                 let shift = key_number - snapped.round();
                 let var = sym(variable);
@@ -431,7 +433,7 @@ impl Lowerer<'_> {
                 key_word("start"),
                 num(note.start),
                 key_word("stop"),
-                num(note.start + note.duration + tail),
+                num(note.start + note.duration + tail.at(note.beat)),
             ];
             if let Some(gain) = options.get("gain") {
                 instance.extend([key_word("gain"), gain.clone()]);
@@ -444,6 +446,39 @@ impl Lowerer<'_> {
             class: class.to_owned(),
             notes,
         })
+    }
+}
+
+impl Lowerer<'_> {
+    /// `:delay` or `:tail`: seconds, or `(variable max)`, a keyframed variable in
+    /// [0, 1] times `max` seconds, read at each note's beat.
+    fn amount(
+        &mut self,
+        value: Option<&Expr>,
+        key: &str,
+        origin: &Origin,
+    ) -> Result<Option<Amount>, Diag> {
+        let Some(value) = value else {
+            return Ok(None);
+        };
+        if let Some([variable, max]) = value.as_list() {
+            if let Some(track) = variable
+                .as_symbol()
+                .and_then(|v| self.keyframes.get(v))
+                .cloned()
+            {
+                let max = self.constant_option(max, &format!("the longest `:{key}`"), origin)?;
+                return Ok(Some(Amount::Track(track, max.max(0.0))));
+            }
+            return Err(self
+                .diag("timbre::bad-score", format!("`:{key}` reads a keyframed variable, not {}", variable.describe()), origin)
+                .label(variable.span, "not a (keyframes …) name")
+                .help(format!("write :{key} 0.1, or :{key} (variable 0.5) for a variable in [0, 1] times 0.5 s")));
+        }
+        Ok(Some(Amount::Fixed(
+            self.constant_option(value, &format!("`:{key}`"), origin)?
+                .max(0.0),
+        )))
     }
 }
 

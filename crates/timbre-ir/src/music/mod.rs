@@ -31,6 +31,8 @@ pub struct Part {
 /// One note, on the scene's timeline.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Note {
+    /// Scene time of the beat (or frame) the variable was read at, seconds.
+    pub beat: f64,
     /// Scene time of its onset (after the attack delay), seconds.
     pub start: f64,
     /// Seconds its gate is open (the tail sounds after).
@@ -119,6 +121,24 @@ impl Rhythm {
     }
 }
 
+/// A number of seconds: fixed, or a keyframed variable (clamped to [0, 1]) times a
+/// maximum, read at the note's beat.
+#[derive(Clone, Debug)]
+pub enum Amount {
+    Fixed(f64),
+    Track(std::sync::Arc<KeyframeTrack>, f64),
+}
+
+impl Amount {
+    /// The amount at scene time `t`.
+    pub fn at(&self, t: f64) -> f64 {
+        match self {
+            Amount::Fixed(x) => *x,
+            Amount::Track(track, max) => track.value(t).clamp(0.0, 1.0) * max,
+        }
+    }
+}
+
 /// How a part is played: its rhythm and timing.
 #[derive(Clone, Debug)]
 pub struct Playing {
@@ -129,7 +149,7 @@ pub struct Playing {
     pub start: f64,
     pub end: f64,
     /// Seconds from a beat (or frame) to its note's onset.
-    pub delay: f64,
+    pub delay: Amount,
     /// Whether a note repeating the sounding pitch extends it.
     pub slur: bool,
     pub velocity: u8,
@@ -143,7 +163,7 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
         beat,
         start,
         end,
-        delay,
+        ref delay,
         slur,
         velocity,
     } = *playing;
@@ -163,15 +183,17 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
             let value = track.value(time);
             let speed = (value - previous).abs() * frame_rate;
             previous = value;
+            let onset = time + delay.at(time);
             let rested = notes
                 .last()
-                .is_none_or(|n| time + delay - n.start >= min_duration - 1e-9);
+                .is_none_or(|n| onset - n.start >= min_duration - 1e-9);
             if speed > threshold && rested {
                 if let Some(last) = notes.last_mut() {
-                    last.duration = time + delay - last.start;
+                    last.duration = onset - last.start;
                 }
                 notes.push(Note {
-                    start: time + delay,
+                    beat: time,
+                    start: onset,
                     duration: 0.0,
                     key: key(value),
                     velocity,
@@ -179,7 +201,7 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
             }
         }
         if let Some(last) = notes.last_mut() {
-            last.duration = end - (last.start - delay);
+            last.duration = end - last.beat;
         }
         return notes;
     }
@@ -199,7 +221,8 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
                     Some(last) if sounding && slur && last.key == note => last.duration += length,
                     _ => {
                         notes.push(Note {
-                            start: time + delay,
+                            beat: time,
+                            start: time + delay.at(time),
                             duration: length,
                             key: note,
                             velocity,
@@ -228,7 +251,7 @@ mod tests {
             beat,
             start: 0.0,
             end,
-            delay,
+            delay: Amount::Fixed(delay),
             slur,
             velocity: 100,
         }
@@ -334,7 +357,7 @@ mod motion_tests {
             beat: 0.5,
             start: 0.0,
             end: 3.0,
-            delay: 0.0,
+            delay: Amount::Fixed(0.0),
             slur: false,
             velocity: 64,
         };

@@ -1,0 +1,355 @@
+//! Sound from moving images (Unemi, "Synthesis of sound effects for generative
+//! animation", 2012): the statistics of each frame's vertical sub-regions, which the
+//! `frames` form turns into keyframed variables (`lower/frames.rs`) and
+//! `timbre sonify` maps to sound. Everything here is a pure function of the pixels.
+//!
+//! Colours are in HSB (hue, saturation, brightness; brightness = max(r, g, b)), each
+//! in [0, 1].
+
+/// Lanes of the harmonic brightness profile (the paper's 12 overtones, Eq. 2).
+pub const ROWS: usize = 12;
+/// Samples of the row-brightness scan waveform.
+pub const SCAN: usize = 32;
+/// Sub-regions at most (the paper's eight sound sources).
+pub const MAX_REGIONS: usize = 8;
+
+/// A decoded frame: `width × height` pixels, row by row from the top, RGB in [0, 1].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<[f64; 3]>,
+}
+
+impl Image {
+    /// A PNG or JPEG file's pixels (any colour type, made RGB).
+    pub fn decode(bytes: &[u8]) -> Result<Image, String> {
+        let decoded = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+        let rgb = decoded.to_rgb8();
+        let (width, height) = (rgb.width() as usize, rgb.height() as usize);
+        if width == 0 || height == 0 {
+            return Err("the image has no pixels".into());
+        }
+        let pixels = rgb
+            .pixels()
+            .map(|p| p.0.map(|c| f64::from(c) / 255.0))
+            .collect();
+        Ok(Image {
+            width,
+            height,
+            rgb: pixels,
+        })
+    }
+
+    fn hsb(&self, x: usize, y: usize) -> [f64; 3] {
+        hsb(self.rgb[y * self.width + x])
+    }
+}
+
+/// Hue, saturation and brightness of an RGB colour (hue in turns, 0 for greys).
+pub fn hsb([r, g, b]: [f64; 3]) -> [f64; 3] {
+    let max = r.max(g).max(b);
+    let min = r.min(g).min(b);
+    let chroma = max - min;
+    let saturation = if max > 0.0 { chroma / max } else { 0.0 };
+    let hue = if chroma == 0.0 {
+        0.0
+    } else if max == r {
+        ((g - b) / chroma).rem_euclid(6.0) / 6.0
+    } else if max == g {
+        ((b - r) / chroma + 2.0) / 6.0
+    } else {
+        ((r - g) / chroma + 4.0) / 6.0
+    };
+    [hue, saturation, max]
+}
+
+/// The statistics of one sub-region of one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Features {
+    /// Mean brightness → pitch.
+    pub brightness: f64,
+    /// Its standard deviation → the low-pass filter's width.
+    pub brightness_deviation: f64,
+    /// Mean saturation → amplitude-modulation rate; its deviation → depth.
+    pub saturation: f64,
+    pub saturation_deviation: f64,
+    /// Mean hue (circular, weighted by saturation, in turns) → frequency-modulation
+    /// rate; its circular deviation → depth.
+    pub hue: f64,
+    pub hue_deviation: f64,
+    /// Mean |b − v| against the weighted average of recent frames (Eq. 1) → loudness.
+    pub motion: f64,
+    /// Mean absolute brightness difference of neighbouring pixels → white noise.
+    pub roughness: f64,
+    /// Mean over rows of the brightness variance along the row → stereo phase shift.
+    pub row_variance: f64,
+    /// Centre of gravity of brightness across and down the region, in [0, 1] →
+    /// a note's attack delay and tail.
+    pub centroid_x: f64,
+    pub centroid_y: f64,
+    /// Mean brightness of 12 horizontal bands, top to bottom (the overtones, Eq. 2).
+    pub rows: [f64; ROWS],
+    /// The row-brightness scan: one period of a waveform in [−1, 1] (method 1).
+    pub scan: [f64; SCAN],
+}
+
+/// The sub-region `r` of `regions` (vertical strips, left to right): its columns.
+pub fn columns(width: usize, regions: usize, r: usize) -> std::ops::Range<usize> {
+    (r * width / regions)..((r + 1) * width / regions).max(r * width / regions + 1)
+}
+
+/// Each frame's features, region by region (`[frame][region]`). Motion compares a
+/// frame's brightness to the running average `v_t = α·b_{t−1} + (1 − α)·v_{t−1}`,
+/// `v_0 = b_0` (the paper's Eq. 1), so the first frame has no motion. Frames must
+/// share one size.
+pub fn analyse(frames: &[Image], regions: usize, alpha: f64) -> Vec<Vec<Features>> {
+    let Some(first) = frames.first() else {
+        return vec![];
+    };
+    let (w, h) = (first.width, first.height);
+    let brightness = |f: &Image| -> Vec<f64> { f.rgb.iter().map(|c| hsb(*c)[2]).collect() };
+    let mut average = brightness(first);
+    let mut previous = average.clone();
+    let mut out = vec![];
+    for (t, frame) in frames.iter().enumerate() {
+        let b = brightness(frame);
+        if t > 0 {
+            for (v, b_prev) in average.iter_mut().zip(&previous) {
+                *v = alpha * b_prev + (1.0 - alpha) * *v;
+            }
+        }
+        let per_region = (0..regions)
+            .map(|r| region_features(frame, &b, &average, columns(w, regions, r), h))
+            .collect();
+        out.push(per_region);
+        previous = b;
+    }
+    out
+}
+
+fn region_features(
+    frame: &Image,
+    b: &[f64],
+    average: &[f64],
+    xs: std::ops::Range<usize>,
+    height: usize,
+) -> Features {
+    let w = frame.width;
+    let n = (xs.len() * height) as f64;
+    let at = |x: usize, y: usize| b[y * w + x];
+    let pixels = || (0..height).flat_map(|y| xs.clone().map(move |x| (x, y)));
+    let mean = |f: &dyn Fn(usize, usize) -> f64| pixels().map(|(x, y)| f(x, y)).sum::<f64>() / n;
+    let deviation = |f: &dyn Fn(usize, usize) -> f64, m: f64| {
+        (pixels().map(|(x, y)| (f(x, y) - m).powi(2)).sum::<f64>() / n).sqrt()
+    };
+    let brightness = mean(&at);
+    let saturation_of = |x: usize, y: usize| frame.hsb(x, y)[1];
+    let saturation = mean(&saturation_of);
+
+    // Hue is an angle: its mean and deviation are circular, each pixel weighted by
+    // its saturation (a grey has no hue).
+    let (mut s, mut c, mut weight) = (0.0, 0.0, 0.0);
+    for (x, y) in pixels() {
+        let [hue, sat, _] = frame.hsb(x, y);
+        let angle = std::f64::consts::TAU * hue;
+        s += sat * angle.sin();
+        c += sat * angle.cos();
+        weight += sat;
+    }
+    let (hue, hue_deviation) = if weight > 0.0 {
+        let length = (s.hypot(c) / weight).min(1.0);
+        let deviation = (-2.0 * length.max(1e-12).ln()).sqrt() / std::f64::consts::TAU;
+        (
+            s.atan2(c).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU,
+            deviation.min(1.0),
+        )
+    } else {
+        (0.0, 0.0)
+    };
+
+    let motion = mean(&|x, y| (at(x, y) - average[y * w + x]).abs());
+    let mut differences = (0.0, 0usize);
+    for (x, y) in pixels() {
+        if x + 1 < xs.end {
+            differences.0 += (at(x + 1, y) - at(x, y)).abs();
+            differences.1 += 1;
+        }
+        if y + 1 < height {
+            differences.0 += (at(x, y + 1) - at(x, y)).abs();
+            differences.1 += 1;
+        }
+    }
+    let roughness = if differences.1 > 0 {
+        differences.0 / differences.1 as f64
+    } else {
+        0.0
+    };
+
+    let row_means: Vec<f64> = (0..height)
+        .map(|y| xs.clone().map(|x| at(x, y)).sum::<f64>() / xs.len() as f64)
+        .collect();
+    let row_variance = (0..height)
+        .map(|y| {
+            xs.clone()
+                .map(|x| (at(x, y) - row_means[y]).powi(2))
+                .sum::<f64>()
+                / xs.len() as f64
+        })
+        .sum::<f64>()
+        / height as f64;
+
+    let total: f64 = pixels().map(|(x, y)| at(x, y)).sum();
+    let (centroid_x, centroid_y) = if total > 0.0 {
+        let span = |len: usize| (len.max(2) - 1) as f64;
+        (
+            pixels()
+                .map(|(x, y)| at(x, y) * (x - xs.start) as f64)
+                .sum::<f64>()
+                / total
+                / span(xs.len()),
+            pixels().map(|(x, y)| at(x, y) * y as f64).sum::<f64>() / total / span(height),
+        )
+    } else {
+        (0.5, 0.5)
+    };
+
+    let band = |k: usize, bands: usize| {
+        let (y0, y1) = (
+            k * height / bands,
+            ((k + 1) * height / bands).max(k * height / bands + 1),
+        );
+        row_means[y0..y1.min(height)].iter().sum::<f64>() / (y1.min(height) - y0) as f64
+    };
+    let rows = std::array::from_fn(|k| band(k, ROWS));
+    Features {
+        brightness,
+        brightness_deviation: deviation(&at, brightness),
+        saturation,
+        saturation_deviation: deviation(&saturation_of, saturation),
+        hue,
+        hue_deviation,
+        motion,
+        roughness,
+        row_variance,
+        centroid_x,
+        centroid_y,
+        rows,
+        scan: scan(&row_means),
+    }
+}
+
+/// The row-brightness scan (method 1): the row means resampled to [`SCAN`] samples,
+/// scaled linearly to [−1, 1], faded in over the first quarter and out over the
+/// last so that each period joins the next, and smoothed by a three-point moving
+/// average (around the period).
+pub fn scan(row_means: &[f64]) -> [f64; SCAN] {
+    let resampled: Vec<f64> = (0..SCAN)
+        .map(|i| {
+            let y = (i as f64 + 0.5) * row_means.len() as f64 / SCAN as f64;
+            row_means[(y as usize).min(row_means.len() - 1)]
+        })
+        .collect();
+    let (lo, hi) = resampled
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let quarter = SCAN as f64 / 4.0;
+    let shaped: Vec<f64> = resampled
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let unit = if hi > lo {
+                2.0 * (v - lo) / (hi - lo) - 1.0
+            } else {
+                0.0
+            };
+            let fade = ((i as f64 + 0.5) / quarter)
+                .min((SCAN as f64 - i as f64 - 0.5) / quarter)
+                .min(1.0);
+            unit * fade
+        })
+        .collect();
+    std::array::from_fn(|i| {
+        let (a, b, c) = (
+            shaped[(i + SCAN - 1) % SCAN],
+            shaped[i],
+            shaped[(i + 1) % SCAN],
+        );
+        (a + b + c) / 3.0
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(width: usize, height: usize, pixel: impl Fn(usize, usize) -> [f64; 3]) -> Image {
+        let rgb = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| pixel(x, y))
+            .collect();
+        Image { width, height, rgb }
+    }
+
+    #[test]
+    fn colours_convert_to_hue_saturation_and_brightness() {
+        assert_eq!(hsb([1.0, 0.0, 0.0]), [0.0, 1.0, 1.0]);
+        assert_eq!(hsb([0.0, 1.0, 0.0]), [1.0 / 3.0, 1.0, 1.0]);
+        assert_eq!(hsb([0.0, 0.0, 0.5]), [2.0 / 3.0, 1.0, 0.5]);
+        assert_eq!(hsb([0.4, 0.4, 0.4]), [0.0, 0.0, 0.4]);
+    }
+
+    #[test]
+    fn brightness_motion_and_roughness_are_measured_per_region() {
+        // Left half a flat grey that brightens; right half a checkerboard that stays.
+        let frames: Vec<Image> = (0..4)
+            .map(|t| {
+                image(8, 6, |x, y| {
+                    let v = if x < 4 {
+                        0.2 + 0.2 * t as f64
+                    } else {
+                        ((x + y) % 2) as f64
+                    };
+                    [v, v, v]
+                })
+            })
+            .collect();
+        let features = analyse(&frames, 2, 0.5);
+        assert_eq!(features.len(), 4);
+        let (left, right) = (&features[3][0], &features[3][1]);
+        assert!((left.brightness - 0.8).abs() < 1e-12);
+        assert!((right.brightness - 0.5).abs() < 1e-12);
+        assert_eq!(left.roughness, 0.0);
+        assert_eq!(right.roughness, 1.0);
+        assert_eq!(features[0][0].motion, 0.0);
+        // v_1 = 0.5·b_0 + 0.5·v_0 = 0.2, v_2 = 0.5·0.4 + 0.5·0.2 = 0.3,
+        // v_3 = 0.5·0.6 + 0.5·0.3 = 0.45: the motion is 0.8 − 0.45.
+        assert!((left.motion - 0.35).abs() < 1e-12, "{}", left.motion);
+        assert_eq!(right.motion, 0.0);
+        assert!(left.brightness_deviation < 1e-12);
+        assert!((right.brightness_deviation - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn hue_centroid_rows_and_scan() {
+        // A red top half over a dark bottom: saturated red, bright at the top.
+        let frame = image(4, 12, |_, y| {
+            if y < 6 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.1, 0.1, 0.1]
+            }
+        });
+        let f = &analyse(&[frame], 1, 0.3)[0][0];
+        assert!(f.hue.abs() < 1e-12 || (f.hue - 1.0).abs() < 1e-12);
+        assert!(f.hue_deviation < 1e-6);
+        assert!((f.saturation - 0.5).abs() < 1e-12);
+        assert!(f.centroid_y < 0.5 && (f.centroid_x - 0.5).abs() < 1e-12);
+        assert_eq!(f.rows[0], 1.0);
+        assert!((f.rows[11] - 0.1).abs() < 1e-12);
+        // The scan starts and ends near 0 (faded) and is bright (positive) above.
+        assert!(f.scan[0].abs() < 0.5 && f.scan[SCAN - 1].abs() < 0.5);
+        assert!(f.scan[SCAN / 4] > 0.5 && f.scan[3 * SCAN / 4] < -0.5);
+        assert!(f.scan.iter().all(|v| (-1.0..=1.0).contains(v)));
+    }
+}
