@@ -353,3 +353,44 @@ mod tests {
         assert!(f.scan.iter().all(|v| (-1.0..=1.0).contains(v)));
     }
 }
+
+#[cfg(test)]
+mod decode_tests {
+    use super::*;
+    use image::ImageEncoder;
+
+    #[test]
+    fn png_and_jpeg_frames_decode_to_the_same_picture() {
+        let (w, h) = (16u32, 8u32);
+        let pixels: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let v = if i % w < w / 2 { 40 } else { 220 };
+                [v, v, v]
+            })
+            .collect();
+        let mut png = vec![];
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&pixels, w, h, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let mut jpeg = vec![];
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+            .write_image(&pixels, w, h, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let (a, b) = (Image::decode(&png).unwrap(), Image::decode(&jpeg).unwrap());
+        assert_eq!((a.width, a.height), (16, 8));
+        let mean = |f: &Image| {
+            analyse(std::slice::from_ref(f), 2, 0.3)[0]
+                .iter()
+                .map(|r| r.brightness)
+                .collect::<Vec<_>>()
+        };
+        let (pa, pb) = (mean(&a), mean(&b));
+        assert!((pa[0] - 40.0 / 255.0).abs() < 1e-12 && (pa[1] - 220.0 / 255.0).abs() < 1e-12);
+        // JPEG is lossy: within a few levels.
+        assert!(
+            pa.iter().zip(&pb).all(|(x, y)| (x - y).abs() < 0.03),
+            "{pa:?} {pb:?}"
+        );
+        assert!(Image::decode(b"not an image").is_err());
+    }
+}
