@@ -650,8 +650,8 @@ fn write_scores(
         ));
     }
     if let Some(path) = midi {
-        audio_out::replace_file(path, &score::midi_file(&program.scores))
-            .map_err(Failure::Message)?;
+        let bytes = score::midi_file(&program.scores).map_err(Failure::Message)?;
+        audio_out::replace_file(path, &bytes).map_err(Failure::Message)?;
     }
     match notes {
         Some(path) if path.as_os_str() == "-" => write_stdout(&score::listing(&program.scores)),

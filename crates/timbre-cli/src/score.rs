@@ -19,7 +19,7 @@ pub fn tempo_map(scores: &[Score]) -> TempoMap {
 /// The scores as a format-1 Standard MIDI File: a first track with the tempo, then
 /// a track per part, named after its score and part, on its own channel (skipping
 /// channel 10, percussion in General MIDI).
-pub fn midi_file(scores: &[Score]) -> Vec<u8> {
+pub fn midi_file(scores: &[Score]) -> Result<Vec<u8>, String> {
     let map = tempo_map(scores);
     let micros = map.changes()[0].1;
     let mut tracks = vec![vec![
@@ -46,6 +46,13 @@ pub fn midi_file(scores: &[Score]) -> Vec<u8> {
             events.push((off, false, note.key, 0));
         }
         events.sort_by_key(|(tick, on, key, _)| (*tick, *on, *key));
+        // A delta time has 28 bits: no gap between events may be longer.
+        if events.last().is_some_and(|e| e.0 > 0x0FFF_FFFF) {
+            return Err(format!(
+                "the score is too long for a MIDI file: more than {} ticks at {TICKS_PER_QUARTER} to a quarter note",
+                0x0FFF_FFFF
+            ));
+        }
         let mut track = vec![meta(0, MetaMessage::TrackName(names[index].as_bytes()))];
         let mut previous = 0;
         for (tick, on, key, velocity) in events {
@@ -82,7 +89,7 @@ pub fn midi_file(scores: &[Score]) -> Vec<u8> {
     let mut bytes = vec![];
     smf.write_std(&mut bytes)
         .expect("writing to memory cannot fail");
-    bytes
+    Ok(bytes)
 }
 
 fn meta(delta: u32, message: MetaMessage<'_>) -> TrackEvent<'_> {

@@ -257,6 +257,26 @@ fn bad_scores_are_diagnosed_at_their_part() {
     let result = run(["check", scene.to_str().unwrap()]);
     result.assert_code(1);
     assert!(result.stderr.contains("gate"), "{}", result.stderr);
+    // A score longer than 2^28 ticks: quarter notes of 2 ms (480 000 ticks a
+    // second) for 600 s, a note every 2 s.
+    let long = RISING
+        .replace("(scene :duration 8)", "(scene :duration 600)")
+        .replace(":beat 0.5", ":tempo 30000 :division 0.001 :end 600");
+    let scene = write(dir.path(), "long.tt", &long);
+    let (out, midi) = (dir.path().join("long.wav"), dir.path().join("long.mid"));
+    let result = run([
+        "render",
+        scene.to_str().unwrap(),
+        "-d",
+        "0.01",
+        "-o",
+        out.to_str().unwrap(),
+        "--midi",
+        midi.to_str().unwrap(),
+    ]);
+    result.assert_code(1);
+    result.assert_stderr_has("the score is too long for a MIDI file");
+    assert!(!midi.exists());
     // --midi without a score.
     let out = dir.path().join("x.wav");
     let plain = write(dir.path(), "plain.tt", "(sine (* t 440))");
