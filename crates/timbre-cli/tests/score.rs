@@ -295,3 +295,27 @@ fn bad_scores_are_diagnosed_at_their_part() {
     result.assert_stderr_has("the file has no `score` form");
     assert!(!dir.path().join("x.mid").exists());
 }
+
+/// `:bend` moves each note part of the way to the unquantised pitch: a variable held
+/// at 0.2 is pitch 62.4, snapped to D4 (62); bent by 0.5 it sounds at 62.2.
+#[test]
+fn bend_moves_the_note_toward_the_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let held = RISING
+        .replace("(8 2)", "(8 0.2)")
+        .replace("(0 0)", "(0 0.2)")
+        .replace(":scale blues :key C :octaves (3 5)", ":scale chromatic");
+    let hz = |bend: &str| {
+        let scene = write(
+            dir.path(),
+            "held.tt",
+            &held.replace(":tail 0.1", &format!(":tail 0.1 :bend {bend}")),
+        );
+        let wav = render_wav([scene.to_str().unwrap(), "-d", "2"]);
+        strongest_peak_in(&wav.samples[4_800..91_000], 48_000.0, 100.0, 1000.0)
+    };
+    let midi = |note: f64| 440.0 * ((note - 69.0) / 12.0).exp2();
+    let (straight, bent) = (hz("0"), hz("0.5"));
+    assert!((straight / midi(62.0) - 1.0).abs() < 0.002, "{straight}");
+    assert!((bent / midi(62.2) - 1.0).abs() < 0.002, "{bent}");
+}
