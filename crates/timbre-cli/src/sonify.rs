@@ -81,8 +81,9 @@ pub struct Mappings {
     /// Seconds per beat of the music.
     #[arg(long, default_value_t = 0.25)]
     pub beat: f64,
-    /// The music's rhythm: `random` (16-beat marks, seeded), `motion` (a note where
-    /// the brightness changes fast), or a pattern of x - . marks.
+    /// The music's rhythm: `random` (marks drawn per beat, seeded by region), `motion`
+    /// (a note where the region's image moves faster than a quarter of
+    /// --motion-full), or a pattern of x - . marks.
     #[arg(long, default_value = "random")]
     pub rhythm: String,
     /// How far each note bends toward the continuous pitch, 0 to 1.
@@ -304,7 +305,12 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
             let semitones = 12.0 * (m.high / m.low).log2();
             let rhythm = match m.rhythm.as_str() {
                 "random" => format!(":rhythm random :on 0.5 :hold 0.3 :seed {}", 1),
-                "motion" => ":rhythm motion :threshold 0.5 :min-duration 0.125".to_owned(),
+                // The paper's synchronised rhythm: a note when the region's image
+                // changes faster than a threshold (a quarter of full loudness's).
+                "motion" => format!(
+                    ":rhythm motion :trigger video-K-motion :threshold {} :min-duration 0.125",
+                    number(m.motion_full / 4.0)
+                ),
                 pattern => format!(":rhythm {pattern:?}"),
             };
             let mut parts = String::new();
@@ -321,7 +327,9 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
                     m.key,
                     number(offset),
                     number(semitones),
-                    rhythm.replace(":seed 1", &format!(":seed {k}")),
+                    rhythm
+                        .replace(":seed 1", &format!(":seed {k}"))
+                        .replace("video-K-", &format!("video-{k}-")),
                     number(m.bend),
                     number(m.max_delay),
                     number(m.max_tail),

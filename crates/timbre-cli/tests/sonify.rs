@@ -158,3 +158,44 @@ fn bad_frames_are_reported() {
     sized.assert_stderr_has("the first frame 8×8");
     assert!(!out.exists());
 }
+
+/// `--rhythm motion`: a region's notes start only while its image moves (Unemi's
+/// synchronised rhythm): the left half starts moving at 2 s, the right never does.
+#[test]
+fn motion_rhythm_plays_where_the_image_moves() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    write_animation(&frames, 48, (32, 16), |t, x, _| {
+        let shift = if x < 16 && t >= 24 { t } else { 0 };
+        grey(if (x + shift) % 4 < 2 { 0.9 } else { 0.1 })
+    });
+    let scene = run([
+        "sonify",
+        frames.to_str().unwrap(),
+        "--fps",
+        "12",
+        "--regions",
+        "2",
+        "--scale",
+        "blues",
+        "--rhythm",
+        "motion",
+        "--print-scene",
+    ]);
+    scene.assert_success();
+    let path = dir.path().join("moving.tt");
+    std::fs::write(&path, &scene.stdout).unwrap();
+    let notes = run(["check", "--notes", path.to_str().unwrap()]);
+    notes.assert_success();
+    let parts: Vec<&str> = notes.stdout.split("\npart ").skip(1).collect();
+    let onsets = |part: &str| -> Vec<f64> {
+        part.lines()
+            .skip(2)
+            .filter_map(|l| l.split_whitespace().next()?.parse().ok())
+            .collect()
+    };
+    let (left, right) = (onsets(parts[0]), onsets(parts[1]));
+    assert!(left.len() >= 4, "{}", notes.stdout);
+    assert!(left.iter().all(|t| *t >= 2.0), "{left:?}");
+    assert!(right.is_empty(), "{right:?}");
+}

@@ -31,6 +31,7 @@ const PART_OPTIONS: &[&str] = &[
     "threshold",
     "min-duration",
     "frame-rate",
+    "trigger",
     "velocity",
     "delay",
     "tail",
@@ -321,10 +322,25 @@ impl Lowerer<'_> {
                             "give :frame-rate between 0 and 1000 frames per second",
                         ));
                     }
+                    let trigger = match options.get("trigger") {
+                        None => None,
+                        Some(t) => match t.as_symbol().and_then(|v| self.keyframes.get(v)) {
+                            Some(track) => Some(track.clone()),
+                            None => {
+                                return Err(bad(
+                                    self,
+                                    t,
+                                    format!("`:trigger` is a keyframed variable, not {}", t.describe()),
+                                    "name a variable whose level starts notes, such as an image's motion",
+                                ))
+                            }
+                        },
+                    };
                     Rhythm::Motion {
                         threshold,
                         min_duration,
                         frame_rate,
+                        trigger,
                     }
                 }
                 _ => {

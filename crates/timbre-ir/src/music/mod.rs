@@ -93,11 +93,13 @@ pub enum Rhythm {
     Random { on: f64, hold: f64, seed: u64 },
     /// A note wherever the variable moves faster than `threshold` units per second
     /// (read `frame_rate` times a second), at least `min_duration` after the last
-    /// note's start; each lasts to the next.
+    /// note's start; each lasts to the next. With a `trigger`, wherever that
+    /// variable (a speed already, such as an image's motion) is above `threshold`.
     Motion {
         threshold: f64,
         min_duration: f64,
         frame_rate: f64,
+        trigger: Option<std::sync::Arc<KeyframeTrack>>,
     },
 }
 
@@ -173,6 +175,7 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
         threshold,
         min_duration,
         frame_rate,
+        trigger,
     } = rhythm
     {
         let frames = ((end - start) * frame_rate).floor() as u64;
@@ -181,7 +184,10 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
         for j in 1..=frames {
             let time = start + j as f64 / frame_rate;
             let value = track.value(time);
-            let speed = (value - previous).abs() * frame_rate;
+            let speed = match trigger {
+                Some(trigger) => trigger.value(time),
+                None => (value - previous).abs() * frame_rate,
+            };
             previous = value;
             let onset = time + delay.at(time);
             let rested = notes
@@ -353,6 +359,7 @@ mod motion_tests {
                 threshold: 10.0,
                 min_duration: 0.25,
                 frame_rate: 100.0,
+                trigger: None,
             },
             beat: 0.5,
             start: 0.0,
@@ -371,5 +378,26 @@ mod motion_tests {
         assert_eq!(notes[0].key, 60 + 6); // half-way up the first jump: 0.5 → 66
         assert!((notes[0].duration - 1.0).abs() < 1e-9);
         assert!((notes[1].start + notes[1].duration - 3.0).abs() < 1e-9);
+
+        // Triggered by another variable's level instead: above 0.5 from 0.5 s to
+        // 0.7 s and from 2.5 s on.
+        let level = vec![0.0, 0.9, 0.9, 0.0, 0.0, 0.9];
+        let times = vec![0.0, 0.5, 0.7, 0.71, 2.5, 2.51];
+        let trigger = KeyframeTrack::new(times, level, Interpolation::Step).unwrap();
+        let triggered = Playing {
+            rhythm: Rhythm::Motion {
+                threshold: 0.5,
+                min_duration: 0.1,
+                frame_rate: 100.0,
+                trigger: Some(std::sync::Arc::new(trigger)),
+            },
+            ..playing
+        };
+        let onsets: Vec<i64> = super::notes(&track, &mapping, &triggered)
+            .iter()
+            .map(|n| (n.start * 100.0).round() as i64)
+            .collect();
+        // Every 0.1 s while it is high: 0.50, 0.60, 0.70, then 2.51, 2.61, ….
+        assert_eq!(onsets[..4], [50, 60, 70, 251]);
     }
 }
