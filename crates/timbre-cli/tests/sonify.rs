@@ -199,3 +199,60 @@ fn motion_rhythm_plays_where_the_image_moves() {
     assert!(left.iter().all(|t| *t >= 2.0), "{left:?}");
     assert!(right.is_empty(), "{right:?}");
 }
+
+/// The rows' brightness variance delays the right channel (at most 2 ms): a centred
+/// region of vertical stripes (variance 0.16, past the full-delay point 1/8) is
+/// heard 96 samples later on the right at 48 kHz. The scan waveform keeps the
+/// region's pitch, 110 · 8^b Hz.
+#[test]
+fn stripes_delay_the_right_channel_and_the_scan_keeps_the_pitch() {
+    let dir = tempfile::tempdir().unwrap();
+    write_animation(&dir.path().join("frames"), 12, (16, 12), |_, x, y| {
+        grey(if x % 2 == 0 { 0.9 } else { 0.1 } * if y < 6 { 1.0 } else { 0.8 })
+    });
+    let (left, right) = sonify(
+        dir.path(),
+        "12",
+        &["--regions", "1", "--waveform", "scan", "--octave-mix", "0"],
+    );
+    let lag = (0..200)
+        .max_by(|a, b| {
+            let score =
+                |lag: usize| -> f64 { (10_000..40_000).map(|i| left[i] * right[i + lag]).sum() };
+            score(*a).total_cmp(&score(*b))
+        })
+        .unwrap();
+    assert_eq!(lag, 96);
+    // Mean brightness: max(r, g, b) of 8-bit greys, averaged over the frame.
+    let level = |v: f64| (v * 255.0f64).round() / 255.0;
+    let b = (level(0.9) + level(0.1) + level(0.72) + level(0.08)) / 4.0;
+    let pitch = strongest_peak_in(&left[4_800..37_568], SR, 50.0, 2_000.0);
+    let f = 110.0 * 8f64.powf(b);
+    assert!((pitch / f - 1.0).abs() < 0.01, "{pitch} vs {f}");
+}
+
+/// Saturation sets the amplitude modulation: half pure red, half white (saturation
+/// mean 0.5, deviation 0.5) beats at 0.5 + 7.5 · 0.5 = 4.25 Hz, half deep.
+#[test]
+fn saturation_sets_the_amplitude_modulation() {
+    let dir = tempfile::tempdir().unwrap();
+    write_animation(&dir.path().join("frames"), 36, (16, 8), |_, x, _| {
+        if x < 8 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [1.0, 1.0, 1.0]
+        }
+    });
+    let (left, _) = sonify(dir.path(), "12", &["--regions", "1", "--octave-mix", "0"]);
+    // The level every 10 ms, its mean taken out.
+    let envelope: Vec<f64> = left[..3 * 48_000].chunks(480).map(rms).collect();
+    let mean = envelope.iter().sum::<f64>() / envelope.len() as f64;
+    let wobble: Vec<f64> = envelope.iter().map(|e| e - mean).collect();
+    let rate = strongest_peak_in(&wobble, 100.0, 1.0, 20.0);
+    assert!((rate - 4.25).abs() < 0.15, "{rate} Hz");
+    let (lo, hi) = envelope[20..]
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(lo, hi), e| (lo.min(*e), hi.max(*e)));
+    // Gain 1 − 0.5·(0.5 + 0.5 sin): between 0.5 and 1.
+    assert!((lo / hi - 0.5).abs() < 0.1, "{lo} / {hi}");
+}
