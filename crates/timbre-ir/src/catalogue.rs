@@ -23,10 +23,10 @@ use crate::dsp::expressive::{
 };
 use crate::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator};
 use crate::dsp::noise::{hash2, MarkovNoise, PinkNoise};
-use crate::dsp::tube::{Quantity, Tube, TubeError, ALUMINIUM};
+use crate::dsp::tube::{Quantity, Tube, TubeError, ALUMINIUM, MATERIALS};
 use crate::error::Diag;
 use crate::graph::NodeId;
-use crate::lower::{Bound, Call, Lowerer, Origin, Scope, MAX_BUFFER_SECONDS, MAX_LANES};
+use crate::lower::{Bound, Call, Lowerer, Origin, Scope, Seed, MAX_BUFFER_SECONDS, MAX_LANES};
 use crate::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 
 pub use crate::lower::FORMS;
@@ -85,7 +85,7 @@ pub(crate) enum Build {
     Fold(BinaryOp),
     /// Anything else, from arguments bound to the parameters.
     Args(fn(&mut Lowerer<'_>, &Bound<'_>) -> Result<NodeId, Diag>),
-    /// A node that binds its own arguments (its first one is a file name).
+    /// A node that binds its own arguments (a file name first, or `:material`).
     Form(fn(&mut Lowerer<'_>, &Call<'_>, &Origin, &mut Scope) -> Result<NodeId, Diag>),
 }
 
@@ -802,7 +802,7 @@ pub static NODES: &[NodeSpec] = &[
             opt("density", ALUMINIUM.density),
         ],
         PHYSICAL,
-        Build::Args(tube_modes),
+        Build::Form(tube_modes_form),
         "(* 0.1 (combine (* (sine (* t (tube-modes 5 0.3 0.025 0.022))) (damp (* t 3)))))",
     )
     .constant()
@@ -1137,6 +1137,88 @@ fn sputter(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
         }
     };
     Ok(l.stateful(Sputter { curve }, b.nodes()[..3].to_vec()))
+}
+
+/// `tube-modes` with `:material NAME` written as that material's `:youngs` and
+/// `:density`, then bound as any call.
+fn tube_modes_form(
+    l: &mut Lowerer<'_>,
+    call: &Call<'_>,
+    origin: &Origin,
+    scope: &mut Scope,
+) -> Result<NodeId, Diag> {
+    use timbre_syntax::{Expr, ExprKind};
+    let names: Vec<&str> = MATERIALS.iter().map(|m| m.name).collect();
+    let mut args: Vec<Expr> = vec![];
+    let mut i = 0;
+    while i < call.args.len() {
+        let arg = &call.args[i];
+        let (ExprKind::Keyword(key), Some(value)) = (&arg.kind, call.args.get(i + 1)) else {
+            args.push(arg.clone());
+            i += 1;
+            continue;
+        };
+        if key != "material" {
+            args.extend([arg.clone(), value.clone()]);
+            i += 2;
+            continue;
+        }
+        let material = value
+            .as_symbol()
+            .and_then(|name| MATERIALS.iter().find(|m| m.name == name));
+        let Some(material) = material else {
+            return Err(l
+                .diag(
+                    "timbre::bad-tube",
+                    match value.as_symbol() {
+                        Some(name) => format!("unknown material `{name}`"),
+                        None => format!("a material is a name, not {}", value.describe()),
+                    },
+                    origin,
+                )
+                .label(value.span, "not a material")
+                .help(format!(
+                    "the materials are {}; or give :youngs and :density",
+                    names.join(", ")
+                )));
+        };
+        let explicit = call
+            .args
+            .iter()
+            .find(|a| matches!(&a.kind, ExprKind::Keyword(k) if k == "youngs" || k == "density"));
+        if let Some(explicit) = explicit {
+            return Err(l
+                .diag(
+                    "timbre::duplicate-argument",
+                    "the material is given twice",
+                    origin,
+                )
+                .label(value.span, "a named material")
+                .label(explicit.span, "and its own constants")
+                .help("give :material, or :youngs and :density"));
+        }
+        let at = |kind| Expr::new(kind, value.span);
+        args.extend([
+            at(ExprKind::Keyword("youngs".into())),
+            at(ExprKind::Number(material.youngs)),
+            at(ExprKind::Keyword("density".into())),
+            at(ExprKind::Number(material.density)),
+        ]);
+        i += 2;
+    }
+    let spec = lookup("tube-modes").expect("in the catalogue");
+    let call = Call {
+        args: &args,
+        ..*call
+    };
+    let bound = l.bind_args(&call, spec.params, false, false, origin, scope)?;
+    let bound = Bound {
+        call: &call,
+        args: bound.args.into_iter().flatten().collect(),
+        seed: Seed::Key(None),
+        origin,
+    };
+    tube_modes(l, &bound)
 }
 
 /// The modal frequencies of a tube (`dsp::tube`): `n` constant lanes, in Hz.

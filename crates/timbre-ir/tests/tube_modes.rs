@@ -342,3 +342,46 @@ fn an_inner_diameter_not_below_the_outer_points_at_both() {
         ]
     );
 }
+
+#[test]
+fn a_material_by_name_is_its_table_row() {
+    for material in timbre_ir::dsp::tube::MATERIALS {
+        let named = lanes(
+            &format!("(tube-modes 3 0.4 0.03 0.026 :material {})", material.name),
+            &[],
+        );
+        let expected_modes = expected(3, 0.4, 0.03, 0.026, material.youngs, material.density);
+        assert_within(&named, &expected_modes, 1e-12, material.name);
+    }
+    let error = |source: &str| {
+        let diags = compile_with(source, &[], 0).unwrap_err();
+        let first = &diags.0[0];
+        let span = first.span().unwrap();
+        (
+            first.code.to_string(),
+            first.message.clone(),
+            source[span.start..span.end].to_owned(),
+            first.help.clone().unwrap_or_default(),
+        )
+    };
+    assert_eq!(
+        error("(combine (tube-modes 3 0.4 0.03 0.026 :material gold))"),
+        (
+            "timbre::bad-tube".to_owned(),
+            "unknown material `gold`".to_owned(),
+            "gold".to_owned(),
+            "the materials are aluminium, steel, brass, bamboo; or give :youngs and :density"
+                .to_owned()
+        )
+    );
+    let (code, message, at, _) =
+        error("(combine (tube-modes 3 0.4 0.03 0.026 :material steel :density 7800))");
+    assert_eq!(
+        (code.as_str(), message.as_str(), at.as_str()),
+        (
+            "timbre::duplicate-argument",
+            "the material is given twice",
+            "steel"
+        )
+    );
+}
