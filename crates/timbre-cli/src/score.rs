@@ -120,7 +120,7 @@ pub fn listing(scores: &[Score]) -> String {
             );
             text += "   start s  length s  note  key   freq Hz  velocity\n";
             for note in &part.notes {
-                let hz = 440.0 * ((f64::from(note.key) - 69.0) / 12.0).exp2();
+                let hz = timbre_ir::op::UnaryOp::MidiHz.apply(f64::from(note.key));
                 text += &format!(
                     "{:>10.3}{:>10.3}  {:<4}{:>5}{:>10.2}{:>10}\n",
                     note.start,

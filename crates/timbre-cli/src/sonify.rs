@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
+use timbre_ir::frames::Numbered;
 
 /// The two waveforms of the paper's section 3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -114,8 +115,8 @@ pub fn frame_files(frames: &str) -> Result<Vec<String>, String> {
             .filter_map(|e| Some(e.ok()?.path()))
             .filter(|p| p.is_file() && is_image(p))
             .collect()
-    } else if let Some((before, after, width)) = split_numbered(frames) {
-        let name = |k: u64| PathBuf::from(format!("{before}{k:0width$}{after}"));
+    } else if let Some(numbered) = Numbered::parse(frames) {
+        let name = |k: u64| PathBuf::from(numbered.path(k));
         let first = if name(0).exists() { 0 } else { 1 };
         (first..).map(name).take_while(|p| p.exists()).collect()
     } else if frames.contains('*') {
@@ -151,19 +152,6 @@ pub fn frame_files(frames: &str) -> Result<Vec<String>, String> {
         .iter()
         .map(|p| p.to_string_lossy().into_owned())
         .collect())
-}
-
-/// `before%0Nd…after` split around its number: (before, after, N).
-fn split_numbered(pattern: &str) -> Option<(String, String, usize)> {
-    let at = pattern.find('%')?;
-    let rest = &pattern[at + 1..];
-    let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
-    let after = rest[digits.len()..].strip_prefix('d')?;
-    Some((
-        pattern[..at].to_owned(),
-        after.to_owned(),
-        digits.parse().unwrap_or(0),
-    ))
 }
 
 /// Whether `name` matches `pattern`, where `*` stands for any run of characters.
@@ -359,18 +347,5 @@ mod tests {
         let mut names = vec!["f10.png", "f2.png", "f1.png"];
         names.sort_by_key(|n| natural(n));
         assert_eq!(names, ["f1.png", "f2.png", "f10.png"]);
-    }
-
-    #[test]
-    fn numbered_patterns_split_around_their_number() {
-        assert_eq!(
-            split_numbered("frames/f-%03d.png"),
-            Some(("frames/f-".into(), ".png".into(), 3))
-        );
-        assert_eq!(
-            split_numbered("f%d.jpg"),
-            Some(("f".into(), ".jpg".into(), 0))
-        );
-        assert_eq!(split_numbered("f.png"), None);
     }
 }

@@ -314,12 +314,7 @@ fn wind_chimes_ring_at_their_tube_modes_over_blues_music() {
     }
     let notes = run(["check", "--notes", example("wind-chimes").to_str().unwrap()]);
     notes.assert_success();
-    let keys: Vec<u8> = notes
-        .stdout
-        .lines()
-        .filter(|line| line.starts_with("  "))
-        .filter_map(|line| line.split_whitespace().nth(3)?.parse().ok())
-        .collect();
+    let keys = listed_keys(&notes.stdout);
     assert!(keys.len() > 40, "{}", notes.stdout);
     assert!(keys.iter().all(|k| [0, 3, 5, 6, 7, 10].contains(&(k % 12))));
     let summary = run(["check", example("wind-chimes").to_str().unwrap()]);

@@ -25,8 +25,8 @@ fn write(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
     path
 }
 
-/// A note as (start s, length s, key, velocity).
-type Note = (f64, f64, u8, u8);
+/// A note as (start s, length s, key, velocity), as the listing has it too.
+type Note = ListedNote;
 
 /// Each part's name and notes in a MIDI file, read through a tempo map built from
 /// the file's own tempo events.
@@ -85,12 +85,7 @@ fn a_rising_variable_plays_rising_notes_of_the_scale() {
     let scene = write(dir.path(), "rising.tt", RISING);
     let listing = run(["check", "--notes", scene.to_str().unwrap()]);
     listing.assert_success();
-    let keys: Vec<u8> = listing
-        .stdout
-        .lines()
-        .filter(|line| line.starts_with("  "))
-        .filter_map(|line| line.split_whitespace().nth(3)?.parse().ok())
-        .collect();
+    let keys = listed_keys(&listing.stdout);
     assert_eq!(keys.len(), 12, "{}", listing.stdout);
     assert!(keys.windows(2).all(|w| w[1] > w[0]), "{keys:?}");
     for key in &keys {
@@ -142,24 +137,7 @@ fn the_midi_file_reads_back_to_the_same_notes() {
     let names: Vec<&str> = parts.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(names, ["tune bass", "tune lead"]);
     // The listing's notes, part by part, against the file's.
-    let listed: Vec<Vec<Note>> = listing
-        .split("\npart ")
-        .skip(1)
-        .map(|part| {
-            part.lines()
-                .skip(2)
-                .map(|line| {
-                    let f: Vec<&str> = line.split_whitespace().collect();
-                    (
-                        f[0].parse().unwrap(),
-                        f[1].parse().unwrap(),
-                        f[3].parse().unwrap(),
-                        f[5].parse().unwrap(),
-                    )
-                })
-                .collect()
-        })
-        .collect();
+    let listed = listed_notes(&listing);
     assert_eq!(listed.len(), 2);
     for ((name, read), written) in parts.iter().zip(&listed) {
         assert_eq!(read.len(), written.len(), "{name}");
@@ -197,10 +175,10 @@ fn motion_rhythm_starts_notes_where_the_variable_jumps() {
     let scene = write(dir.path(), "motion.tt", text);
     let listing = run(["check", "--notes", scene.to_str().unwrap()]);
     listing.assert_success();
-    let starts: Vec<f64> = listing
-        .stdout
-        .lines()
-        .filter_map(|line| line.split_whitespace().next()?.parse().ok())
+    let starts: Vec<f64> = listed_notes(&listing.stdout)
+        .concat()
+        .iter()
+        .map(|n| n.0)
         .collect();
     // The rise at 1 s (first frame 1.01), not the fall at 1.2 s (0.19 s later,
     // within the minimum), and the rise at 2 s.

@@ -107,12 +107,7 @@ fn with_a_scale_the_notes_are_the_scale_s() {
     std::fs::write(&path, &scene.stdout).unwrap();
     let notes = run(["check", "--notes", path.to_str().unwrap()]);
     notes.assert_success();
-    let keys: Vec<u8> = notes
-        .stdout
-        .lines()
-        .filter(|l| l.starts_with("  "))
-        .filter_map(|l| l.split_whitespace().nth(3)?.parse().ok())
-        .collect();
+    let keys = listed_keys(&notes.stdout);
     assert!(keys.len() > 12, "{}", notes.stdout);
     // D major pentatonic: D E F# A B.
     assert!(
@@ -187,14 +182,9 @@ fn motion_rhythm_plays_where_the_image_moves() {
     std::fs::write(&path, &scene.stdout).unwrap();
     let notes = run(["check", "--notes", path.to_str().unwrap()]);
     notes.assert_success();
-    let parts: Vec<&str> = notes.stdout.split("\npart ").skip(1).collect();
-    let onsets = |part: &str| -> Vec<f64> {
-        part.lines()
-            .skip(2)
-            .filter_map(|l| l.split_whitespace().next()?.parse().ok())
-            .collect()
-    };
-    let (left, right) = (onsets(parts[0]), onsets(parts[1]));
+    let parts = listed_notes(&notes.stdout);
+    let onsets = |part: &[ListedNote]| -> Vec<f64> { part.iter().map(|n| n.0).collect() };
+    let (left, right) = (onsets(&parts[0]), onsets(&parts[1]));
     assert!(left.len() >= 4, "{}", notes.stdout);
     assert!(left.iter().all(|t| *t >= 2.0), "{left:?}");
     assert!(right.is_empty(), "{right:?}");

@@ -46,6 +46,38 @@ impl Image {
     }
 }
 
+/// A file-name pattern with one `%d` or `%0Nd` for the frame number.
+pub struct Numbered {
+    before: String,
+    width: usize,
+    after: String,
+}
+
+impl Numbered {
+    /// The pattern's parts, if it has a `%d` or `%0Nd`.
+    pub fn parse(pattern: &str) -> Option<Numbered> {
+        let at = pattern.find('%')?;
+        let rest = &pattern[at + 1..];
+        let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+        let after = rest[digits.len()..].strip_prefix('d')?;
+        Some(Numbered {
+            before: pattern[..at].to_owned(),
+            width: digits.parse().unwrap_or(0),
+            after: after.to_owned(),
+        })
+    }
+
+    /// The file name of frame `k`.
+    pub fn path(&self, k: u64) -> String {
+        format!(
+            "{}{k:0width$}{}",
+            self.before,
+            self.after,
+            width = self.width
+        )
+    }
+}
+
 /// Hue, saturation and brightness of an RGB colour (hue in turns, 0 for greys).
 pub fn hsb([r, g, b]: [f64; 3]) -> [f64; 3] {
     let max = r.max(g).max(b);
@@ -289,6 +321,15 @@ mod tests {
             .map(|(x, y)| pixel(x, y))
             .collect();
         Image { width, height, rgb }
+    }
+
+    #[test]
+    fn numbered_patterns_put_the_frame_number_in_place() {
+        let padded = Numbered::parse("frames/f-%03d.png").unwrap();
+        assert_eq!(padded.path(7), "frames/f-007.png");
+        assert_eq!(Numbered::parse("f%d.jpg").unwrap().path(12), "f12.jpg");
+        assert!(Numbered::parse("f.png").is_none());
+        assert!(Numbered::parse("f%x.png").is_none());
     }
 
     #[test]

@@ -2,8 +2,11 @@
 //! node for node, for every node of the catalogue, every example and conformance
 //! file, every instance of their scenes, and a thousand random trees.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::Path;
+
+use common::tt_files;
 use rand::SeedableRng;
 use timbre_ir::generate::{random_tree, GenConfig};
 use timbre_ir::{
@@ -48,20 +51,6 @@ fn sounds(program: &Program) -> Vec<(String, NodeId)> {
     for instance in &program.instances {
         found.push((instance.name.clone(), instance.sound(&program.graph)));
     }
-    found
-}
-
-fn tt_files(dir: &Path) -> Vec<PathBuf> {
-    let mut found = vec![];
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            found.extend(tt_files(&path));
-        } else if path.extension().is_some_and(|e| e == "tt") {
-            found.push(path);
-        }
-    }
-    found.sort();
     found
 }
 

@@ -2,26 +2,14 @@
 //! and formatting are idempotent, keep the meaning (the same expressions parse back),
 //! and formatting keeps every comment.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
+use common::tt_files;
 use rand::SeedableRng;
 use timbre_ir::generate::{random_tree, GenConfig};
 use timbre_syntax::{format_source, parse, print};
-
-/// The `.tt` files under `dir`, recursively.
-fn tt_files(dir: &Path) -> Vec<PathBuf> {
-    let mut found = vec![];
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            found.extend(tt_files(&path));
-        } else if path.extension().is_some_and(|e| e == "tt") {
-            found.push(path);
-        }
-    }
-    found.sort();
-    found
-}
 
 /// The expressions of a text, as their values print (spans and spelling aside).
 fn meaning(text: &str) -> Vec<String> {

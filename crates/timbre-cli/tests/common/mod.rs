@@ -176,3 +176,34 @@ pub fn dir_entries(dir: &Path) -> Vec<String> {
     names.sort();
     names
 }
+
+/// A note of a `--notes` listing: onset and length in seconds, MIDI key, velocity.
+pub type ListedNote = (f64, f64, u8, u8);
+
+/// The notes of a `--notes` listing (`timbre check --notes`), part by part.
+pub fn listed_notes(listing: &str) -> Vec<Vec<ListedNote>> {
+    listing
+        .split("\npart ")
+        .skip(1)
+        .map(|part| {
+            // The part's title and the column headings, then a note a line.
+            part.lines()
+                .skip(2)
+                .map(|line| {
+                    let f: Vec<&str> = line.split_whitespace().collect();
+                    (
+                        f[0].parse().unwrap(),
+                        f[1].parse().unwrap(),
+                        f[3].parse().unwrap(),
+                        f[5].parse().unwrap(),
+                    )
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The MIDI keys of every note of a listing, part after part.
+pub fn listed_keys(listing: &str) -> Vec<u8> {
+    listed_notes(listing).concat().iter().map(|n| n.2).collect()
+}

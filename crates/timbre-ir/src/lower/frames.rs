@@ -15,7 +15,7 @@ use timbre_syntax::{Expr, ExprKind};
 
 use super::{Lowerer, Origin};
 use crate::error::Diag;
-use crate::frames::{analyse, Features, Image, MAX_REGIONS};
+use crate::frames::{analyse, Features, Image, Numbered, MAX_REGIONS};
 use crate::keyframes::{Interpolation, KeyframeTrack};
 
 const USAGE: &str = "(frames name :pattern \"frames/f-%03d.png\" :fps 24 :regions 4)";
@@ -144,14 +144,18 @@ impl Lowerer<'_> {
                         .loader
                         .load(&numbered.path(k), origin.dir.as_deref())
                 };
-                let mut k = first.unwrap_or(if load(self, 0).is_ok() { 0 } else { 1 });
+                let mut k = first.unwrap_or(0);
                 let mut paths = vec![];
                 while paths.len() < MAX_FRAMES {
-                    let path = numbered.path(k);
                     match load(self, k) {
-                        Ok((_, bytes)) => paths.push((path, pattern.span, Some(bytes))),
+                        Ok((_, bytes)) => paths.push((numbered.path(k), pattern.span, Some(bytes))),
+                        // Without `:first`, the numbers may start at 1.
+                        Err(_) if paths.is_empty() && first.is_none() && k == 0 => {}
                         // The first frame's error is reported below.
-                        Err(_) if paths.is_empty() => paths.push((path, pattern.span, None)),
+                        Err(_) if paths.is_empty() => {
+                            paths.push((numbered.path(k), pattern.span, None));
+                            break;
+                        }
                         Err(_) => break,
                     }
                     k += 1;
@@ -238,35 +242,5 @@ impl Lowerer<'_> {
             }
         }
         Ok(())
-    }
-}
-
-/// A file-name pattern with one `%d` or `%0Nd` for the frame number.
-struct Numbered {
-    before: String,
-    width: usize,
-    after: String,
-}
-
-impl Numbered {
-    fn parse(pattern: &str) -> Option<Numbered> {
-        let at = pattern.find('%')?;
-        let rest = &pattern[at + 1..];
-        let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
-        let after = rest[digits.len()..].strip_prefix('d')?;
-        Some(Numbered {
-            before: pattern[..at].to_owned(),
-            width: digits.parse().unwrap_or(0),
-            after: after.to_owned(),
-        })
-    }
-
-    fn path(&self, k: u64) -> String {
-        format!(
-            "{}{k:0width$}{}",
-            self.before,
-            self.after,
-            width = self.width
-        )
     }
 }

@@ -55,3 +55,18 @@ pub fn constant(text: &str, bindings: &[(&str, f64)], seed: u64) -> f64 {
         .scalar(program.root.unwrap())
         .unwrap_or_else(|| panic!("{text} is not constant"))
 }
+
+/// The `.tt` files under `dir`, recursively, in name order.
+pub fn tt_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut found = vec![];
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            found.extend(tt_files(&path));
+        } else if path.extension().is_some_and(|e| e == "tt") {
+            found.push(path);
+        }
+    }
+    found.sort();
+    found
+}
