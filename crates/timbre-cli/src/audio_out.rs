@@ -1,6 +1,7 @@
 //! Writing rendered sound: WAV or FLAC to a file, or WAV to standard output. A file
-//! is never left truncated: samples go to a temporary file next to the target, which
-//! is renamed over it only when complete. WAV sample data is encoded a chunk at a
+//! is never left truncated: samples go to the temporary file of an `output::Output`,
+//! which is renamed over the target only when complete. FLAC is encoded a block at a
+//! time, so memory stays flat whatever the length. WAV sample data is encoded a chunk at a
 //! time (a sample at a time through an encoder's checks was a sixth of the time of a
 //! fast render).
 
@@ -8,6 +9,8 @@ use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::output::Output;
 
 /// Most bytes of sample data a WAV file can describe (its sizes are 32-bit, and the
 /// RIFF size also counts the header bytes after it).
@@ -42,15 +45,23 @@ pub enum Container {
 }
 
 /// Where the sound goes.
-#[derive(Clone, Copy, Debug)]
-pub enum Destination<'a> {
-    File(&'a Path),
+pub enum Destination {
+    /// A file, prepared before rendering (`output::prepare`).
+    File(Output),
     /// Standard output, as a WAV stream whose header is written first.
     Stdout,
 }
 
+impl Destination {
+    fn name(&self) -> PathBuf {
+        match self {
+            Destination::File(output) => output.path().to_path_buf(),
+            Destination::Stdout => PathBuf::from("<stdout>"),
+        }
+    }
+}
+
 pub struct OutputJob<'a> {
-    pub destination: Destination<'a>,
     pub container: Container,
     pub sample_rate: u32,
     /// Interleaved channels per frame.
@@ -90,133 +101,195 @@ pub enum WriteError {
     Interrupted,
     #[error("{0}")]
     Render(String),
+    /// The file was written but could not be moved into place.
+    #[error("{0}")]
+    Commit(String),
 }
 
 /// Renders up to `job.frames` frames with `render` (called with successive chunks of
 /// interleaved frames; it returns `Some(k)` when the sound is over after the chunk's
-/// first `k` frames) and writes them. On any failure or interruption the temporary
-/// file is removed and the target is left as it was.
+/// first `k` frames) and writes them. A file is committed only when whole: on any
+/// failure or interruption its temporary file is removed and the target is left as
+/// it was.
 pub fn write_audio(
+    destination: Destination,
     job: &OutputJob<'_>,
     mut render: impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
 ) -> Result<Summary, WriteError> {
-    match job.destination {
+    let path = destination.name();
+    let io = |source| WriteError::Io {
+        path: path.clone(),
+        source,
+    };
+    match destination {
         Destination::Stdout => {
-            let path = PathBuf::from("<stdout>");
             let mut out = BufWriter::new(std::io::stdout().lock());
-            let io = |source| WriteError::Io {
-                path: path.clone(),
-                source,
-            };
             write_wav_header(&mut out, job, job.frames).map_err(io)?;
-            let mut writer = Writer::Stream(&mut out);
-            let summary = pump(job, &mut render, &mut writer, true)?;
+            let summary = pump(job, &path, &mut render, &mut Writer::Stream(&mut out), true)?;
             out.flush().map_err(io)?;
             Ok(summary)
         }
-        Destination::File(path) => {
-            let target = &output_file(path).map_err(|message| WriteError::Encode {
-                path: path.to_path_buf(),
-                message,
-            })?;
-            let temp = temp_path(target);
-            let result = write_file(&temp, target, job, &mut render).and_then(|summary| {
-                let io = |source| WriteError::Io {
-                    path: target.to_path_buf(),
-                    source,
-                };
-                // The file written keeps the permissions of the one it replaces.
-                if let Ok(old) = std::fs::metadata(target) {
-                    std::fs::set_permissions(&temp, old.permissions()).map_err(io)?;
+        Destination::File(mut output) => {
+            let summary = match job.container {
+                Container::Wav => {
+                    // The header says `job.frames`; if the sound ends sooner it is
+                    // written again with the frames there are.
+                    let mut out = BufWriter::new(output.file());
+                    write_wav_header(&mut out, job, job.frames).map_err(io)?;
+                    let summary = pump(
+                        job,
+                        &path,
+                        &mut render,
+                        &mut Writer::Stream(&mut out),
+                        false,
+                    )?;
+                    let file = out.into_inner().map_err(|e| io(e.into_error()))?;
+                    if summary.frames != job.frames {
+                        file.seek(SeekFrom::Start(0)).map_err(io)?;
+                        write_wav_header(file, job, summary.frames).map_err(io)?;
+                    }
+                    summary
                 }
-                std::fs::rename(&temp, target).map_err(io)?;
-                Ok(summary)
-            });
-            if result.is_err() {
-                let _ = std::fs::remove_file(&temp);
-            }
-            result
-        }
-    }
-}
-
-fn write_file(
-    temp: &Path,
-    target: &Path,
-    job: &OutputJob<'_>,
-    render: &mut impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
-) -> Result<Summary, WriteError> {
-    let io = |source| WriteError::Io {
-        path: target.to_path_buf(),
-        source,
-    };
-    let encode = |message: String| WriteError::Encode {
-        path: target.to_path_buf(),
-        message,
-    };
-    match job.container {
-        Container::Wav => {
-            // The header says `job.frames`; if the sound ends sooner it is written
-            // again with the frames there are.
-            let mut out = BufWriter::new(File::create(temp).map_err(io)?);
-            write_wav_header(&mut out, job, job.frames).map_err(io)?;
-            let summary = pump(job, render, &mut Writer::Stream(&mut out), false)?;
-            let mut file = out.into_inner().map_err(|e| io(e.into_error()))?;
-            if summary.frames != job.frames {
-                file.seek(SeekFrom::Start(0)).map_err(io)?;
-                write_wav_header(&mut file, job, summary.frames).map_err(io)?;
-            }
-            Ok(summary)
-        }
-        Container::Flac => {
-            // The encoder takes the whole sound at once: 4 bytes per sample in memory
-            // (an hour of 48 kHz mono is 691 MB), then the file is written in one go.
-            let mut writer = Writer::Collect(vec![]);
-            let summary = pump(job, render, &mut writer, false)?;
-            let Writer::Collect(samples) = writer else {
-                unreachable!("the writer made above")
+                Container::Flac => {
+                    let bits = if job.format == SampleFormat::S16 {
+                        16
+                    } else {
+                        24
+                    };
+                    let flac = FlacStream::new(output.file(), job.channels, bits, job.sample_rate)
+                        .map_err(|message| WriteError::Encode {
+                            path: path.clone(),
+                            message,
+                        })?;
+                    let mut writer = Writer::Flac(Box::new(flac));
+                    let summary = pump(job, &path, &mut render, &mut writer, false)?;
+                    let Writer::Flac(flac) = writer else {
+                        unreachable!("the writer made above")
+                    };
+                    flac.finish().map_err(|message| WriteError::Encode {
+                        path: path.clone(),
+                        message,
+                    })?;
+                    summary
+                }
             };
-            let bits = if job.format == SampleFormat::S16 {
-                16
-            } else {
-                24
-            };
-            let bytes = encode_flac(&samples, job.channels as usize, bits, job.sample_rate)
-                .map_err(encode)?;
-            std::fs::write(temp, bytes).map_err(io)?;
+            output.commit().map_err(WriteError::Commit)?;
             Ok(summary)
         }
     }
 }
 
-fn encode_flac(
-    samples: &[i32],
+/// A FLAC file written a block at a time (memory stays flat whatever the length):
+/// a placeholder STREAMINFO first, each frame as it is encoded, then the STREAMINFO
+/// again with the totals, the frame sizes and the MD5 of the samples.
+struct FlacStream<'f> {
+    out: BufWriter<&'f mut File>,
+    config: flacenc::error::Verified<flacenc::config::Encoder>,
+    info: flacenc::component::StreamInfo,
+    frame: flacenc::source::FrameBuf,
+    context: flacenc::source::Context,
+    /// Interleaved samples not yet encoded (less than a block).
+    pending: Vec<i32>,
+    block_frames: usize,
     channels: usize,
-    bits: usize,
-    sample_rate: u32,
-) -> Result<Vec<u8>, String> {
-    use flacenc::component::BitRepr;
-    use flacenc::error::Verify;
-    let config = flacenc::config::Encoder::default()
-        .into_verified()
-        .map_err(|(_, e)| format!("{e:?}"))?;
-    let source =
-        flacenc::source::MemSource::from_samples(samples, channels, bits, sample_rate as usize);
-    let stream = flacenc::encode_with_fixed_block_size(&config, source, config.block_size)
-        .map_err(|e| e.to_string())?;
-    let mut sink = flacenc::bitsink::ByteSink::new();
-    stream.write(&mut sink).map_err(|e| e.to_string())?;
-    Ok(sink.as_slice().to_vec())
+    sink: flacenc::bitsink::ByteSink,
 }
 
-enum Writer<'w> {
+impl<'f> FlacStream<'f> {
+    fn new(
+        file: &'f mut File,
+        channels: u16,
+        bits: usize,
+        sample_rate: u32,
+    ) -> Result<Self, String> {
+        use flacenc::error::Verify;
+        let config = flacenc::config::Encoder::default()
+            .into_verified()
+            .map_err(|(_, e)| format!("{e:?}"))?;
+        let channels = usize::from(channels);
+        let block_frames = config.block_size;
+        let mut info = flacenc::component::StreamInfo::new(sample_rate as usize, channels, bits)
+            .map_err(|e| e.to_string())?;
+        info.set_block_sizes(block_frames, block_frames)
+            .map_err(|e| e.to_string())?;
+        let mut stream = FlacStream {
+            out: BufWriter::new(file),
+            frame: flacenc::source::FrameBuf::with_size(channels, block_frames)
+                .map_err(|e| e.to_string())?,
+            context: flacenc::source::Context::new(bits, channels),
+            pending: Vec::with_capacity(block_frames * channels),
+            block_frames,
+            channels,
+            sink: flacenc::bitsink::ByteSink::new(),
+            config,
+            info,
+        };
+        stream.write_header()?;
+        Ok(stream)
+    }
+
+    fn write_header(&mut self) -> Result<(), String> {
+        use flacenc::component::BitRepr;
+        let header = flacenc::component::Stream::with_stream_info(self.info.clone());
+        self.sink.clear();
+        header.write(&mut self.sink).map_err(|e| e.to_string())?;
+        self.out
+            .write_all(self.sink.as_slice())
+            .map_err(|e| e.to_string())
+    }
+
+    fn push(&mut self, samples: impl Iterator<Item = i32>) -> Result<(), String> {
+        for sample in samples {
+            self.pending.push(sample);
+            if self.pending.len() == self.block_frames * self.channels {
+                self.encode_pending()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn encode_pending(&mut self) -> Result<(), String> {
+        use flacenc::component::BitRepr;
+        use flacenc::source::Fill;
+        if self.pending.is_empty() {
+            return Ok(());
+        }
+        (&mut self.frame, &mut self.context)
+            .fill_interleaved(&self.pending)
+            .map_err(|e| e.to_string())?;
+        self.pending.clear();
+        let number = self.context.current_frame_number().unwrap_or(0);
+        let frame = flacenc::encode_fixed_size_frame(&self.config, &self.frame, number, &self.info)
+            .map_err(|e| e.to_string())?;
+        self.info.update_frame_info(&frame);
+        self.sink.clear();
+        frame.write(&mut self.sink).map_err(|e| e.to_string())?;
+        self.out
+            .write_all(self.sink.as_slice())
+            .map_err(|e| e.to_string())
+    }
+
+    fn finish(mut self) -> Result<(), String> {
+        self.encode_pending()?;
+        self.info.set_md5_digest(&self.context.md5_digest());
+        self.out.flush().map_err(|e| e.to_string())?;
+        self.out
+            .get_mut()
+            .seek(SeekFrom::Start(0))
+            .map_err(|e| e.to_string())?;
+        self.write_header()?;
+        self.out.flush().map_err(|e| e.to_string())
+    }
+}
+
+enum Writer<'w, 'f> {
     /// WAV sample data, little-endian.
     Stream(&'w mut dyn Write),
-    /// Integer samples kept for an encoder that needs them all.
-    Collect(Vec<i32>),
+    /// Integer samples encoded as FLAC a block at a time.
+    Flac(Box<FlacStream<'f>>),
 }
 
-impl Writer<'_> {
+impl Writer<'_, '_> {
     /// Writes `samples` (finite) in `format`, counting those an integer format clips;
     /// `bytes` is scratch space.
     fn write(
@@ -225,7 +298,7 @@ impl Writer<'_> {
         format: SampleFormat,
         bytes: &mut Vec<u8>,
         clipped: &mut u64,
-    ) -> std::io::Result<()> {
+    ) -> Result<(), String> {
         let bits = if format == SampleFormat::S16 { 16 } else { 24 };
         match self {
             Writer::Stream(out) => {
@@ -250,12 +323,9 @@ impl Writer<'_> {
                         }
                     }
                 }
-                out.write_all(bytes)
+                out.write_all(bytes).map_err(|e| e.to_string())
             }
-            Writer::Collect(kept) => {
-                kept.extend(samples.iter().map(|&y| quantise(y, bits, clipped)));
-                Ok(())
-            }
+            Writer::Flac(flac) => flac.push(samples.iter().map(|&y| quantise(y, bits, clipped))),
         }
     }
 }
@@ -263,15 +333,13 @@ impl Writer<'_> {
 /// Renders chunk after chunk into `writer`; with `exact`, pads to `job.frames`.
 fn pump(
     job: &OutputJob<'_>,
+    path: &Path,
     render: &mut impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
-    writer: &mut Writer<'_>,
+    writer: &mut Writer<'_, '_>,
     exact: bool,
 ) -> Result<Summary, WriteError> {
     let failed = |message: String| WriteError::Encode {
-        path: match job.destination {
-            Destination::File(p) => p.to_path_buf(),
-            Destination::Stdout => PathBuf::from("<stdout>"),
-        },
+        path: path.to_path_buf(),
         message,
     };
     let mut summary = Summary::default();
@@ -330,7 +398,7 @@ fn pump(
         summary.peak = summary.peak.max(peak(chunk));
         writer
             .write(chunk, job.format, &mut bytes, &mut summary.clipped)
-            .map_err(|e| failed(e.to_string()))?;
+            .map_err(failed)?;
         remaining -= kept as u64;
         summary.frames += kept as u64;
         if over && !exact {
@@ -393,17 +461,29 @@ fn quantise(y: f64, bits: u32, clipped: &mut u64) -> i32 {
 }
 
 /// Writes interleaved samples already in memory as a 32-bit float WAV file, through
-/// a temporary file like every output.
+/// `output::prepare` like every output (`reads`: the files the run has read).
 pub fn write_wav_samples(
     path: &Path,
     samples: &[f64],
     channels: usize,
     sample_rate: f64,
-    interrupted: &std::sync::atomic::AtomicBool,
+    reads: &[PathBuf],
+    interrupted: &AtomicBool,
+) -> Result<(), String> {
+    let output = crate::output::prepare(path, reads)?;
+    write_prepared_wav(output, samples, channels, sample_rate, interrupted)
+}
+
+/// [`write_wav_samples`] into an output already prepared.
+pub fn write_prepared_wav(
+    output: Output,
+    samples: &[f64],
+    channels: usize,
+    sample_rate: f64,
+    interrupted: &AtomicBool,
 ) -> Result<(), String> {
     let channels = channels.max(1);
     let job = OutputJob {
-        destination: Destination::File(path),
         container: Container::Wav,
         sample_rate: sample_rate as u32,
         channels: channels as u16,
@@ -412,90 +492,11 @@ pub fn write_wav_samples(
         interrupted,
     };
     let mut written = 0;
-    write_audio(&job, |out: &mut [f64]| {
+    write_audio(Destination::File(output), &job, |out: &mut [f64]| {
         out.copy_from_slice(&samples[written..written + out.len()]);
         written += out.len();
         Ok(None)
     })
     .map(|_| ())
     .map_err(|e| e.to_string())
-}
-
-/// Replaces the file at `path` (or creates it) with `bytes`: written to a temporary
-/// file beside it and renamed over it, keeping the old file's permissions, so that a
-/// failure leaves the old file whole. Refuses what `output_file` refuses.
-pub fn replace_file(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let target = output_file(path)?;
-    let temp = temp_path(&target);
-    let result = std::fs::write(&temp, bytes).and_then(|()| {
-        if let Ok(old) = std::fs::metadata(&target) {
-            std::fs::set_permissions(&temp, old.permissions())?;
-        }
-        std::fs::rename(&temp, &target)
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temp);
-    }
-    result.map_err(|e| e.to_string())
-}
-
-/// The file an output named `path` is written to: `path`, or the file a symbolic link
-/// at `path` leads to (the link is kept). Anything else that exists there is refused,
-/// since the output replaces it: a directory, a device such as `/dev/null`, a named
-/// pipe or a socket, and a link that leads nowhere.
-pub fn output_file(path: &Path) -> Result<PathBuf, String> {
-    let meta = match std::fs::symlink_metadata(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(path.to_path_buf()),
-        Err(e) => return Err(e.to_string()),
-        Ok(meta) => meta,
-    };
-    let target = if meta.file_type().is_symlink() {
-        std::fs::canonicalize(path).map_err(|_| {
-            "it is a symbolic link that leads nowhere; remove it or choose another name".to_string()
-        })?
-    } else {
-        path.to_path_buf()
-    };
-    let meta = std::fs::metadata(&target).map_err(|e| e.to_string())?;
-    if meta.is_file() {
-        return Ok(target);
-    }
-    let kind = if meta.is_dir() {
-        "a directory"
-    } else {
-        special_kind(&meta)
-    };
-    Err(format!(
-        "it is {kind}, not a regular file, and the output would replace it; choose a file name"
-    ))
-}
-
-#[cfg(unix)]
-fn special_kind(meta: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let kind = meta.file_type();
-    if kind.is_fifo() {
-        "a named pipe"
-    } else if kind.is_socket() {
-        "a socket"
-    } else if kind.is_char_device() || kind.is_block_device() {
-        "a device"
-    } else {
-        "a special file"
-    }
-}
-
-#[cfg(not(unix))]
-fn special_kind(_: &std::fs::Metadata) -> &'static str {
-    "a special file"
-}
-
-/// `dir/.name.partial-PID`: same directory (so the rename is atomic), hidden, and
-/// unique per process.
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "output.wav".into());
-    path.with_file_name(format!(".{name}.partial-{}", std::process::id()))
 }

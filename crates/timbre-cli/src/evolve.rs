@@ -71,9 +71,12 @@ struct Candidate {
 const SAMPLE_RATE: f64 = 48_000.0;
 
 pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
-    let text = std::fs::read_to_string(&args.seed_file).map_err(|e| {
+    let cannot = |e: &dyn std::fmt::Display| {
         Failure::Message(format!("cannot read `{}`: {e}", args.seed_file.display()))
-    })?;
+    };
+    let limit = timbre::Limits::default().script_bytes();
+    let bytes = timbre_ir::read_bounded(&args.seed_file, limit).map_err(|e| cannot(&e))?;
+    let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
     let seed = Genome::from_source(&text, args.class.as_deref())
         .map_err(|e| Failure::Message(format!("`{}`: {e}", args.seed_file.display())))?;
     match &args.target {
@@ -85,9 +88,12 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
 /// The search toward a recording: `--match-params` tunes the tree's numbers; else
 /// genetic programming with the best of each generation tuned.
 fn toward(args: &EvolveArgs, seed: Genome, path: &Path) -> Result<(), Failure> {
-    let (samples, rate) = read_mono(path)?;
-    let target = Target::new(&samples, rate, args.seconds);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("best.tt"));
+    // Checked first: the result may not replace the seed or the target.
+    let output = crate::output::prepare(&out, &[args.seed_file.clone(), path.to_path_buf()])
+        .map_err(Failure::Message)?;
+    let (samples, rate) = read_mono(path, args.seconds)?;
+    let target = Target::new(&samples, rate, args.seconds);
     let started = std::time::Instant::now();
     let before = target.measure(&seed);
     let (best, after, renders) = if args.match_params {
@@ -116,11 +122,13 @@ fn toward(args: &EvolveArgs, seed: Genome, path: &Path) -> Result<(), Failure> {
         (found.best, found.distance, found.renders)
     };
     let seconds = started.elapsed().as_secs_f64();
-    crate::audio_out::replace_file(
-        &out,
+    let mut output = output;
+    std::io::Write::write_all(
+        output.file(),
         best.scene_source(target.audition().seconds).as_bytes(),
     )
     .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", out.display())))?;
+    output.commit().map_err(Failure::Message)?;
     if !best.values.is_empty() {
         let values: Vec<String> = (best.params.iter().zip(&best.values))
             .map(|(p, v)| format!("{p} = {v:.6}"))
@@ -137,8 +145,9 @@ fn toward(args: &EvolveArgs, seed: Genome, path: &Path) -> Result<(), Failure> {
 }
 
 /// A WAV file's samples, its channels averaged, and its rate.
-fn read_mono(path: &Path) -> Result<(Vec<f64>, f64), Failure> {
-    let (raw, spec) = crate::read_wav(path)?;
+/// The first `seconds` of a WAV file (what the search compares), as one channel.
+fn read_mono(path: &Path, seconds: f64) -> Result<(Vec<f64>, f64), Failure> {
+    let (raw, spec) = crate::read_wav(path, seconds)?;
     let channels = usize::from(spec.channels.max(1));
     let mono = raw
         .chunks(channels)
@@ -160,6 +169,7 @@ fn by_ear(args: &EvolveArgs, seed: Genome) -> Result<(), Failure> {
         ..Settings::default()
     };
     let mut rng = rand::rngs::StdRng::seed_from_u64(args.seed);
+    let reads = [args.seed_file.clone()];
     let mut lineage = String::from("generation\tcandidate\torigin\trating\n");
     let population = args.population as usize;
     // The first generation: the seed and its mutants.
@@ -183,6 +193,7 @@ fn by_ear(args: &EvolveArgs, seed: Genome) -> Result<(), Failure> {
                 &dir.join(format!("{:02}.tt", k + 1)),
                 &candidate.genome,
                 args.seconds,
+                &reads,
             )?;
         }
         println!(
@@ -195,7 +206,7 @@ fn by_ear(args: &EvolveArgs, seed: Genome) -> Result<(), Failure> {
             let label = format!("{generation}.{}", k + 1);
             let samples = render(&candidate.genome, args.seconds)?;
             let wav = dir.join(format!("{:02}.wav", k + 1));
-            audition(&samples, &wav, &mut played_once)?;
+            audition(&samples, &wav, &reads, &mut played_once)?;
             loop {
                 print!(
                     "candidate {label} ({}): rate 0-9, r replay, s save, q quit > ",
@@ -211,10 +222,10 @@ fn by_ear(args: &EvolveArgs, seed: Genome) -> Result<(), Failure> {
                         quit = true;
                         break 'rating;
                     }
-                    "r" => audition(&samples, &wav, &mut played_once)?,
+                    "r" => audition(&samples, &wav, &reads, &mut played_once)?,
                     "s" => {
                         let saved = out.join(format!("saved-{generation:03}-{:02}.tt", k + 1));
-                        write(&saved, &candidate.genome, args.seconds)?;
+                        write(&saved, &candidate.genome, args.seconds, &reads)?;
                         println!("saved {}", saved.display());
                     }
                     digit if digit.len() == 1 && digit.as_bytes()[0].is_ascii_digit() => {
@@ -233,8 +244,8 @@ fn by_ear(args: &EvolveArgs, seed: Genome) -> Result<(), Failure> {
                 c.origin
             ));
         }
-        crate::audio_out::replace_file(&out.join("lineage.tsv"), lineage.as_bytes())
-            .map_err(|e| Failure::Message(format!("cannot write the lineage: {e}")))?;
+        crate::output::replace_file(&out.join("lineage.tsv"), lineage.as_bytes(), &reads)
+            .map_err(Failure::Message)?;
         if quit {
             println!("stopped; every generation is in {}", out.display());
             return Ok(());
@@ -327,9 +338,9 @@ fn offspring(
 }
 
 /// A candidate as a scene file: its class and an instance of it.
-fn write(path: &Path, genome: &Genome, seconds: f64) -> Result<(), Failure> {
-    crate::audio_out::replace_file(path, genome.scene_source(seconds).as_bytes())
-        .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", path.display())))
+fn write(path: &Path, genome: &Genome, seconds: f64, reads: &[PathBuf]) -> Result<(), Failure> {
+    crate::output::replace_file(path, genome.scene_source(seconds).as_bytes(), reads)
+        .map_err(Failure::Message)
 }
 
 /// A candidate's sound, through the `timbre` crate as `timbre render` makes it.
@@ -344,13 +355,18 @@ fn render(genome: &Genome, seconds: f64) -> Result<Vec<f64>, Failure> {
 }
 
 /// Plays a candidate; without a way to play, writes its WAV (and says so once).
-fn audition(samples: &[f64], wav: &Path, played_once: &mut bool) -> Result<(), Failure> {
+fn audition(
+    samples: &[f64],
+    wav: &Path,
+    reads: &[PathBuf],
+    played_once: &mut bool,
+) -> Result<(), Failure> {
     let cancel = AtomicBool::new(false);
     match crate::playback::play(samples, 1, SAMPLE_RATE, &cancel) {
         Ok(_) => Ok(()),
         Err(why) => {
-            crate::audio_out::write_wav_samples(wav, samples, 1, SAMPLE_RATE, &cancel)
-                .map_err(|e| Failure::Message(format!("cannot write `{}`: {e}", wav.display())))?;
+            crate::audio_out::write_wav_samples(wav, samples, 1, SAMPLE_RATE, reads, &cancel)
+                .map_err(Failure::Message)?;
             if !*played_once {
                 println!("cannot play ({why}): each candidate is written as a WAV to listen to");
                 *played_once = true;

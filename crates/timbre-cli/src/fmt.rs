@@ -54,8 +54,9 @@ pub fn fmt(args: FmtArgs) -> Result<(), Failure> {
             }
         } else if args.write {
             if formatted != text {
-                crate::audio_out::replace_file(path, formatted.as_bytes())
-                    .map_err(|e| Failure::Message(format!("cannot write `{name}`: {e}")))?;
+                // The file replaces itself: the one output that may be its own input.
+                crate::output::replace_file(path, formatted.as_bytes(), &[])
+                    .map_err(Failure::Message)?;
             }
         } else {
             print!("{formatted}");
@@ -77,12 +78,11 @@ fn read(path: &std::path::Path, stdin: bool) -> Result<String, Failure> {
     let cannot = |e: &dyn std::fmt::Display| {
         Failure::Message(format!("cannot read `{}`: {e}", path.display()))
     };
+    let limit = timbre::Limits::default().script_bytes();
     let bytes = if stdin {
-        let mut bytes = vec![];
-        std::io::Read::read_to_end(&mut std::io::stdin(), &mut bytes).map_err(|e| cannot(&e))?;
-        bytes
+        crate::input::read_stdin(limit).map_err(|e| cannot(&e))?
     } else {
-        timbre_ir::read_bounded(path, timbre_ir::MAX_FILE_BYTES).map_err(|e| cannot(&e))?
+        timbre_ir::read_bounded(path, limit).map_err(|e| cannot(&e))?
     };
     String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))
 }

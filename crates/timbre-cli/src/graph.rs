@@ -125,8 +125,11 @@ fn escape(text: &str) -> String {
     text.replace('"', "\\\"")
 }
 
-/// Writes DOT to `path`, or for `.svg`/`.png` renders it with `dot`.
-pub fn write(text: &str, path: &Path) -> Result<(), String> {
+/// Writes DOT to `path`, or for `.svg`/`.png` renders it with `dot`; `reads` are
+/// the files the run has read (none of them is replaced).
+pub fn write(text: &str, path: &Path, reads: &[std::path::PathBuf]) -> Result<(), String> {
+    // Checked and created first: `dot` does not run for an output that is refused.
+    let mut output = crate::output::prepare(path, reads)?;
     let format = path.extension().and_then(|e| e.to_str()).unwrap_or("dot");
     let bytes = match format {
         "svg" | "png" => {
@@ -159,6 +162,7 @@ pub fn write(text: &str, path: &Path) -> Result<(), String> {
         _ => text.as_bytes().to_vec(),
     };
     // Written beside it and renamed over it: never a half-drawn picture.
-    crate::audio_out::replace_file(path, &bytes)
-        .map_err(|e| format!("cannot write `{}`: {e}", path.display()))
+    std::io::Write::write_all(output.file(), &bytes)
+        .map_err(|e| format!("cannot write `{}`: {e}", path.display()))?;
+    output.commit()
 }

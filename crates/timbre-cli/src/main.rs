@@ -10,6 +10,8 @@ mod bench;
 mod evolve;
 mod fmt;
 mod graph;
+mod input;
+mod output;
 mod playback;
 mod plot;
 mod repl;
@@ -438,6 +440,7 @@ fn parse_sample_rate(text: &str) -> Result<f64, String> {
 }
 
 fn main() -> ExitCode {
+    output::ignore_file_size_signal();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(*args),
@@ -529,17 +532,17 @@ fn compile_source(args: &SourceArgs) -> Result<Source, Failure> {
     let (source, dir) = match (&args.file, &args.expr) {
         (_, Some(expr)) => (SourceFile::new("<expr>", expr.as_str()), None),
         (Some(path), None) if path.as_os_str() == "-" => {
-            let mut bytes = vec![];
-            let mut stdin = std::io::Read::take(std::io::stdin(), limit + 1);
-            std::io::Read::read_to_end(&mut stdin, &mut bytes)
-                .map_err(|e| Failure::Message(format!("cannot read standard input: {e}")))?;
-            if bytes.len() as u64 > limit {
-                return Err(Failure::Message(format!(
-                    "cannot read standard input: more than {} MiB, the most a script may be (--no-limits allows {} MiB)",
-                    limit >> 20,
-                    timbre_ir::MAX_FILE_BYTES >> 20
-                )));
-            }
+            let bytes = input::read_stdin(limit).map_err(|e| {
+                let more = if e.kind() == std::io::ErrorKind::InvalidInput {
+                    format!(
+                        " (--no-limits allows {} MiB)",
+                        timbre_ir::MAX_FILE_BYTES >> 20
+                    )
+                } else {
+                    String::new()
+                };
+                Failure::Message(format!("cannot read standard input: {e}{more}"))
+            })?;
             let text = String::from_utf8(bytes).map_err(|_| {
                 Failure::Message("cannot read standard input: it is not UTF-8 text".into())
             })?;
@@ -604,7 +607,7 @@ fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
     if args.output.as_os_str() == "-" {
         return write_stdout(&text);
     }
-    graph::write(&text, &args.output).map_err(Failure::Message)
+    graph::write(&text, &args.output, &source.inputs).map_err(Failure::Message)
 }
 
 fn check(args: CheckArgs) -> Result<(), Failure> {
@@ -618,7 +621,7 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
         return print_lowered(program);
     }
     if args.notes {
-        return write_scores(program, None, Some(Path::new("-")));
+        return Scores::prepare(program, None, Some(Path::new("-")))?.write(None, None);
     }
     let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let what = match program.root {
@@ -638,26 +641,114 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// `--midi` and `--notes`: the scores of the scene, each written whole or not at all.
-fn write_scores(
-    program: &timbre_ir::Program,
-    midi: Option<&Path>,
-    notes: Option<&Path>,
-) -> Result<(), Failure> {
-    if (midi.is_some() || notes.is_some()) && program.scores.is_empty() {
-        return Err(Failure::Message(
-            "the file has no `score` form, so it has no notes to write".into(),
-        ));
+/// `--midi` and `--notes`: the scores of the scene, made before anything is rendered
+/// (a score MIDI cannot hold is refused first), written whole or not at all.
+struct Scores {
+    midi: Option<Vec<u8>>,
+    notes: Option<String>,
+    notes_to_stdout: bool,
+}
+
+impl Scores {
+    fn prepare(
+        program: &timbre_ir::Program,
+        midi: Option<&Path>,
+        notes: Option<&Path>,
+    ) -> Result<Scores, Failure> {
+        if (midi.is_some() || notes.is_some()) && program.scores.is_empty() {
+            return Err(Failure::Message(
+                "the file has no `score` form, so it has no notes to write".into(),
+            ));
+        }
+        Ok(Scores {
+            midi: midi
+                .map(|_| score::midi_file(&program.scores))
+                .transpose()
+                .map_err(Failure::Message)?,
+            notes: notes.map(|_| score::listing(&program.scores)),
+            notes_to_stdout: notes.is_some_and(|p| p.as_os_str() == "-"),
+        })
     }
-    if let Some(path) = midi {
-        let bytes = score::midi_file(&program.scores).map_err(Failure::Message)?;
-        audio_out::replace_file(path, &bytes).map_err(Failure::Message)?;
+
+    /// Writes the MIDI file and the listing into their prepared outputs (the
+    /// listing to standard output when it was asked for there).
+    fn write(
+        self,
+        midi: Option<output::Output>,
+        notes: Option<output::Output>,
+    ) -> Result<(), Failure> {
+        let put = |output: output::Output, bytes: &[u8]| {
+            let mut output = output;
+            std::io::Write::write_all(output.file(), bytes).map_err(|e| {
+                Failure::Message(format!("cannot write `{}`: {e}", output.path().display()))
+            })?;
+            output.commit().map_err(Failure::Message)
+        };
+        if let (Some(output), Some(bytes)) = (midi, &self.midi) {
+            put(output, bytes)?;
+        }
+        match (notes, &self.notes) {
+            (Some(output), Some(text)) => put(output, text.as_bytes()),
+            (None, Some(text)) if self.notes_to_stdout => write_stdout(text),
+            _ => Ok(()),
+        }
     }
-    match notes {
-        Some(path) if path.as_os_str() == "-" => write_stdout(&score::listing(&program.scores)),
-        Some(path) => audio_out::replace_file(path, score::listing(&program.scores).as_bytes())
-            .map_err(Failure::Message),
-        None => Ok(()),
+}
+
+/// The files a render writes besides standard output, each checked against the
+/// files the render reads and against the others, and created, before rendering.
+struct RenderOutputs {
+    /// None for `-o -`.
+    sound: Option<output::Output>,
+    pictures: plot::PictureOutputs,
+    midi: Option<output::Output>,
+    /// None for `--notes -` (or no listing).
+    notes: Option<output::Output>,
+}
+
+impl RenderOutputs {
+    fn prepare(
+        args: &RenderArgs,
+        container: Container,
+        reads: &[PathBuf],
+    ) -> Result<RenderOutputs, Failure> {
+        let is_stdout = |p: &Path| p.as_os_str() == "-";
+        let to_stdout = is_stdout(&args.output);
+        if to_stdout {
+            output::check_stdout().map_err(Failure::Message)?;
+            if args.notes.as_deref().is_some_and(is_stdout) {
+                return Err(Failure::Message(
+                    "`-o -` and `--notes -` would both write to standard output; write the notes to a file".into(),
+                ));
+            }
+        }
+        let pictures = [&args.pictures.spectrogram, &args.pictures.wave];
+        if pictures.iter().any(|p| p.is_some()) && (to_stdout || container != Container::Wav) {
+            return Err(Failure::Message(
+                "pictures are drawn from the WAV file the render writes: give `-o FILE.wav` (or draw a FLAC's with `timbre plot` after converting it)".into(),
+            ));
+        }
+        let asked: [Option<&Path>; 5] = [
+            Some(args.output.as_path()).filter(|p| !is_stdout(p)),
+            args.pictures.spectrogram.as_deref(),
+            args.pictures.wave.as_deref(),
+            args.midi.as_deref(),
+            args.notes.as_deref().filter(|p| !is_stdout(p)),
+        ];
+        let paths: Vec<&Path> = asked.iter().flatten().copied().collect();
+        let mut prepared = output::prepare_all(&paths, reads)
+            .map_err(Failure::Message)?
+            .into_iter();
+        let mut take = |asked: Option<&Path>| asked.and_then(|_| prepared.next());
+        Ok(RenderOutputs {
+            sound: take(asked[0]),
+            pictures: plot::PictureOutputs {
+                spectrogram: take(asked[1]),
+                wave: take(asked[2]),
+            },
+            midi: take(asked[3]),
+            notes: take(asked[4]),
+        })
     }
 }
 
@@ -965,28 +1056,8 @@ fn interrupt_flag() -> Arc<AtomicBool> {
     interrupted
 }
 
-/// The canonical form of a path that may not exist yet: its directory's canonical
-/// path and its name.
-fn canonical_target(path: &Path) -> Option<PathBuf> {
-    let dir = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    Some(std::fs::canonicalize(dir).ok()?.join(path.file_name()?))
-}
-
 fn render(args: RenderArgs) -> Result<(), Failure> {
     let source = compile_source(&args.source)?;
-    let inputs = &source.inputs;
-    let resolved = audio_out::output_file(&args.output).unwrap_or_else(|_| args.output.clone());
-    if let Some(target) = canonical_target(&resolved).filter(|_| args.output.as_os_str() != "-") {
-        if inputs.contains(&target) {
-            return Err(Failure::Message(format!(
-                "refusing to overwrite `{}`: the render reads it; choose another output name",
-                args.output.display()
-            )));
-        }
-    }
     let to_stdout = args.output.as_os_str() == "-";
     let container = if to_stdout {
         Container::Wav
@@ -1027,14 +1098,21 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
             plan.sample_rate
         )));
     }
+    // Every output is checked, and its file created, before anything is rendered;
+    // from then on an interruption is caught, so that they are removed.
     let interrupted = interrupt_flag();
+    let scores = Scores::prepare(
+        source.file.program(),
+        args.midi.as_deref(),
+        args.notes.as_deref(),
+    )?;
+    let mut outputs = RenderOutputs::prepare(&args, container, &source.inputs)?;
     let (length, scale) = measured(&plan, &args.sound, to_stdout, &interrupted)?;
+    let destination = match outputs.sound.take() {
+        Some(output) => Destination::File(output),
+        None => Destination::Stdout,
+    };
     let job = OutputJob {
-        destination: if to_stdout {
-            Destination::Stdout
-        } else {
-            Destination::File(&args.output)
-        },
         container,
         sample_rate: plan.sample_rate as u32,
         channels: plan.channels as u16,
@@ -1043,7 +1121,7 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         interrupted: &interrupted,
     };
     let mut pass = Pass::new(&plan, length, scale)?;
-    let summary = write_audio(&job, |out| pass.next(out)).map_err(|e| match e {
+    let summary = write_audio(destination, &job, |out| pass.next(out)).map_err(|e| match e {
         audio_out::WriteError::Interrupted => Failure::Interrupted,
         other => pass.failure(other.to_string()),
     })?;
@@ -1065,19 +1143,16 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         &format_name,
         &args.output.display().to_string(),
     );
-    if !to_stdout && container == Container::Wav {
-        plot::draw_pictures(&args.output, &args.pictures, plan.quiet).map_err(Failure::Message)?;
+    if outputs.pictures.any() {
+        plot::draw_pictures(&args.output, &args.pictures, outputs.pictures, plan.quiet)
+            .map_err(Failure::Message)?;
     }
-    write_scores(
-        source.file.program(),
-        args.midi.as_deref(),
-        args.notes.as_deref(),
-    )?;
+    scores.write(outputs.midi, outputs.notes)?;
     if args.play && !to_stdout {
         // What was written, as written; a FLAC file is rendered again instead of
         // decoded (the same samples before they were made integers).
         let samples = match container {
-            Container::Wav => read_wav(&args.output)?.0,
+            Container::Wav => read_wav(&args.output, f64::INFINITY)?.0,
             Container::Flac => render_to_memory(&plan, length, scale, &interrupted)?,
         };
         play_samples(&samples, plan.channels, plan.sample_rate, &interrupted)?;
@@ -1226,6 +1301,7 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
                 &samples,
                 plan.channels,
                 plan.sample_rate,
+                &source.inputs,
                 &interrupted,
             )
             .map_err(Failure::Message)?;
@@ -1246,7 +1322,19 @@ fn render_to_memory(
     interrupted: &AtomicBool,
 ) -> Result<Vec<f64>, Failure> {
     let mut pass = Pass::new(plan, length, scale)?;
-    let mut samples = vec![0.0; length as usize * plan.channels];
+    // Played from memory: a sound too long to hold is refused, not attempted.
+    let count = length.saturating_mul(plan.channels as u64);
+    let mut samples = vec![];
+    if count > MAX_WAV_SAMPLES || samples.try_reserve_exact(count as usize).is_err() {
+        return Err(Failure::Message(format!(
+            "{} s of {} channels is more than can be played from memory ({} GiB at most); \
+             write it with `timbre render -o FILE.wav` and play the file",
+            length as f64 / plan.sample_rate,
+            plan.channels,
+            (MAX_WAV_SAMPLES * 8) >> 30
+        )));
+    }
+    samples.resize(count as usize, 0.0);
     let mut done = 0usize;
     for chunk in samples.chunks_mut(8192 * plan.channels) {
         if interrupted.load(Ordering::Relaxed) {
@@ -1263,26 +1351,55 @@ fn render_to_memory(
     Ok(samples)
 }
 
-/// The samples of a WAV file, interleaved (scaled to ±1), and its format.
-pub(crate) fn read_wav(path: &Path) -> Result<(Vec<f64>, hound::WavSpec), Failure> {
-    let fail = |e: hound::Error| Failure::Message(format!("cannot read `{}`: {e}", path.display()));
-    let mut reader = hound::WavReader::open(path).map_err(fail)?;
+/// The samples of a WAV file's first `max_seconds` (the most that is used),
+/// interleaved (scaled to ±1), and its format. A file that is not a regular file is
+/// refused before it can block; memory is bounded by the seconds read, not by what
+/// the header claims.
+pub(crate) fn read_wav(
+    path: &Path,
+    max_seconds: f64,
+) -> Result<(Vec<f64>, hound::WavSpec), Failure> {
+    let cannot = |e: &dyn std::fmt::Display| {
+        Failure::Message(format!("cannot read `{}`: {e}", path.display()))
+    };
+    let file = timbre_ir::open_regular(path).map_err(|e| cannot(&e))?;
+    let mut reader =
+        hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| cannot(&e))?;
     let spec = reader.spec();
-    let samples: Result<Vec<f64>, Failure> = match spec.sample_format {
+    if spec.sample_rate == 0 || spec.channels == 0 || spec.bits_per_sample == 0 {
+        return Err(cannot(&"its header gives no sample rate or no channels"));
+    }
+    let wanted = (max_seconds.max(0.0) * f64::from(spec.sample_rate)).ceil();
+    let frames = (u64::from(reader.duration()) as f64).min(wanted);
+    let samples = (frames as u64).saturating_mul(u64::from(spec.channels));
+    // A sound far longer than any render could be held is refused, not allocated.
+    if samples > MAX_WAV_SAMPLES {
+        return Err(cannot(&format!(
+            "{samples} samples would be read, more than {MAX_WAV_SAMPLES}"
+        )));
+    }
+    let samples = samples as usize;
+    let read: Result<Vec<f64>, Failure> = match spec.sample_format {
         hound::SampleFormat::Float => reader
             .samples::<f32>()
-            .map(|x| x.map(f64::from).map_err(fail))
+            .take(samples)
+            .map(|x| x.map(f64::from).map_err(|e| cannot(&e)))
             .collect(),
         hound::SampleFormat::Int => {
-            let full = ((1i64 << (spec.bits_per_sample - 1)) - 1) as f64;
+            let full = ((1i64 << (spec.bits_per_sample.min(32) - 1)) - 1) as f64;
             reader
                 .samples::<i32>()
-                .map(|x| x.map(|x| x as f64 / full).map_err(fail))
+                .take(samples)
+                .map(|x| x.map(|x| x as f64 / full).map_err(|e| cannot(&e)))
                 .collect()
         }
     };
-    Ok((samples?, spec))
+    Ok((read?, spec))
 }
+
+/// The most samples `read_wav` and a play hold (an hour of stereo at 96 kHz, 5.5 GB
+/// as f64).
+const MAX_WAV_SAMPLES: u64 = 3600 * 96_000 * 2;
 
 fn play_samples(
     samples: &[f64],

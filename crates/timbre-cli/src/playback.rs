@@ -170,7 +170,7 @@ fn play_with_system_player(
             SampleFormat::F32
         };
         let wav = TempWav::write(samples, channels, sample_rate, format)?;
-        match run_player(&program, &args, &wav.0, cancel) {
+        match run_player(&program, &args, &wav.path, cancel) {
             Ok(played) => return Ok(played),
             Err(why) => failures.push(format!("{program}: {why}")),
         }
@@ -207,8 +207,12 @@ fn run_player(
     }
 }
 
-/// A WAV file in the temporary directory, removed when dropped.
-struct TempWav(PathBuf);
+/// A WAV file in a directory of its own in the temporary directory (private, with an
+/// unpredictable name, so nothing planted there can receive it), removed when dropped.
+struct TempWav {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
 
 impl TempWav {
     fn write(
@@ -217,12 +221,14 @@ impl TempWav {
         sample_rate: f64,
         format: SampleFormat,
     ) -> Result<Self, String> {
-        static COUNT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-        let n = COUNT.fetch_add(1, Ordering::Relaxed);
-        let path = std::env::temp_dir().join(format!("timbre-play-{}-{n}.wav", std::process::id()));
+        let dir = tempfile::Builder::new()
+            .prefix("timbre-play-")
+            .tempdir()
+            .map_err(|e| format!("cannot make a temporary directory: {e}"))?;
+        let path = dir.path().join("play.wav");
+        let output = crate::output::prepare(&path, &[])?;
         let never = AtomicBool::new(false);
         let job = OutputJob {
-            destination: Destination::File(&path),
             container: Container::Wav,
             sample_rate: sample_rate as u32,
             channels: channels as u16,
@@ -231,19 +237,13 @@ impl TempWav {
             interrupted: &never,
         };
         let mut written = 0;
-        write_audio(&job, |out| {
+        write_audio(Destination::File(output), &job, |out| {
             out.copy_from_slice(&samples[written..written + out.len()]);
             written += out.len();
             Ok(None)
         })
         .map_err(|e| e.to_string())?;
-        Ok(TempWav(path))
-    }
-}
-
-impl Drop for TempWav {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
+        Ok(TempWav { _dir: dir, path })
     }
 }
 

@@ -36,6 +36,7 @@ use std::sync::Arc;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 
+use crate::output::Output;
 use canvas::{Canvas, Rgb};
 use font::{draw_text, draw_text_up, text_height, text_width, Align};
 
@@ -199,14 +200,14 @@ pub fn spectrogram_png(
     samples: &[f64],
     sample_rate: f64,
     options: &SpectrogramOptions,
-    path: &Path,
+    output: Output,
 ) -> Result<(), String> {
     check_input(samples.len() as u64, sample_rate)?;
     let layout = spectrogram_layout(options, 1);
     let mut builder = SpectrogramBuilder::new(samples.len() as u64, sample_rate, options, layout)?;
     samples.iter().for_each(|&x| builder.push(x));
     let (canvas, text) = draw_spectrograms(&[builder.finish()], options, layout, 0.0, "");
-    canvas.write_png(path, &text)
+    canvas.write_png(output, &text)
 }
 
 /// Draws the waveform of mono `samples` at `sample_rate` to the PNG file `path`
@@ -217,14 +218,14 @@ pub fn wave_png(
     samples: &[f64],
     sample_rate: f64,
     options: &WaveOptions,
-    path: &Path,
+    output: Output,
 ) -> Result<(), String> {
     check_input(samples.len() as u64, sample_rate)?;
     let layout = wave_layout(options, 1);
     let mut builder = WaveBuilder::new(samples.len() as u64, sample_rate, layout.width);
     samples.iter().for_each(|&x| builder.push(x));
     let (canvas, text) = draw_waves(&[builder.finish()], options, layout, 0.0, "");
-    canvas.write_png(path, &text)
+    canvas.write_png(output, &text)
 }
 
 fn spectrogram_layout(options: &SpectrogramOptions, panels: usize) -> Layout {
@@ -343,18 +344,51 @@ pub struct PlotArgs {
 
 /// Runs `timbre plot`.
 pub fn plot(args: PlotArgs) -> Result<(), String> {
-    draw_pictures(&args.file, &args.pictures, false)
+    let outputs = PictureOutputs::prepare(&args.pictures, std::slice::from_ref(&args.file))?;
+    draw_pictures(&args.file, &args.pictures, outputs, false)
+}
+
+/// The pictures' outputs, prepared before the sound is read (`output::prepare_all`).
+#[derive(Debug, Default)]
+pub struct PictureOutputs {
+    pub spectrogram: Option<Output>,
+    pub wave: Option<Output>,
+}
+
+impl PictureOutputs {
+    /// Prepares the pictures `pictures` asks for, none of them one of `reads`.
+    pub fn prepare(pictures: &PictureArgs, reads: &[PathBuf]) -> Result<Self, String> {
+        let asked = [pictures.spectrogram.as_deref(), pictures.wave.as_deref()];
+        let paths: Vec<&Path> = asked.iter().flatten().copied().collect();
+        let mut prepared = crate::output::prepare_all(&paths, reads)?.into_iter();
+        let mut take = |asked: Option<&Path>| asked.and_then(|_| prepared.next());
+        Ok(PictureOutputs {
+            spectrogram: take(asked[0]),
+            wave: take(asked[1]),
+        })
+    }
+
+    pub fn any(&self) -> bool {
+        self.spectrogram.is_some() || self.wave.is_some()
+    }
 }
 
 /// Draws the pictures `pictures` asks for of the WAV file `wav`, reading it once, in
 /// a stream; one panel per channel; says what it wrote on standard error unless
 /// `quiet`. Nothing is written when the file cannot be read or an option is out of
 /// range.
-pub fn draw_pictures(wav: &Path, pictures: &PictureArgs, quiet: bool) -> Result<(), String> {
-    if pictures.spectrogram.is_none() && pictures.wave.is_none() {
+pub fn draw_pictures(
+    wav: &Path,
+    pictures: &PictureArgs,
+    outputs: PictureOutputs,
+    quiet: bool,
+) -> Result<(), String> {
+    if !outputs.any() {
         return Ok(());
     }
-    let mut reader = hound::WavReader::open(wav).map_err(|e| match e {
+    let file = timbre_ir::open_regular(wav)
+        .map_err(|e| format!("cannot read `{}`: {e}", wav.display()))?;
+    let mut reader = hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| match e {
         hound::Error::IoError(io) => format!("cannot read `{}`: {io}", wav.display()),
         other => format!("cannot read `{}` as a WAV file: {other}", wav.display()),
     })?;
@@ -462,17 +496,19 @@ pub fn draw_pictures(wav: &Path, pictures: &PictureArgs, quiet: bool) -> Result<
         }
     }
     let mut written = vec![];
-    if let Some(path) = &pictures.spectrogram {
+    if let Some(output) = outputs.spectrogram {
         let panels: Vec<Spectrogram> = spectrograms.into_iter().map(|b| b.finish()).collect();
         let (canvas, text) = draw_spectrograms(&panels, &options, spectrogram_layout, from, "");
-        canvas.write_png(path, &text)?;
-        written.push(format!("a spectrogram to {}", path.display()));
+        let path = output.path().display().to_string();
+        canvas.write_png(output, &text)?;
+        written.push(format!("a spectrogram to {path}"));
     }
-    if let Some(path) = &pictures.wave {
+    if let Some(output) = outputs.wave {
         let panels: Vec<Wave> = waves.into_iter().map(|b| b.finish()).collect();
         let (canvas, text) = draw_waves(&panels, &wave_options, wave_layout, from, "");
-        canvas.write_png(path, &text)?;
-        written.push(format!("the waveform to {}", path.display()));
+        let path = output.path().display().to_string();
+        canvas.write_png(output, &text)?;
+        written.push(format!("the waveform to {path}"));
     }
     if !quiet {
         eprintln!("drew {} of {}", written.join(" and "), wav.display());
@@ -1360,18 +1396,19 @@ mod tests {
         let samples: Vec<f64> = (0..4800).map(|i| (i as f64 * 0.05).sin() * 0.5).collect();
         let spec = dir.path().join("s.png");
         let wave = dir.path().join("w.png");
-        spectrogram_png(&samples, 48_000.0, &Default::default(), &spec).unwrap();
-        wave_png(&samples, 48_000.0, &Default::default(), &wave).unwrap();
+        let prepare = |path: &Path| crate::output::prepare(path, &[]).unwrap();
+        spectrogram_png(&samples, 48_000.0, &Default::default(), prepare(&spec)).unwrap();
+        wave_png(&samples, 48_000.0, &Default::default(), prepare(&wave)).unwrap();
         assert!(spec.exists() && wave.exists());
         let leftovers: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()
             .filter_map(|e| e.ok())
-            .filter(|e| e.file_name().to_string_lossy().contains(".partial-"))
+            .filter(|e| e.file_name().to_string_lossy().contains(".partial"))
             .collect();
         assert!(leftovers.is_empty());
-        assert!(spectrogram_png(&[], 48_000.0, &Default::default(), &spec).is_err());
-        let missing = dir.path().join("no/such/dir/x.png");
-        let e = wave_png(&samples, 48_000.0, &Default::default(), &missing).unwrap_err();
-        assert!(e.contains("cannot write"), "{e}");
+        let before = std::fs::read(&spec).unwrap();
+        assert!(spectrogram_png(&[], 48_000.0, &Default::default(), prepare(&spec)).is_err());
+        assert_eq!(std::fs::read(&spec).unwrap(), before);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
     }
 }

@@ -177,7 +177,9 @@ impl Loader for SessionLoader<'_> {
         let Some(Entry::File { path, hidden, .. }) = index.and_then(|i| self.entries.get(i)) else {
             return FsLoader.load(path, base);
         };
-        let text = std::fs::read_to_string(path)?;
+        let bytes = timbre_ir::read_bounded(path, timbre::Limits::default().script_bytes())?;
+        let text = String::from_utf8(bytes)
+            .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "not UTF-8 text"))?;
         let left_out = |name: &str| hidden.contains(name) || self.exclude.contains(name);
         // The file's real path, so that its own includes resolve next to it and
         // diagnostics name it; the text keeps its offsets (forms are blanked, not cut).
@@ -343,8 +345,19 @@ impl Session {
             &self.last_samples,
             self.last_channels,
             self.last_rate,
+            &self.loaded_files(),
             &AtomicBool::new(false),
         )
+    }
+
+    /// The files given to `:load`: no output of the session replaces one.
+    fn loaded_files(&self) -> Vec<PathBuf> {
+        (self.entries.iter())
+            .filter_map(|entry| match entry {
+                Entry::File { path, .. } => Some(path.clone()),
+                Entry::Typed { .. } => None,
+            })
+            .collect()
     }
 }
 
@@ -357,6 +370,9 @@ struct Take {
     /// Stop early once every instance has ended (a scene without a duration).
     until_ended: bool,
 }
+
+/// The most samples a take may hold (2 GiB of f64: 46 minutes of stereo at 48 kHz).
+const MAX_KEPT_SAMPLES: usize = 1 << 28;
 
 /// Renders `take` of `program`, a chunk at a time so that Ctrl-C can stop it; `None`
 /// when cancelled. A progress line appears when it takes over a second.
@@ -374,7 +390,22 @@ fn render(
     let mut scene =
         timbre_scene::SceneRenderer::new(&program, config, engine).map_err(|e| e.to_string())?;
     let channels = scene.channels();
-    let mut out = vec![0.0; take.frames * channels];
+    // The session keeps a render whole (for :save and :plot): refused, not
+    // attempted, when that would not fit.
+    let samples = take
+        .frames
+        .checked_mul(channels)
+        .filter(|&n| n <= MAX_KEPT_SAMPLES);
+    let mut out = vec![];
+    if samples.is_none_or(|n| out.try_reserve_exact(n).is_err()) {
+        return Err(format!(
+            "{} s of {channels} channels at {} Hz is more than the REPL holds in memory              ({} MiB at most); audition a shorter take, or write it with `timbre render`",
+            take.frames as f64 / take.sample_rate,
+            take.sample_rate,
+            (MAX_KEPT_SAMPLES * 8) >> 20
+        ));
+    }
+    out.resize(take.frames * channels, 0.0);
     let progress = Progress::new(take.frames, take.sample_rate);
     let mut done = 0;
     while done < take.frames {
@@ -848,10 +879,12 @@ fn command(session: &mut Session, input: &str) -> bool {
                 let dot =
                     crate::graph::dot(&program, session.last_source.as_deref().unwrap_or_default());
                 match rest.first() {
-                    Some(path) => match crate::graph::write(&dot, Path::new(path)) {
-                        Ok(()) => println!("wrote {path}"),
-                        Err(e) => eprintln!("error: {e}"),
-                    },
+                    Some(path) => {
+                        match crate::graph::write(&dot, Path::new(path), &session.loaded_files()) {
+                            Ok(()) => println!("wrote {path}"),
+                            Err(e) => eprintln!("error: {e}"),
+                        }
+                    }
                     None => print!("{dot}"),
                 }
             }
@@ -912,7 +945,13 @@ fn load(session: &mut Session, path: &str) {
         Ok(p) => p,
         Err(e) => return eprintln!("error: cannot read `{path}`: {e}"),
     };
-    let text = match std::fs::read_to_string(&absolute) {
+    // Bounded, and refused at once if it is not a regular file (a named pipe would
+    // block the session, where Ctrl-C does not reach).
+    let text = match timbre_ir::read_bounded(&absolute, timbre::Limits::default().script_bytes())
+        .and_then(|bytes| {
+            String::from_utf8(bytes)
+                .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "it is not UTF-8 text"))
+        }) {
         Ok(text) => text,
         Err(e) => return eprintln!("error: cannot read `{path}`: {e}"),
     };
@@ -1029,13 +1068,14 @@ fn plot(session: &Session, kind: &str, path: Option<&str>) {
         .map(|frame| frame.iter().sum::<f64>() / channels as f64)
         .collect();
     let (x, sr) = (&mono, session.last_rate);
+    let prepare = || crate::output::prepare(path, &session.loaded_files());
     let result = match kind {
         "wave" => {
             let options = crate::plot::WaveOptions {
                 title,
                 ..Default::default()
             };
-            crate::plot::wave_png(x, sr, &options, path)
+            prepare().and_then(|output| crate::plot::wave_png(x, sr, &options, output))
         }
         "spectrogram" | "log-spectrogram" => {
             let options = crate::plot::SpectrogramOptions {
@@ -1043,7 +1083,7 @@ fn plot(session: &Session, kind: &str, path: Option<&str>) {
                 title,
                 ..Default::default()
             };
-            crate::plot::spectrogram_png(x, sr, &options, path)
+            prepare().and_then(|output| crate::plot::spectrogram_png(x, sr, &options, output))
         }
         _ => Err(format!(
             "no plot called `{kind}`: {}",
@@ -1142,6 +1182,29 @@ mod tests {
                 " ".repeat(14).as_str()
             ]
         );
+    }
+
+    #[test]
+    fn a_take_too_large_to_keep_is_refused_before_it_is_allocated() {
+        let session = Session::default();
+        let program = session
+            .compile("(sine (* t 440))", &BTreeSet::new(), false)
+            .unwrap();
+        // (scene :duration 3600 :channels 64): 88 GB of samples.
+        let take = Take {
+            sample_rate: 48_000.0,
+            channels: 64,
+            frames: 3600 * 48_000,
+            until_ended: false,
+        };
+        let err = render(&program, &take, timbre_scene::Engine::Interpreter).unwrap_err();
+        assert!(err.contains("more than the REPL holds in memory"), "{err}");
+        let small = Take {
+            frames: 480,
+            ..take
+        };
+        let samples = render(&program, &small, timbre_scene::Engine::Interpreter).unwrap();
+        assert_eq!(samples.map(|s| s.len()), Some(480 * 64));
     }
 
     #[test]

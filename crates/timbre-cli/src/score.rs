@@ -31,6 +31,15 @@ pub fn midi_file(scores: &[Score]) -> Result<Vec<u8>, String> {
         .iter()
         .flat_map(|s| s.parts.iter().map(move |p| (s, p)))
         .collect();
+    // The header counts tracks in 16 bits, and the tempo track is one of them.
+    if parts.len() >= usize::from(u16::MAX) {
+        return Err(format!(
+            "the scores have {} parts, and a MIDI file holds at most {} (a track each, after the tempo track); \
+             write fewer parts, or write the notes as a listing with --notes",
+            parts.len(),
+            u16::MAX - 1
+        ));
+    }
     let names: Vec<String> = parts
         .iter()
         .map(|(score, part)| format!("{} {}", score.name, part.name))
@@ -88,7 +97,7 @@ pub fn midi_file(scores: &[Score]) -> Result<Vec<u8>, String> {
     };
     let mut bytes = vec![];
     smf.write_std(&mut bytes)
-        .expect("writing to memory cannot fail");
+        .map_err(|e| format!("the scores cannot be written as a MIDI file: {e}"))?;
     Ok(bytes)
 }
 
@@ -134,4 +143,34 @@ pub fn listing(scores: &[Score]) -> String {
         }
     }
     text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use timbre_ir::music::Part;
+
+    fn score(parts: usize) -> Score {
+        Score {
+            name: "s".into(),
+            quarter_seconds: 0.5,
+            parts: (0..parts)
+                .map(|k| Part {
+                    name: format!("p{k}"),
+                    class: "c".into(),
+                    notes: vec![],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn more_parts_than_a_midi_file_holds_is_an_error_not_a_panic() {
+        let bytes = midi_file(&[score(u16::MAX as usize - 1)]).unwrap();
+        let smf = midly::Smf::parse(&bytes).unwrap();
+        assert_eq!(smf.tracks.len(), u16::MAX as usize);
+        let err = midi_file(&[score(u16::MAX as usize)]).unwrap_err();
+        assert!(err.contains("65535 parts"), "{err}");
+        assert!(err.contains("at most 65534"), "{err}");
+    }
 }

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 use timbre_ir::frames::Numbered;
+use timbre_syntax::quote;
 
 /// The two waveforms of the paper's section 3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -155,18 +156,27 @@ pub fn frame_files(frames: &str) -> Result<Vec<String>, String> {
 }
 
 /// Whether `name` matches `pattern`, where `*` stands for any run of characters.
+/// Greedy with one remembered star: each piece between stars is matched at its
+/// leftmost place, so the time is linear in the name for a given pattern (trying
+/// every split, as a recursive match does, is exponential in the stars).
 fn wildcard(pattern: &str, name: &str) -> bool {
-    match pattern.split_once('*') {
-        None => pattern == name,
-        Some((head, rest)) => {
-            let Some(tail) = name.strip_prefix(head) else {
-                return false;
-            };
-            (0..=tail.len())
-                .filter(|i| tail.is_char_boundary(*i))
-                .any(|i| wildcard(rest, &tail[i..]))
+    let mut pieces = pattern.split('*');
+    let first = pieces.next().unwrap_or_default();
+    let Some(mut rest) = name.strip_prefix(first) else {
+        return false;
+    };
+    let pieces: Vec<&str> = pieces.collect();
+    let Some((last, middle)) = pieces.split_last() else {
+        // No star: the whole name is the pattern.
+        return rest.is_empty();
+    };
+    for piece in middle {
+        match rest.find(piece) {
+            Some(at) => rest = &rest[at + piece.len()..],
+            None => return false,
         }
     }
+    rest.ends_with(last)
 }
 
 /// A sort key that orders `f2` before `f10`: runs of digits compared as numbers.
@@ -191,7 +201,10 @@ fn natural(name: &str) -> Vec<(u8, u128, String)> {
 pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
     let regions = usize::from(m.regions);
     let seconds = files.len() as f64 / fps;
-    let quoted: Vec<String> = files.iter().map(|f| format!("{f:?}")).collect();
+    // Every user-given string is quoted as a timbre string, comments included: a
+    // name cannot end the string or the comment and become code.
+    let quoted: Vec<String> = files.iter().map(|f| quote(f)).collect();
+    let source = quote(source);
     let wave = |phase: &str| match m.waveform {
         Waveform::Harmonics => format!(
             "(/ (combine (* rows (pow {} (iota 12)) (sine (* {phase} (+ 1 (iota 12)))))) 12)",
@@ -299,7 +312,7 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
                     ":rhythm motion :trigger video-K-motion :threshold {} :min-duration 0.125",
                     number(m.motion_full / 4.0)
                 ),
-                pattern => format!(":rhythm {pattern:?}"),
+                pattern => format!(":rhythm {}", quote(pattern)),
             };
             let mut parts = String::new();
             for k in 1..=regions {
@@ -344,6 +357,15 @@ mod tests {
         assert!(wildcard("*", "anything"));
         assert!(!wildcard("f-*.png", "g-001.png"));
         assert!(wildcard("a*b*c", "axxbyyc"));
+        assert!(wildcard("a*a", "aa") && !wildcard("a*a", "a"));
+        assert!(wildcard("*.png", ".png") && wildcard("f*", "f") && !wildcard("f", "ff"));
+        assert!(wildcard("a*ab*b", "aabb") && !wildcard("ab*ba", "aba"));
+        // Linear time: thirty stars against a long name that almost matches.
+        let pattern = "a*".repeat(30) + "b";
+        let name = "a".repeat(5000);
+        let started = std::time::Instant::now();
+        assert!(!wildcard(&pattern, &name));
+        assert!(started.elapsed() < std::time::Duration::from_secs(1));
         let mut names = vec!["f10.png", "f2.png", "f1.png"];
         names.sort_by_key(|n| natural(n));
         assert_eq!(names, ["f1.png", "f2.png", "f10.png"]);

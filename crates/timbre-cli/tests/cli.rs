@@ -28,11 +28,11 @@ fn s(args: &[&str]) -> Vec<String> {
     args.iter().map(|a| a.to_string()).collect()
 }
 
-/// Does `dir` hold a temporary file left by an atomic write (`.NAME.partial-PID`)?
+/// Does `dir` hold a temporary file left by an atomic write (`.NAME.RANDOM.partial`)?
 fn partial_files(dir: &Path) -> Vec<String> {
     dir_entries(dir)
         .into_iter()
-        .filter(|n| n.contains(".partial-"))
+        .filter(|n| n.ends_with(".partial"))
         .collect()
 }
 
@@ -1655,7 +1655,11 @@ fn a_link_to_a_file_the_render_reads_is_not_written() {
     std::os::unix::fs::symlink("tone.tt", d.join("out.wav")).unwrap();
     let run = run_in(Some(d), ["render", "tone.tt", "-o", "out.wav"]);
     run.assert_code(1);
-    assert!(run.stderr.contains("the render reads it"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("the run reads that file"),
+        "{}",
+        run.stderr
+    );
     assert_eq!(std::fs::read_to_string(d.join("tone.tt")).unwrap(), A440);
 }
 

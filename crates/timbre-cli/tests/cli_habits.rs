@@ -93,11 +93,13 @@ fn an_output_that_the_render_reads_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let source = "(* 0.5 (sine (* t 440)))\n";
     std::fs::write(dir.path().join("x.tt"), source).unwrap();
-    run_in(Some(dir.path()), ["render", "x.tt", "-o", "x.tt"])
+    // A script whose name looks like the output's kind.
+    std::fs::write(dir.path().join("x.wav"), source).unwrap();
+    run_in(Some(dir.path()), ["render", "x.wav", "-o", "x.wav"])
         .assert_code(1)
-        .assert_stderr_has("refusing to overwrite `x.tt`: the render reads it");
+        .assert_stderr_has("cannot write `x.wav`: the run reads that file");
     assert_eq!(
-        std::fs::read_to_string(dir.path().join("x.tt")).unwrap(),
+        std::fs::read_to_string(dir.path().join("x.wav")).unwrap(),
         source
     );
 
@@ -112,7 +114,7 @@ fn an_output_that_the_render_reads_is_refused() {
     std::fs::write(dir.path().join("play.tt"), "(sample \"sub/../hit.wav\")\n").unwrap();
     run_in(Some(dir.path()), ["render", "play.tt", "-o", "./hit.wav"])
         .assert_code(1)
-        .assert_stderr_has("refusing to overwrite");
+        .assert_stderr_has("cannot write `./hit.wav`: the run reads that file");
     assert_eq!(std::fs::read(dir.path().join("hit.wav")).unwrap(), before);
 }
 

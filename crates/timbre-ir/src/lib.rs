@@ -45,7 +45,9 @@ pub use dump::dump;
 pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, NodeOrigin, StableHasher};
 pub use interp::{steps, trace_non_finite, Interpreter, NonFiniteOrigin, RenderConfig, Step};
-pub use loader::{read_bounded, FsLoader, Loader, NoFiles, SandboxLoader, MAX_FILE_BYTES};
+pub use loader::{
+    open_regular, read_bounded, FsLoader, Loader, NoFiles, SandboxLoader, MAX_FILE_BYTES,
+};
 pub use lower::{
     compile, compile_after, did_you_mean, CompileOptions, Instance, Instantiated, Library,
     ParamValue, Program, Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,

@@ -13,18 +13,36 @@ pub const MAX_FILE_BYTES: u64 = 256 << 20;
 /// a pipe or a directory is refused (it may never end), and so is a longer file,
 /// before anything is read (and if it grows while being read).
 pub fn read_bounded(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
-    read_open_bounded(std::fs::File::open(path)?, limit)
+    read_open_bounded(open_regular(path)?, limit)
 }
 
-/// [`read_bounded`] of a file already open.
-fn read_open_bounded(file: std::fs::File, limit: u64) -> io::Result<Vec<u8>> {
-    let meta = file.metadata()?;
-    if !meta.is_file() {
+/// Opens `path` for reading if it is a regular file. The opening itself cannot block
+/// (`O_NONBLOCK`: opening a named pipe with no writer would wait for one forever),
+/// and anything but a regular file is refused before a byte is read.
+pub fn open_regular(path: &Path) -> io::Result<std::fs::File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+    let file = options.open(path)?;
+    regular(file)
+}
+
+/// `file` if it is a regular file, else the error that says what it is not. On a
+/// regular file `O_NONBLOCK` changes nothing, so it is left set.
+fn regular(file: std::fs::File) -> io::Result<std::fs::File> {
+    if !file.metadata()?.is_file() {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
-            "not a regular file (a device, a pipe or a directory)",
+            "not a regular file (a device, a pipe, a socket or a directory)",
         ));
     }
+    Ok(file)
+}
+
+/// [`read_bounded`] of a file already open (and checked to be regular).
+fn read_open_bounded(file: std::fs::File, limit: u64) -> io::Result<Vec<u8>> {
+    let meta = file.metadata()?;
     let too_long = || {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -136,11 +154,17 @@ impl Loader for SandboxLoader {
             } else {
                 full.clone()
             };
-            let file = dir.open(&relative).map_err(|e| match e.kind() {
-                io::ErrorKind::NotFound => e,
-                _ => outside(),
-            })?;
-            let bytes = read_open_bounded(file.into_std(), MAX_FILE_BYTES)?;
+            let mut options = cap_std::fs::OpenOptions::new();
+            options.read(true);
+            #[cfg(unix)]
+            cap_std::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+            let file = dir
+                .open_with(&relative, &options)
+                .map_err(|e| match e.kind() {
+                    io::ErrorKind::NotFound => e,
+                    _ => outside(),
+                })?;
+            let bytes = read_open_bounded(regular(file.into_std())?, MAX_FILE_BYTES)?;
             return Ok((root.join(normalised(&relative)), bytes));
         }
         Err(outside())
@@ -179,6 +203,29 @@ mod tests {
         // A directory is not a file to read.
         let err = read_bounded(&dir, 100).unwrap_err();
         assert!(err.to_string().contains("not a regular file"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A named pipe with no writer would block an ordinary open forever: it is
+    /// refused at once, through either loader.
+    #[cfg(unix)]
+    #[test]
+    fn a_named_pipe_is_refused_without_blocking() {
+        let dir = std::env::temp_dir().join(format!("timbre-fifo-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("pipe.tt");
+        let name = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid C string and a mode.
+        assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+        let started = std::time::Instant::now();
+        let err = read_bounded(&fifo, 100).unwrap_err();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+        let err = FsLoader.load("pipe.tt", Some(&dir)).unwrap_err();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+        let sandbox = SandboxLoader::new([&dir]).unwrap();
+        let err = sandbox.load("pipe.tt", Some(&dir)).unwrap_err();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+        assert!(started.elapsed() < std::time::Duration::from_secs(5));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

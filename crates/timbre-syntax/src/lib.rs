@@ -14,4 +14,4 @@ mod print;
 pub use ast::{Expr, ExprKind, Span};
 pub use error::SyntaxError;
 pub use parser::{parse, Parse, MAX_DEPTH};
-pub use print::{format_source, number, print, WIDTH};
+pub use print::{format_source, number, print, quote, WIDTH};

@@ -176,24 +176,32 @@ fn atom(expr: &Expr) -> String {
         ExprKind::Number(x) => number(*x),
         ExprKind::Symbol(name) => name.clone(),
         ExprKind::Keyword(name) => format!(":{name}"),
-        ExprKind::Str(text) => {
-            let mut out = String::from('"');
-            for c in text.chars() {
-                match c {
-                    '"' => out.push_str("\\\""),
-                    '\\' => out.push_str("\\\\"),
-                    '\n' => out.push_str("\\n"),
-                    '\t' => out.push_str("\\t"),
-                    '\r' => out.push_str("\\r"),
-                    '\0' => out.push_str("\\0"),
-                    c => out.push(c),
-                }
-            }
-            out.push('"');
-            out
-        }
+        ExprKind::Str(text) => quote(text),
         ExprKind::List(_) => unreachable!("lists are nodes of their own"),
     }
+}
+
+/// `text` as a string literal that reads back to it: quotes, backslashes and every
+/// control character escaped, so that no text can end the string, or a comment it
+/// is written in, early (generated scenes quote user-given names with it).
+pub fn quote(text: &str) -> String {
+    let mut out = String::from('"');
+    for c in text.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\t' => out.push_str("\\t"),
+            '\r' => out.push_str("\\r"),
+            '\0' => out.push_str("\\0"),
+            c if c.is_control() || matches!(c, '\u{2028}' | '\u{2029}') => {
+                out.push_str(&format!("\\u{{{:x}}}", c as u32))
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
 }
 
 /// The shortest text that reads back to `x`: `440`, `0.25`, `1e-7`, `-3.5e21`.

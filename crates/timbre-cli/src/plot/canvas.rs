@@ -1,9 +1,10 @@
 //! An RGB pixel buffer with the few drawing operations the plots need, written out as
-//! a PNG file atomically (a temporary file beside the target, renamed when complete).
+//! a PNG file atomically (into a prepared `output::Output`, committed when complete).
 
 use std::fs::File;
 use std::io::{BufWriter, Write as _};
-use std::path::{Path, PathBuf};
+
+use crate::output::Output;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rgb(pub u8, pub u8, pub u8);
@@ -61,27 +62,20 @@ impl Canvas {
     }
 
     /// Writes the canvas as an 8-bit RGB PNG with `text` as tEXt chunks (keyword,
-    /// value), to a temporary file beside `path` that is renamed over it when complete;
-    /// on failure the temporary file is removed and `path` is left as it was.
-    pub fn write_png(&self, path: &Path, text: &[(String, String)]) -> Result<(), String> {
-        let temp = temp_path(path);
-        let cannot = |e: &dyn std::fmt::Display| format!("cannot write `{}`: {e}", path.display());
-        let result = self
-            .encode(&temp, text)
-            .map_err(|e| cannot(&e))
-            .and_then(|()| std::fs::rename(&temp, path).map_err(|e| cannot(&e)));
-        if result.is_err() {
-            let _ = std::fs::remove_file(&temp);
-        }
-        result
+    /// value) into `output`, committed when complete; on failure the temporary file
+    /// is removed and the target is left as it was.
+    pub fn write_png(&self, mut output: Output, text: &[(String, String)]) -> Result<(), String> {
+        self.encode(output.file(), text)
+            .map_err(|e| format!("cannot write `{}`: {e}", output.path().display()))?;
+        output.commit()
     }
 
     fn encode(
         &self,
-        temp: &Path,
+        file: &mut File,
         text: &[(String, String)],
     ) -> Result<(), Box<dyn std::error::Error>> {
-        let mut out = BufWriter::new(File::create(temp)?);
+        let mut out = BufWriter::new(file);
         let mut encoder = png::Encoder::new(&mut out, self.width as u32, self.height as u32);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
@@ -94,14 +88,4 @@ impl Canvas {
         out.flush()?;
         Ok(())
     }
-}
-
-/// `dir/.name.partial-PID`: same directory (so the rename is atomic), hidden, and
-/// unique per process.
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "plot.png".into());
-    path.with_file_name(format!(".{name}.partial-{}", std::process::id()))
 }
