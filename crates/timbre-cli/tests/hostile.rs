@@ -284,3 +284,36 @@ fn inputs_too_large_for_the_repository_get_their_diagnostics() {
     let outcome = render(d, "long-ir.tt", &output);
     check("long-ir.tt", &outcome, "timbre::too-much-memory", &output);
 }
+
+/// Named pipes where files are expected: as an include, a sampled sound, a table of
+/// events, a frame and the script itself, each refused at once (an ordinary open
+/// would wait for a writer forever); and as outputs, refused before rendering.
+#[test]
+fn named_pipes_are_refused_as_inputs_and_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let output = d.join("out.wav");
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).unwrap();
+    for name in ["pipe.tt", "pipe.wav", "pipe.csv", "pipe.png"] {
+        let status = Command::new("mkfifo").arg(d.join(name)).status().unwrap();
+        assert!(status.success());
+    }
+    write("include.tt", "(include \"pipe.tt\")\n(sine (* t 440))");
+    write("sample.tt", "(sample \"pipe.wav\")");
+    write(
+        "table.tt",
+        "(define-sound ping (f) (sine (* t f)))\n(instances :csv \"pipe.csv\" :class ping :start-column \"time\")",
+    );
+    write("frame.tt", "(frames v :files (\"pipe.png\"))\n(sine (* t 440))");
+    for name in ["include.tt", "sample.tt", "table.tt", "frame.tt", "pipe.tt"] {
+        let outcome = render(d, name, &output);
+        check(name, &outcome, "not a regular file", &output);
+    }
+    write("tone.tt", "(sine (* t 440))");
+    let outcome = run_capped(
+        d,
+        &["render", "tone.tt", "-o", "out.wav", "--spectrogram", "pipe.png", "--quiet"],
+        None,
+    );
+    check("a picture onto a pipe", &outcome, "it is a named pipe", &output);
+}
