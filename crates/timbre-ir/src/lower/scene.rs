@@ -660,9 +660,19 @@ impl Lowerer<'_> {
         let mut sound = sound?;
         self.lint_constant_sound(sound, call.span, origin);
         if let Some(gain) = gain {
-            sound = self
-                .graph
-                .add(Op::Binary(BinaryOp::Mul), vec![gain?, sound]);
+            let gain = gain?;
+            if let Some(value) = self.graph.scalar(gain).filter(|g| !g.is_finite()) {
+                let span = options.get("gain").map_or(form.span, |e| e.span);
+                return Err(self
+                    .diag(
+                        "timbre::bad-instance",
+                        format!("`:gain` is {value}, not a finite number"),
+                        origin,
+                    )
+                    .label(span, "gain")
+                    .help("1 leaves the sound as it is, 0.5 is about −6 dB"));
+            }
+            sound = self.graph.add(Op::Binary(BinaryOp::Mul), vec![gain, sound]);
         }
         let width = self.graph.width(sound);
         let channels = self.settings.channels.unwrap_or(1);
@@ -1018,7 +1028,7 @@ impl Lowerer<'_> {
                     ))
                 }
                 "reference-distance" | "min-distance" | "max-distance"
-                    if value > 0.0 && value.is_finite() =>
+                    if value > 0.0 && value <= crate::space::MAX_COORDINATE =>
                 {
                     let medium = &mut self.space.medium;
                     match key.as_str() {
@@ -1030,8 +1040,8 @@ impl Lowerer<'_> {
                 "reference-distance" | "min-distance" | "max-distance" => {
                     return Err(err(
                         value_expr.span,
-                        format!("distance {value} is not positive"),
-                        "expected metres > 0",
+                        format!("distance {value} is not from 0 to 1000 km"),
+                        "expected metres > 0, ≤ 1000000",
                         "write e.g. `:reference-distance 1`",
                     ))
                 }
