@@ -852,7 +852,10 @@ impl SceneRenderer {
         let Some(mut b) = LaneBatch::new(&mut lock(jit), &instance, self.config)? else {
             return Ok(None);
         };
-        let lane = b.add(&instance, start).expect("a new batch has free lanes");
+        // A new batch has free lanes; were it not so, a voice of its own would do.
+        let Some(lane) = b.add(&instance, start) else {
+            return Ok(None);
+        };
         self.batches.push(b);
         Ok(Some(Voice::Lane {
             batch: self.batches.len() - 1,

@@ -94,7 +94,9 @@ pub struct Instance {
 
 impl Instance {
     /// Its sound: the class tree with its parameters bound, as its timer lets it
-    /// out (below the gain, routing and propagation the scene adds).
+    /// out (below the gain, routing and propagation the scene adds). Lowering puts
+    /// every instance under a timer; an instance made otherwise, without one, is its
+    /// root.
     pub fn sound(&self, graph: &Graph) -> NodeId {
         let mut pending = vec![self.root];
         while let Some(id) = pending.pop() {
@@ -104,7 +106,7 @@ impl Instance {
             }
             pending.extend(node.args.iter().copied());
         }
-        unreachable!("every instance is under a timer")
+        self.root
     }
 }
 
@@ -272,7 +274,7 @@ impl Lowerer<'_> {
                 })?
             }
         };
-        if options.get("csv").is_some() {
+        if let Some(csv) = options.get("csv") {
             if let Some(extra) = keys.first() {
                 return Err(self
                     .diag(
@@ -283,7 +285,7 @@ impl Lowerer<'_> {
                     .label(extra.span, "listed key")
                     .help(format!("write {KEYFRAMES_USAGE}")));
             }
-            return self.csv_track(&options, interpolation, form_span, origin);
+            return self.csv_track(csv, &options, interpolation, form_span, origin);
         }
         let mut times = vec![];
         // One list of values per coordinate.
@@ -360,12 +362,12 @@ impl Lowerer<'_> {
 
     fn csv_track(
         &mut self,
+        path_expr: &Expr,
         options: &Options<'_>,
         interpolation: Interpolation,
         form_span: Span,
         origin: &Origin,
     ) -> Result<Track, Diag> {
-        let path_expr = options.get("csv").expect("a CSV track has :csv");
         let path = self.string_option(path_expr, "the CSV file", origin)?;
         // One column, or one per coordinate of a vector.
         let (columns_expr, vector) = match (options.get("column"), options.get("columns")) {
