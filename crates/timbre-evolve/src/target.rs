@@ -142,7 +142,8 @@ impl Features {
                 );
                 start += size / 4;
             }
-            if size == *FFT_SIZES.last().expect("sizes") {
+            let [.., largest] = FFT_SIZES;
+            if size == largest {
                 average = vec![0.0; size / 2 + 1];
                 for frame in &frames {
                     for (a, m) in average.iter_mut().zip(frame as &Vec<f64>) {

@@ -13,8 +13,6 @@
 //! text that reads back as the same `f64`), seeds in hexadecimal, and nothing that
 //! depends on the process (no addresses, no hash-map order).
 
-use std::fmt::Write;
-
 use crate::graph::{Graph, NodeId};
 use crate::op::{ImpulseResponse, Op};
 
@@ -30,12 +28,12 @@ pub fn dump(graph: &Graph, roots: &[NodeId]) -> String {
         if !reachable[id.index()] {
             continue;
         }
-        write!(out, "%{} = {}", id.0, describe(&node.op)).unwrap();
+        out.push_str(&format!("%{} = {}", id.0, describe(&node.op)));
         for arg in &node.args {
-            write!(out, " %{}", arg.0).unwrap();
+            out.push_str(&format!(" %{}", arg.0));
         }
         let lanes = if node.width == 1 { "lane" } else { "lanes" };
-        write!(out, " [{} {lanes}]", node.width).unwrap();
+        out.push_str(&format!(" [{} {lanes}]", node.width));
         if roots.contains(&id) {
             out.push_str(" ; root");
         }
@@ -54,7 +52,7 @@ fn describe(op: &Op) -> String {
             let mut text = format!("const {:?}", &values[..shown]);
             if shown < values.len() {
                 text.pop();
-                write!(text, ", … {} more]", values.len() - shown).unwrap();
+                text.push_str(&format!(", … {} more]", values.len() - shown));
             }
             text
         }

@@ -56,9 +56,11 @@ pub(crate) fn select(b: &mut FunctionBuilder, mask: Value, yes: Value, no: Value
     b.ins().bitselect(mask, yes, no)
 }
 
-/// `c[0] + y·(c[1] + y·(c[2] + …))`.
+/// `c[0] + y·(c[1] + y·(c[2] + …))` (0 for no coefficients).
 fn horner(b: &mut FunctionBuilder, y: Value, coeffs: &[f64]) -> Value {
-    let (&last, rest) = coeffs.split_last().expect("at least one coefficient");
+    let Some((&last, rest)) = coeffs.split_last() else {
+        return splat(b, 0.0);
+    };
     let mut acc = splat(b, last);
     for &c in rest.iter().rev() {
         let c = splat(b, c);

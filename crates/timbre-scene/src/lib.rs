@@ -852,7 +852,10 @@ impl SceneRenderer {
         let Some(mut b) = LaneBatch::new(&mut lock(jit), &instance, self.config)? else {
             return Ok(None);
         };
-        let lane = b.add(&instance, start).expect("a new batch has free lanes");
+        // A new batch has free lanes; were it not so, a voice of its own would do.
+        let Some(lane) = b.add(&instance, start) else {
+            return Ok(None);
+        };
         self.batches.push(b);
         Ok(Some(Voice::Lane {
             batch: self.batches.len() - 1,
@@ -885,15 +888,13 @@ impl SceneRenderer {
         result
     }
 
-    /// Renders the next frames into one slice per channel (`out.len()` must be the
-    /// channels; every slice as long as the first). Allocates nothing.
+    /// Renders the next frames into one slice per channel, as many frames as the
+    /// shortest slice holds (the `timbre` crate refuses slices of unequal lengths,
+    /// or a count other than the channels). A channel without a slice is not
+    /// written; a slice without a channel, nor a slice's frames after the shortest.
+    /// Allocates nothing.
     pub fn render_planar(&mut self, out: &mut [&mut [f64]]) -> Result<(), JitError> {
-        assert_eq!(out.len(), self.channels, "one slice per channel");
-        let frames = out.first().map_or(0, |c| c.len());
-        assert!(
-            out.iter().all(|c| c.len() == frames),
-            "slices of one length"
-        );
+        let frames = out.iter().map(|c| c.len()).min().unwrap_or(0);
         let mut block = std::mem::take(&mut self.block);
         let per_block = block.len() / self.channels;
         let mut done = 0;

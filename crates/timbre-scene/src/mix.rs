@@ -7,7 +7,8 @@
 pub enum Placement {
     /// The same in every channel (the default).
     Everywhere,
-    /// Only in this channel (none, if the scene has fewer).
+    /// Only in this channel (none, if the scene has fewer: the `timbre` crate
+    /// refuses such a placement).
     Channel(usize),
     /// Between two channels with equal-power panning: `position` −1 is all `left`,
     /// +1 all `right`, 0 both at −3 dB. Gains `cos θ` and `sin θ` with

@@ -31,6 +31,10 @@ use std::sync::{Arc, Mutex, PoisonError};
 use timbre_ir::{CompileOptions, Library, Program, RenderConfig};
 use timbre_scene::{Prepared, SceneRenderer, SharedJit};
 
+mod arguments;
+
+pub use arguments::{MAX_BLOCK_SIZE, MAX_CHANNELS, MAX_SAMPLE_RATE, MAX_THREADS, MIN_SAMPLE_RATE};
+
 pub use timbre_ir::keyframes::{CsvTime, Interpolation, KeyframeError, KeyframeTrack};
 pub use timbre_ir::limits::Limits;
 pub use timbre_ir::{
@@ -135,6 +139,13 @@ pub struct Engine {
 impl Engine {
     /// An engine at `sample_rate`, mono, compiling to native code, reading no files.
     ///
+    /// A rate is a finite number of Hz from [`MIN_SAMPLE_RATE`] to [`MAX_SAMPLE_RATE`]
+    /// (and at most [`Limits::sample_rate`]). The settings are checked together when a
+    /// scene is made ([`Engine::scene`], [`Engine::scene_from`],
+    /// [`Engine::load_scene`]), so another rate is refused there
+    /// (`timbre::bad-sample-rate`, or `timbre::rate-too-high` above the limit) and
+    /// never rendered at; libraries do not depend on it.
+    ///
     /// ```
     /// let engine = timbre::Engine::new(8_000.0);
     /// let mut scene = engine.load_scene("(sine (* t 440))").unwrap();
@@ -142,6 +153,8 @@ impl Engine {
     /// assert_eq!((scene.channels(), samples.len()), (1, 8_000), "mono, 8000 samples a second");
     /// let refused = engine.load_library("(include \"tones.tt\")").unwrap_err();
     /// assert!(refused.to_string().contains("tones.tt"), "reads no files: {refused}");
+    /// let silent = timbre::Engine::new(0.0).load_scene("(sine (* t 440))").unwrap_err();
+    /// assert!(silent.report().contains("timbre::bad-sample-rate"), "{}", silent.report());
     /// ```
     pub fn new(sample_rate: f64) -> Self {
         Engine {
@@ -255,7 +268,9 @@ impl Engine {
     }
 
     /// Gives a free parameter of the scripts it loads a value: a name that a tree
-    /// uses and nothing defines (the command line's `--set NAME=VALUE`).
+    /// uses and nothing defines (the command line's `--set NAME=VALUE`). A value that
+    /// is not finite is refused by the first call that loads a script with it
+    /// (`timbre::bad-binding`).
     ///
     /// ```
     /// let engine = timbre::Engine::new(8_000.0).with_binding("pitch", 440.0);
@@ -281,7 +296,8 @@ impl Engine {
 
     /// Samples per block (256 by default): the unit in which instances start, stop
     /// and take variable changes in a real-time scene. Offline output does not depend
-    /// on it.
+    /// on it. From 1 to [`MAX_BLOCK_SIZE`]; another number is refused when a scene is
+    /// made (`timbre::bad-block-size`).
     ///
     /// ```
     /// let engine = timbre::Engine::new(48_000.0).with_block_size(64);
@@ -289,7 +305,7 @@ impl Engine {
     /// assert_eq!(scene.channels(), 1);
     /// ```
     pub fn with_block_size(mut self, samples: usize) -> Self {
-        self.config.block_size = samples.max(1);
+        self.config.block_size = samples;
         self
     }
 
@@ -333,7 +349,9 @@ impl Engine {
 
     /// Output channels of the scenes it makes for a library (1 by default): frames of
     /// this many interleaved samples. A one-lane instance is heard in every channel
-    /// unless it is placed (see [`Play::pan`] and [`Play::channel`]).
+    /// unless it is placed (see [`Play::pan`] and [`Play::channel`]). From 1 to
+    /// [`MAX_CHANNELS`]; another number is refused when a scene is made
+    /// (`timbre::bad-channels`).
     ///
     /// ```
     /// use timbre::{Engine, Play};
@@ -347,7 +365,7 @@ impl Engine {
     /// assert!(frames.chunks(2).all(|lr| lr[1].abs() < 1e-7), "all on the left");
     /// ```
     pub fn with_channels(mut self, channels: usize) -> Self {
-        self.channels = channels.max(1);
+        self.channels = channels;
         self
     }
 
@@ -437,6 +455,22 @@ impl Engine {
             *jit = Some(timbre_scene::shared_jit()?);
         }
         Ok(jit.clone())
+    }
+
+    /// The settings a scene renders with, checked together before it is made: the
+    /// rate, block size and channels the builder methods took as given.
+    fn check_settings(&self) -> Result<(), Diagnostics> {
+        arguments::sample_rate(self.config.sample_rate, &self.limits)?;
+        arguments::block_size(self.config.block_size)?;
+        arguments::channels(self.channels)
+    }
+
+    /// The bindings, checked before a script is lowered with them.
+    fn check_bindings(&self) -> Result<(), Diagnostics> {
+        for (name, value) in &self.bindings {
+            arguments::binding(name, *value)?;
+        }
+        Ok(())
     }
 
     fn options(&self) -> CompileOptions<'_> {
@@ -531,6 +565,7 @@ impl Engine {
         source: Arc<SourceFile>,
         dir: Option<&Path>,
     ) -> Result<SoundLibrary, Diagnostics> {
+        self.check_bindings()?;
         self.check_size(&source)?;
         let library = Library::compile(source, dir, &self.options())?;
         Ok(SoundLibrary(Arc::new(library)))
@@ -547,7 +582,7 @@ impl Engine {
     /// assert!(scene.render_offline(0.2).unwrap().iter().any(|x| x.abs() > 0.5));
     /// ```
     pub fn scene(&self, library: &SoundLibrary) -> Result<Scene, Error> {
-        timbre_ir::limits::check_length(0.0, self.config.sample_rate, &self.limits)?;
+        self.check_settings()?;
         let renderer = match self.jit()? {
             Some(jit) => {
                 SceneRenderer::new_empty_sharing(self.config, self.backend, self.channels, jit)
@@ -641,6 +676,7 @@ impl Engine {
         source: Arc<SourceFile>,
         dir: Option<&Path>,
     ) -> Result<SceneFile, Diagnostics> {
+        self.check_bindings()?;
         self.check_size(&source)?;
         let program = timbre_ir::compile(source, dir, &self.options())?;
         Ok(SceneFile {
@@ -663,8 +699,10 @@ impl Engine {
     /// assert_eq!(engine.kernels_compiled(), 1);
     /// ```
     pub fn scene_from(&self, file: &SceneFile, seconds: f64) -> Result<Scene, Error> {
+        self.check_settings()?;
         let program = &file.program;
         let rate = self.config.sample_rate;
+        arguments::time("a length", seconds)?;
         timbre_ir::limits::check_length(seconds, rate, &self.limits)?;
         let frames = (seconds * rate).round() as u64;
         let playing = timbre_scene::playing(program, rate, frames);
@@ -865,7 +903,11 @@ impl SoundLibrary {
 }
 
 /// When an instance plays and where it is heard: a start time, an optional stop, a
-/// gain and a placement among the output channels.
+/// gain and a placement among the output channels. Checked when the instance is
+/// started ([`Scene::play`]): times are finite seconds ≥ 0 (`timbre::bad-time`), a
+/// stop comes after the start (`timbre::stop-before-start`), a gain is finite
+/// (`timbre::bad-gain`), a pan position is from −1 to 1 (`timbre::bad-pan`) and a
+/// channel is one the scene has (`timbre::bad-channel`).
 ///
 /// ```
 /// use timbre::Play;
@@ -1135,6 +1177,8 @@ impl Scene {
         params: &[(&str, ParamValue)],
         play: Play,
     ) -> Result<InstanceId, Error> {
+        arguments::play(&play, self.channels())?;
+        arguments::parameters(params)?;
         let tree = self.library.0.instantiate(
             class,
             params,
@@ -1154,27 +1198,29 @@ impl Scene {
             .add(&tree.graph, tree.root, start, end, play.mix)?)
     }
 
-    /// Stops an instance at scene time `at` with a short fade-out. False if it has
-    /// already ended.
+    /// Stops an instance at scene time `at` (finite seconds ≥ 0, else
+    /// `timbre::bad-time`) with a short fade-out. False if it has already ended.
     ///
     /// ```
     /// let engine = timbre::Engine::new(8_000.0);
     /// let library = engine.load_library("(define-sound tone (f) (sine (* t f)))").unwrap();
     /// let mut scene = engine.scene(&library).unwrap();
     /// let id = scene.start("tone", &[("f", 440.0.into())], 0.0).unwrap();
-    /// assert!(scene.stop(id, 0.25));
+    /// assert!(scene.stop(id, 0.25).unwrap());
     /// let x = scene.render_offline(0.5).unwrap();
     /// assert!(x[1_900..2_000].iter().any(|v| v.abs() > 0.5));
     /// assert!(x[2_100..].iter().all(|v| *v == 0.0), "silent after 0.25 s and its fade-out");
-    /// assert!(!scene.stop(id, 1.0), "it has ended already");
+    /// assert!(!scene.stop(id, 1.0).unwrap(), "it has ended already");
+    /// assert!(scene.stop(id, f64::NAN).is_err(), "not a time");
     /// ```
-    pub fn stop(&mut self, id: InstanceId, at: f64) -> bool {
+    pub fn stop(&mut self, id: InstanceId, at: f64) -> Result<bool, Error> {
+        arguments::time("a stop time", at)?;
         let at = self.sample(at);
-        self.renderer.stop(id, at)
+        Ok(self.renderer.stop(id, at))
     }
 
-    /// Changes an instance's gain and placement, from the next block. False if it has
-    /// already ended.
+    /// Changes an instance's gain and placement, from the next block (checked as
+    /// [`Play`]'s are). False if it has already ended.
     ///
     /// ```
     /// use timbre::{Engine, Mix, Placement, Play};
@@ -1184,21 +1230,23 @@ impl Scene {
     /// let mut scene = engine.scene(&library).unwrap();
     /// let id = scene.play("tone", &[("f", 440.0.into())], Play::at(0.0).channel(0)).unwrap();
     /// let before = scene.render_offline(0.25).unwrap();
-    /// assert!(scene.set_mix(id, Mix { gain: 0.5, placement: Placement::Channel(1) }));
+    /// assert!(scene.set_mix(id, Mix { gain: 0.5, placement: Placement::Channel(1) }).unwrap());
     /// let after = scene.render_offline(0.5).unwrap();
     /// assert!(before.chunks(2).all(|lr| lr[1] == 0.0) && before.iter().any(|v| v.abs() > 0.9));
     /// assert!(after.chunks(2).all(|lr| lr[0] == 0.0 && lr[1].abs() <= 0.5));
     /// assert!(after.iter().any(|v| v.abs() > 0.45), "moved to channel 1, at half the gain");
     /// ```
-    pub fn set_mix(&mut self, id: InstanceId, mix: Mix) -> bool {
-        self.renderer.set_mix(id, mix)
+    pub fn set_mix(&mut self, id: InstanceId, mix: Mix) -> Result<bool, Error> {
+        arguments::mix(&mix, self.channels())?;
+        Ok(self.renderer.set_mix(id, mix))
     }
 
     /// Renders instances on `threads` threads (1, the default: on the calling thread
     /// only). The samples are the same, bit for bit, whatever the number; with more
     /// than one, a block waits for the slowest thread and [`Scene::render`] may
     /// allocate, so keep the default on a real-time audio thread and use threads for
-    /// offline renders.
+    /// offline renders. From 1 to [`MAX_THREADS`] (`timbre::bad-threads`);
+    /// `timbre::no-threads` if the system cannot start them.
     ///
     /// ```
     /// let engine = timbre::Engine::new(48_000.0);
@@ -1211,10 +1259,17 @@ impl Scene {
     /// let samples = scene.render_offline(0.5).unwrap();
     /// assert_eq!(samples.len(), 24_000);
     /// ```
-    pub fn set_threads(&mut self, threads: usize) -> Result<(), std::io::Error> {
-        self.renderer
-            .set_threads(threads)
-            .map_err(std::io::Error::other)
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), Error> {
+        arguments::threads(threads)?;
+        self.renderer.set_threads(threads).map_err(|e| {
+            Error::Script(Diagnostics::one(
+                Diag::new(
+                    "timbre::no-threads",
+                    format!("cannot start {threads} threads: {e}"),
+                )
+                .help("render on fewer threads, or on the calling thread only (1)"),
+            ))
+        })
     }
 
     /// Instances computed as the lanes of shared kernel calls rather than each as a
@@ -1255,7 +1310,8 @@ impl Scene {
         self.renderer.channels()
     }
 
-    /// Renders the next `out.len() / channels` frames, interleaved. Allocates nothing,
+    /// Renders the next `out.len() / channels` frames, interleaved (a length that is
+    /// not whole frames is `timbre::bad-buffer`). Allocates nothing,
     /// takes no lock (with one thread, the default: see [`Scene::set_threads`]). With
     /// a wall-time limit ([`Limits::render_time`]), a call that takes longer stops at
     /// the end of a block with a diagnostic (the frames after it are left as they
@@ -1276,6 +1332,7 @@ impl Scene {
     /// assert_eq!([first, second].concat(), start().render_offline(0.1).unwrap());
     /// ```
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {
+        arguments::interleaved(out.len(), self.channels())?;
         let Some(budget) = self.engine.limits.render_time else {
             return Ok(self.renderer.render(out)?);
         };
@@ -1298,7 +1355,8 @@ impl Scene {
 
     /// Renders the next `out.len() / channels` frames as interleaved `f32`, what an
     /// audio callback usually takes. Each sample is the `f64` one rounded to the
-    /// nearest `f32`. Allocates nothing.
+    /// nearest `f32`. Allocates nothing. A length that is not whole frames is
+    /// `timbre::bad-buffer`.
     ///
     /// ```
     /// let engine = timbre::Engine::new(8_000.0);
@@ -1315,11 +1373,12 @@ impl Scene {
     /// assert!(single.iter().zip(&double).all(|(s, d)| *s == *d as f32));
     /// ```
     pub fn render_f32(&mut self, out: &mut [f32]) -> Result<(), Error> {
+        arguments::interleaved(out.len(), self.channels())?;
         Ok(self.renderer.render_f32(out)?)
     }
 
-    /// Renders the next frames into one slice per channel, all of one length.
-    /// Allocates nothing.
+    /// Renders the next frames into one slice per channel, all of one length
+    /// (another count or unequal lengths are `timbre::bad-buffer`). Allocates nothing.
     ///
     /// ```
     /// let engine = timbre::Engine::new(48_000.0).with_channels(2);
@@ -1331,11 +1390,16 @@ impl Scene {
     /// assert!(left.iter().all(|x| x.abs() < 1e-12) && right[100].abs() > 0.01);
     /// ```
     pub fn render_planar(&mut self, out: &mut [&mut [f64]]) -> Result<(), Error> {
+        arguments::planar(out, self.channels())?;
         Ok(self.renderer.render_planar(out)?)
     }
 
     /// Renders until scene time `until` and returns the frames, interleaved (at most
-    /// [`Limits::duration`] seconds).
+    /// [`Limits::duration`] seconds). The samples are held at once, so their memory
+    /// counts against [`Limits::memory`] (`timbre::too-much-memory`: 24 hours at
+    /// 48 kHz would be 33 GB) and is asked of the system before rendering
+    /// (`timbre::out-of-memory`); render longer sounds block by block with
+    /// [`Scene::render`].
     ///
     /// ```
     /// let engine = timbre::Engine::new(8_000.0).with_channels(2);
@@ -1347,15 +1411,19 @@ impl Scene {
     /// assert_eq!((first.len(), rest.len()), (2 * 2_000, 2 * 6_000), "to 1 s from where it was");
     /// assert!(rest.iter().any(|x| x.abs() > 0.5));
     /// assert!(scene.render_offline(100_000.0).is_err(), "longer than Limits::duration");
+    /// let day = scene.render_offline(24.0 * 3600.0).unwrap_err();
+    /// assert!(day.report().contains("timbre::too-much-memory"), "{}", day.report());
     /// ```
     pub fn render_offline(&mut self, until: f64) -> Result<Vec<f64>, Error> {
+        arguments::time("a time to render until", until)?;
         timbre_ir::limits::check_length(
             until,
             self.engine.config.sample_rate,
             &self.engine.limits,
         )?;
-        let frames = self.sample(until).saturating_sub(self.renderer.position()) as usize;
-        let mut out = vec![0.0; frames * self.renderer.channels()];
+        let frames = self.sample(until).saturating_sub(self.renderer.position());
+        let samples = frames.saturating_mul(self.renderer.channels() as u64);
+        let mut out = arguments::offline_buffer(samples, until, &self.engine.limits)?;
         self.render(&mut out)?;
         Ok(out)
     }
@@ -1578,7 +1646,8 @@ impl Scene {
     /// the control side; the renderer only takes it at the start of a block, and
     /// sends ended instances back to be freed there, so it never locks, allocates,
     /// frees, lowers or compiles. At most `capacity` more instances may be playing or
-    /// waiting to start at once (a start beyond is refused with a diagnostic).
+    /// waiting to start at once (a start beyond is refused with a diagnostic); 0 is
+    /// `timbre::bad-capacity`.
     ///
     /// ```
     /// use timbre::{Engine, Play};
@@ -1595,10 +1664,12 @@ impl Scene {
     /// assert!(callback_buffer.iter().any(|x| x.abs() > 0.01));
     /// ```
     pub fn split(self, capacity: usize) -> Result<(Control, Renderer), Error> {
+        arguments::capacity(capacity)?;
         if capacity > self.engine.limits.instances {
             return Err(too_many(self.engine.limits.instances));
         }
         let jit = self.engine.jit()?;
+        let channels = self.renderer.channels();
         let (control, renderer) = self.renderer.split(capacity)?;
         let control = Control {
             inner: Arc::new(Mutex::new(ControlSide {
@@ -1606,6 +1677,7 @@ impl Scene {
                 engine: self.engine.clone(),
                 library: self.library,
                 jit,
+                channels,
             })),
         };
         Ok((
@@ -1632,6 +1704,8 @@ struct ControlSide {
     engine: Engine,
     library: SoundLibrary,
     jit: Option<SharedJit>,
+    /// The scene's output channels, for checking placements.
+    channels: usize,
 }
 
 /// More instances than the limit.
@@ -1716,6 +1790,8 @@ impl Control {
         let mut side = self.side();
         let side = &mut *side;
         let now = side.control.position();
+        arguments::play(&play, side.channels)?;
+        arguments::parameters(params)?;
         let started = prepare(
             &side.engine,
             &side.library,
@@ -1746,6 +1822,7 @@ impl Control {
     /// assert_eq!(control.playing(), 0);
     /// ```
     pub fn stop(&self, id: InstanceId, at: f64) -> Result<(), Error> {
+        arguments::time("a stop time", at)?;
         let mut side = self.side();
         let at = (at.max(0.0) * side.engine.config.sample_rate).round() as u64;
         side.control.stop(id, at).map_err(refused)
@@ -1768,7 +1845,9 @@ impl Control {
     /// assert!(block.chunks(2).all(|lr| lr[0] == 0.0) && block.iter().any(|x| x.abs() > 0.5));
     /// ```
     pub fn set_mix(&self, id: InstanceId, mix: Mix) -> Result<(), Error> {
-        self.side().control.set_mix(id, mix).map_err(refused)
+        let mut side = self.side();
+        arguments::mix(&mix, side.channels)?;
+        side.control.set_mix(id, mix).map_err(refused)
     }
 
     /// Scene time the renderer has reached (as of its last block).
@@ -1854,6 +1933,7 @@ impl Renderer {
     /// assert_eq!(block, expected, "what the scene renders unsplit");
     /// ```
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {
+        arguments::interleaved(out.len(), self.channels())?;
         Ok(self.renderer.render(out)?)
     }
 
@@ -1872,6 +1952,7 @@ impl Renderer {
     /// assert!(callback_buffer.chunks(2).any(|lr| lr[0] > 0.5));
     /// ```
     pub fn render_f32(&mut self, out: &mut [f32]) -> Result<(), Error> {
+        arguments::interleaved(out.len(), self.channels())?;
         Ok(self.renderer.render_f32(out)?)
     }
 
@@ -1889,6 +1970,7 @@ impl Renderer {
     /// assert!(left.iter().all(|x| *x == 0.0) && right.iter().any(|x| x.abs() > 0.5));
     /// ```
     pub fn render_planar(&mut self, out: &mut [&mut [f64]]) -> Result<(), Error> {
+        arguments::planar(out, self.channels())?;
         Ok(self.renderer.render_planar(out)?)
     }
 

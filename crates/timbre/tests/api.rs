@@ -58,7 +58,7 @@ fn instances_start_on_their_sample_and_stop_with_a_fade() {
             0.1234,
         )
         .unwrap();
-    assert!(scene.stop(id, 0.3));
+    assert!(scene.stop(id, 0.3).unwrap());
     let x = scene.render_offline(0.5).unwrap();
     let start = (0.1234 * SR).round() as usize;
     assert!(
@@ -123,7 +123,7 @@ fn parameters_from_keyframes_and_variables() {
         (peak(&x, 0.75) - (0.1 + 0.8 * 0.75)).abs() < 0.01,
         "swell at scene time 0.75"
     );
-    scene.stop(a, 1.0);
+    scene.stop(a, 1.0).unwrap();
     let mut scene = engine.scene(&library).unwrap();
     scene
         .start(
@@ -189,7 +189,7 @@ fn rendering_the_next_block_allocates_nothing() {
                 0.0,
             )
             .unwrap();
-        scene.stop(later, 0.5);
+        scene.stop(later, 0.5).unwrap();
         let mut block = vec![0.0; 256];
         ALLOCATIONS.store(0, Ordering::Relaxed);
         COUNTING.with(|c| c.set(true));
@@ -389,7 +389,7 @@ fn a_hosts_swarm_runs_as_lanes_without_allocating() {
             ids.push(scene.start("tone", &tone, 0.0031 * k as f64).unwrap());
         }
         for id in ids.iter().step_by(4) {
-            scene.stop(*id, 0.2);
+            scene.stop(*id, 0.2).unwrap();
         }
         let lanes = scene.instances_in_lanes();
         let mut out = vec![0.0; 24_000];

@@ -94,7 +94,9 @@ pub struct Instance {
 
 impl Instance {
     /// Its sound: the class tree with its parameters bound, as its timer lets it
-    /// out (below the gain, routing and propagation the scene adds).
+    /// out (below the gain, routing and propagation the scene adds). Lowering puts
+    /// every instance under a timer; an instance made otherwise, without one, is its
+    /// root.
     pub fn sound(&self, graph: &Graph) -> NodeId {
         let mut pending = vec![self.root];
         while let Some(id) = pending.pop() {
@@ -104,7 +106,7 @@ impl Instance {
             }
             pending.extend(node.args.iter().copied());
         }
-        unreachable!("every instance is under a timer")
+        self.root
     }
 }
 
@@ -272,7 +274,7 @@ impl Lowerer<'_> {
                 })?
             }
         };
-        if options.get("csv").is_some() {
+        if let Some(csv) = options.get("csv") {
             if let Some(extra) = keys.first() {
                 return Err(self
                     .diag(
@@ -283,7 +285,7 @@ impl Lowerer<'_> {
                     .label(extra.span, "listed key")
                     .help(format!("write {KEYFRAMES_USAGE}")));
             }
-            return self.csv_track(&options, interpolation, form_span, origin);
+            return self.csv_track(csv, &options, interpolation, form_span, origin);
         }
         let mut times = vec![];
         // One list of values per coordinate.
@@ -360,12 +362,12 @@ impl Lowerer<'_> {
 
     fn csv_track(
         &mut self,
+        path_expr: &Expr,
         options: &Options<'_>,
         interpolation: Interpolation,
         form_span: Span,
         origin: &Origin,
     ) -> Result<Track, Diag> {
-        let path_expr = options.get("csv").expect("a CSV track has :csv");
         let path = self.string_option(path_expr, "the CSV file", origin)?;
         // One column, or one per coordinate of a vector.
         let (columns_expr, vector) = match (options.get("column"), options.get("columns")) {
@@ -660,9 +662,19 @@ impl Lowerer<'_> {
         let mut sound = sound?;
         self.lint_constant_sound(sound, call.span, origin);
         if let Some(gain) = gain {
-            sound = self
-                .graph
-                .add(Op::Binary(BinaryOp::Mul), vec![gain?, sound]);
+            let gain = gain?;
+            if let Some(value) = self.graph.scalar(gain).filter(|g| !g.is_finite()) {
+                let span = options.get("gain").map_or(form.span, |e| e.span);
+                return Err(self
+                    .diag(
+                        "timbre::bad-instance",
+                        format!("`:gain` is {value}, not a finite number"),
+                        origin,
+                    )
+                    .label(span, "gain")
+                    .help("1 leaves the sound as it is, 0.5 is about −6 dB"));
+            }
+            sound = self.graph.add(Op::Binary(BinaryOp::Mul), vec![gain, sound]);
         }
         let width = self.graph.width(sound);
         let channels = self.settings.channels.unwrap_or(1);
@@ -1018,7 +1030,7 @@ impl Lowerer<'_> {
                     ))
                 }
                 "reference-distance" | "min-distance" | "max-distance"
-                    if value > 0.0 && value.is_finite() =>
+                    if value > 0.0 && value <= crate::space::MAX_COORDINATE =>
                 {
                     let medium = &mut self.space.medium;
                     match key.as_str() {
@@ -1030,8 +1042,8 @@ impl Lowerer<'_> {
                 "reference-distance" | "min-distance" | "max-distance" => {
                     return Err(err(
                         value_expr.span,
-                        format!("distance {value} is not positive"),
-                        "expected metres > 0",
+                        format!("distance {value} is not from 0 to 1000 km"),
+                        "expected metres > 0, ≤ 1000000",
                         "write e.g. `:reference-distance 1`",
                     ))
                 }

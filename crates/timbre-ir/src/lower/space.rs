@@ -22,7 +22,7 @@ use crate::space::environment::{Acoustics, Environment, Late, Material, PlacedOb
 use crate::space::environment::{DEFAULT_MATERIAL, MATERIALS};
 use crate::space::geometry::{Opening, Room, Wall, DEFAULT_ORDER, MAX_ORDER};
 use crate::space::path::max_distance;
-use crate::space::{Medium, Path, Propagation, Receiver};
+use crate::space::{Medium, Path, Propagation, Receiver, MAX_COORDINATE, MAX_ROOM_SIDE};
 
 /// Default spacing of a spaced pair of omnis, metres.
 pub const PAIR_SPACING: f64 = 0.5;
@@ -125,7 +125,7 @@ impl Lowerer<'_> {
             None => Path::Fixed(DVec3::ZERO),
         };
         let facing = match options.get("facing") {
-            Some(e) => self.position(e, "the listener's facing direction", origin)?,
+            Some(e) => self.direction(e, "the listener's facing direction", origin)?,
             None => Path::Fixed(DVec3::Y),
         };
         let pattern_value = match options.get("pattern") {
@@ -268,7 +268,7 @@ impl Lowerer<'_> {
             None => Path::Fixed(DVec3::ZERO),
         };
         let facing = match options.get("facing") {
-            Some(e) => self.position(e, "the microphone's direction", origin)?,
+            Some(e) => self.direction(e, "the microphone's direction", origin)?,
             None => Path::Fixed(DVec3::Y),
         };
         let pattern = match options.get("pattern") {
@@ -381,6 +381,24 @@ impl Lowerer<'_> {
                 )
                 .label(span, "here")
                 .help("a room has a positive length, width and height, in metres"));
+        }
+        if room.size().max_element() > MAX_ROOM_SIDE {
+            let span = options
+                .get("size")
+                .or(options.get("to"))
+                .map_or(form.span, |e| e.span);
+            let size = room.size();
+            return Err(self
+                .diag(
+                    "timbre::bad-room",
+                    format!(
+                        "a room of {} × {} × {} m is larger than {MAX_ROOM_SIDE} m on a side",
+                        size.x, size.y, size.z
+                    ),
+                    origin,
+                )
+                .label(span, "too large")
+                .help("a room is at most 10 km on a side; in the open, leave the room out"));
         }
         let mut absorption = [[0.1; 6]; 6];
         for (key, walls) in [
@@ -783,8 +801,51 @@ impl Lowerer<'_> {
         Ok(())
     }
 
-    /// A position: `(x y z)`, a keyframed vector's name, or `(keyframes … (t (x y z)) …)`.
+    /// A position: `(x y z)`, a keyframed vector's name, or `(keyframes … (t (x y z)) …)`,
+    /// within [`MAX_COORDINATE`] of the origin on every axis.
     pub(crate) fn position(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<Path, Diag> {
+        let path = self.any_position(e, what, origin)?;
+        let (lo, hi) = path.bounds();
+        let farthest = lo.abs().max(hi.abs()).max_element();
+        if farthest <= MAX_COORDINATE {
+            return Ok(path);
+        }
+        Err(self
+            .diag(
+                "timbre::bad-position",
+                format!(
+                    "{what} reaches {farthest:e} m from the origin, beyond {MAX_COORDINATE:e} m"
+                ),
+                origin,
+            )
+            .label(e.span, "too far")
+            .help("coordinates are metres, at most 1000 km from the origin either way"))
+    }
+
+    /// A direction: a position (fixed or keyframed) that is not (0 0 0) at any key.
+    fn direction(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<Path, Diag> {
+        let path = self.position(e, what, origin)?;
+        let Some((time, _)) = key_positions(&path)
+            .into_iter()
+            .find(|(_, p)| p.length_squared() == 0.0)
+        else {
+            return Ok(path);
+        };
+        let when = match path {
+            Path::Fixed(_) => String::new(),
+            Path::Keyed(_) => format!(" at {time} s"),
+        };
+        Err(self
+            .diag(
+                "timbre::bad-position",
+                format!("{what} is (0 0 0){when}, which points nowhere"),
+                origin,
+            )
+            .label(e.span, "no direction")
+            .help("give the direction it faces, e.g. (0 1 0) for +y (the default)"))
+    }
+
+    fn any_position(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<Path, Diag> {
         let help = "write (x y z) in metres, a keyframed position's name, or (keyframes :interp linear (0 (x y z)) (1 (x y z)))";
         let wrong_length = |l: &Self, n: usize, span: Span| {
             l.diag(
@@ -874,16 +935,16 @@ impl Lowerer<'_> {
 
     fn positive_option(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<f64, Diag> {
         let value = self.constant_option(e, what, origin)?;
-        if value > 0.0 && value.is_finite() {
+        if value > 0.0 && value <= MAX_COORDINATE {
             return Ok(value);
         }
+        let message = match value > 0.0 {
+            true => format!("{what} {value} is larger than {MAX_COORDINATE}"),
+            false => format!("{what} {value} is not positive"),
+        };
         Err(self
-            .diag(
-                "timbre::bad-setting",
-                format!("{what} {value} is not positive"),
-                origin,
-            )
-            .label(e.span, "expected a number > 0")
+            .diag("timbre::bad-setting", message, origin)
+            .label(e.span, format!("expected a number > 0, ≤ {MAX_COORDINATE}"))
             .help(format!("{what} is in metres")))
     }
 
@@ -1034,6 +1095,18 @@ impl Lowerer<'_> {
             // the late part begins later still.
             let reach = room.room.size().length() * (room.order as f64 + 1.0);
             max_delay += reach / medium.speed_of_sound + room.late_onset(medium.speed_of_sound);
+            if max_delay > MAX_BUFFER_SECONDS {
+                return Err(self
+                    .diag(
+                        "timbre::too-far",
+                        format!(
+                            "its reflections take up to {max_delay:.0} s to arrive, longer than {MAX_BUFFER_SECONDS} s"
+                        ),
+                        origin,
+                    )
+                    .label(span, "placed here")
+                    .help("use a smaller room, a lower :order, or a higher :speed-of-sound"));
+            }
             tail = match &room.late {
                 Late::None => 0.0,
                 Late::Fdn { rt60, .. } => rt60.iter().fold(0.0, |m: f64, t| m.max(*t)),
