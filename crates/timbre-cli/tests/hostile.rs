@@ -317,3 +317,58 @@ fn named_pipes_are_refused_as_inputs_and_outputs() {
     );
     check("a picture onto a pipe", &outcome, "it is a named pipe", &output);
 }
+
+/// Writes a PNG of `width × height` pixels of one grey, a row at a time (a 12000²
+/// one is a few hundred kilobytes on disk and 432 MB of pixels).
+fn write_flat_png(path: &Path, width: u32, height: u32) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut encoder = png::Encoder::new(file, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder.write_header().unwrap();
+    let mut stream = writer.stream_writer().unwrap();
+    let row = vec![128u8; width as usize * 3];
+    for _ in 0..height {
+        stream.write_all(&row).unwrap();
+    }
+    stream.finish().unwrap();
+}
+
+#[test]
+fn frames_too_large_for_the_repository_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let output = d.join("out.wav");
+    // 12000 × 12000: kept as f64 triples it was 3.46 GB and aborted the process;
+    // now refused from its header, before a pixel is decoded.
+    write_flat_png(&d.join("huge.png"), 12_000, 12_000);
+    assert!(std::fs::metadata(d.join("huge.png")).unwrap().len() < 4 << 20);
+    std::fs::write(
+        d.join("frames-huge.tt"),
+        "(frames v :files (\"huge.png\"))\n(* v-1-brightness (sine (* t 440)))",
+    )
+    .unwrap();
+    let outcome = render(d, "frames-huge.tt", &output);
+    check(
+        "frames-huge.tt",
+        &outcome,
+        "timbre::frames-too-large",
+        &output,
+    );
+    assert!(
+        outcome.stderr.contains("12000×12000") && outcome.stderr.contains("huge.png"),
+        "{}",
+        outcome.stderr
+    );
+    assert!(outcome.took < Duration::from_secs(5), "{:?}", outcome.took);
+    // 4096 × 4096, the most pixels a frame may have: read, twice, within the cap.
+    write_flat_png(&d.join("big.png"), 4096, 4096);
+    std::fs::write(
+        d.join("frames-big.tt"),
+        "(scene :duration 0.5)\n(frames v :files (\"big.png\" \"big.png\") :fps 4)\n\
+         (* 0.1 v-1-brightness (sine (* t 440)))",
+    )
+    .unwrap();
+    let outcome = render(d, "frames-big.tt", &output);
+    check("frames-big.tt", &outcome, "ok", &output);
+}

@@ -13,27 +13,58 @@ pub const SCAN: usize = 32;
 /// Sub-regions at most (the paper's eight sound sources).
 pub const MAX_REGIONS: usize = 8;
 
-/// A decoded frame: `width × height` pixels, row by row from the top, RGB in [0, 1].
+/// Pixels a frame may have: 2²⁴, such as 4096 × 4096 (4K UHD is half of it).
+/// Statistics of vertical regions need no more; a larger frame is refused before
+/// it is decoded.
+pub const MAX_FRAME_PIXELS: u64 = 1 << 24;
+
+/// Bytes of memory per pixel of a frame while it is read and analysed, at most:
+/// the decoder's buffer (up to 16-bit RGBA, 8), the RGB bytes kept (3), the running
+/// average of brightness (8) and the previous frame's brightness (1), rounded up.
+pub const FRAME_BYTES_PER_PIXEL: u64 = 24;
+
+/// A decoded frame: `width × height` pixels, row by row from the top.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
     pub width: usize,
     pub height: usize,
-    pub rgb: Vec<[f64; 3]>,
+    /// Red, green and blue bytes of each pixel.
+    pub rgb: Vec<[u8; 3]>,
 }
 
 impl Image {
-    /// A PNG or JPEG file's pixels (any colour type, made RGB).
+    /// A PNG or JPEG file's width and height, read from its header alone.
+    pub fn dimensions(bytes: &[u8]) -> Result<(u32, u32), String> {
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?;
+        reader.into_dimensions().map_err(|e| e.to_string())
+    }
+
+    /// A PNG or JPEG file's pixels (any colour type, made RGB). A frame of more than
+    /// [`MAX_FRAME_PIXELS`] is refused before its pixels are decoded.
     pub fn decode(bytes: &[u8]) -> Result<Image, String> {
-        let decoded = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
-        let rgb = decoded.to_rgb8();
+        let (width, height) = Image::dimensions(bytes)?;
+        if u64::from(width) * u64::from(height) > MAX_FRAME_PIXELS {
+            return Err(format!(
+                "it is {width}×{height} pixels, more than {MAX_FRAME_PIXELS}"
+            ));
+        }
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?;
+        // The header read above may differ from what the decoder reads: bound both.
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(width);
+        limits.max_image_height = Some(height);
+        limits.max_alloc = Some(MAX_FRAME_PIXELS * FRAME_BYTES_PER_PIXEL);
+        reader.limits(limits);
+        let rgb = reader.decode().map_err(|e| e.to_string())?.into_rgb8();
         let (width, height) = (rgb.width() as usize, rgb.height() as usize);
         if width == 0 || height == 0 {
             return Err("the image has no pixels".into());
         }
-        let pixels = rgb
-            .pixels()
-            .map(|p| p.0.map(|c| f64::from(c) / 255.0))
-            .collect();
+        let pixels = rgb.pixels().map(|p| p.0).collect();
         Ok(Image {
             width,
             height,
@@ -41,28 +72,67 @@ impl Image {
         })
     }
 
-    fn hsb(&self, x: usize, y: usize) -> [f64; 3] {
-        hsb(self.rgb[y * self.width + x])
+    /// The colour of pixel `i` (row by row), each channel in [0, 1].
+    fn colour(&self, i: usize) -> [f64; 3] {
+        self.rgb[i].map(|c| f64::from(c) / 255.0)
     }
+
+    fn hsb(&self, x: usize, y: usize) -> [f64; 3] {
+        hsb(self.colour(y * self.width + x))
+    }
+
+    /// The brightness of pixel `i` as a byte: max(r, g, b).
+    fn brightness_byte(&self, i: usize) -> u8 {
+        let [r, g, b] = self.rgb[i];
+        r.max(g).max(b)
+    }
+}
+
+/// The widest frame number a pattern may pad to: the digits of the largest `u64`.
+pub const MAX_NUMBER_WIDTH: usize = 20;
+
+/// Why a file-name pattern cannot number frames.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum PatternError {
+    /// It has no `%d` or `%0Nd`.
+    NoNumber,
+    /// Its number is padded to this width (as written), wider than
+    /// [`MAX_NUMBER_WIDTH`].
+    TooWide(String),
 }
 
 /// A file-name pattern with one `%d` or `%0Nd` for the frame number.
 pub struct Numbered {
     before: String,
+    /// At most [`MAX_NUMBER_WIDTH`], so formatting cannot fail.
     width: usize,
     after: String,
 }
 
 impl Numbered {
-    /// The pattern's parts, if it has a `%d` or `%0Nd`.
+    /// The pattern's parts, if it has a `%d` or `%0Nd` no wider than
+    /// [`MAX_NUMBER_WIDTH`].
     pub fn parse(pattern: &str) -> Option<Numbered> {
-        let at = pattern.find('%')?;
+        Numbered::new(pattern).ok()
+    }
+
+    /// The pattern's parts, or why it cannot number frames.
+    pub fn new(pattern: &str) -> Result<Numbered, PatternError> {
+        let at = pattern.find('%').ok_or(PatternError::NoNumber)?;
         let rest = &pattern[at + 1..];
-        let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
-        let after = rest[digits.len()..].strip_prefix('d')?;
-        Some(Numbered {
+        let digits =
+            &rest[..rest.len() - rest.trim_start_matches(|c: char| c.is_ascii_digit()).len()];
+        let after = rest[digits.len()..]
+            .strip_prefix('d')
+            .ok_or(PatternError::NoNumber)?;
+        let width = match digits.parse::<usize>() {
+            Ok(width) if width <= MAX_NUMBER_WIDTH => width,
+            Err(_) if digits.is_empty() => 0,
+            _ => return Err(PatternError::TooWide(digits.to_owned())),
+        };
+        Ok(Numbered {
             before: pattern[..at].to_owned(),
-            width: digits.parse().unwrap_or(0),
+            width,
             after: after.to_owned(),
         })
     }
@@ -131,45 +201,84 @@ pub fn columns(width: usize, regions: usize, r: usize) -> std::ops::Range<usize>
     (r * width / regions)..((r + 1) * width / regions).max(r * width / regions + 1)
 }
 
-/// Each frame's features, region by region (`[frame][region]`). Motion compares a
-/// frame's brightness to the running average `v_t = α·b_{t−1} + (1 − α)·v_{t−1}`,
-/// `v_0 = b_0` (the paper's Eq. 1), so the first frame has no motion. Frames must
-/// share one size.
+/// Each frame's features, region by region (`[frame][region]`), from an
+/// [`Analysis`]. Frames must share one size: the features stop at the first that
+/// does not.
 pub fn analyse(frames: &[Image], regions: usize, alpha: f64) -> Vec<Vec<Features>> {
-    let Some(first) = frames.first() else {
-        return vec![];
-    };
-    let (w, h) = (first.width, first.height);
-    let brightness = |f: &Image| -> Vec<f64> { f.rgb.iter().map(|c| hsb(*c)[2]).collect() };
-    let mut average = brightness(first);
-    let mut previous = average.clone();
-    let mut out = vec![];
-    for (t, frame) in frames.iter().enumerate() {
-        let b = brightness(frame);
-        if t > 0 {
-            for (v, b_prev) in average.iter_mut().zip(&previous) {
-                *v = alpha * b_prev + (1.0 - alpha) * *v;
+    let mut analysis = Analysis::new(regions, alpha);
+    frames.iter().map_while(|f| analysis.next(f)).collect()
+}
+
+/// The analysis of a sequence of frames, one at a time, keeping only what motion
+/// needs: the running average of brightness, `v_t = α·b_{t−1} + (1 − α)·v_{t−1}`,
+/// `v_0 = b_0` (the paper's Eq. 1, so the first frame has no motion), and the
+/// previous frame's brightness (a byte per pixel).
+pub struct Analysis {
+    regions: usize,
+    alpha: f64,
+    /// Width and height of the first frame.
+    size: Option<(usize, usize)>,
+    average: Vec<f64>,
+    previous: Vec<u8>,
+}
+
+impl Analysis {
+    pub fn new(regions: usize, alpha: f64) -> Self {
+        Analysis {
+            regions: regions.clamp(1, MAX_REGIONS),
+            alpha,
+            size: None,
+            average: vec![],
+            previous: vec![],
+        }
+    }
+
+    /// The regions each frame is cut into.
+    pub fn regions(&self) -> usize {
+        self.regions
+    }
+
+    /// The next frame's features, region by region; None if its size is not the
+    /// first frame's, or it is narrower than the regions.
+    pub fn next(&mut self, frame: &Image) -> Option<Vec<Features>> {
+        let size = (frame.width, frame.height);
+        if frame.width < self.regions || frame.rgb.len() != frame.width * frame.height {
+            return None;
+        }
+        let brightness = |i: usize| f64::from(frame.brightness_byte(i)) / 255.0;
+        match self.size {
+            None => {
+                self.size = Some(size);
+                self.average = (0..frame.rgb.len()).map(brightness).collect();
+            }
+            Some(first) if first != size => return None,
+            Some(_) => {
+                let alpha = self.alpha;
+                for (v, b_prev) in self.average.iter_mut().zip(&self.previous) {
+                    *v = alpha * (f64::from(*b_prev) / 255.0) + (1.0 - alpha) * *v;
+                }
             }
         }
-        let per_region = (0..regions)
-            .map(|r| region_features(frame, &b, &average, columns(w, regions, r), h))
+        let (w, h) = size;
+        let features = (0..self.regions)
+            .map(|r| region_features(frame, &self.average, columns(w, self.regions, r), h))
             .collect();
-        out.push(per_region);
-        previous = b;
+        self.previous = (0..frame.rgb.len())
+            .map(|i| frame.brightness_byte(i))
+            .collect();
+        Some(features)
     }
-    out
 }
 
 fn region_features(
     frame: &Image,
-    b: &[f64],
     average: &[f64],
     xs: std::ops::Range<usize>,
     height: usize,
 ) -> Features {
     let w = frame.width;
     let n = (xs.len() * height) as f64;
-    let at = |x: usize, y: usize| b[y * w + x];
+    let at = |x: usize, y: usize| f64::from(frame.brightness_byte(y * w + x)) / 255.0;
     let pixels = || (0..height).flat_map(|y| xs.clone().map(move |x| (x, y)));
     let mean = |f: &dyn Fn(usize, usize) -> f64| pixels().map(|(x, y)| f(x, y)).sum::<f64>() / n;
     let deviation = |f: &dyn Fn(usize, usize) -> f64, m: f64| {
@@ -315,10 +424,11 @@ pub fn scan(row_means: &[f64]) -> [f64; SCAN] {
 mod tests {
     use super::*;
 
+    /// An image of colours in [0, 1], each channel rounded to a byte.
     fn image(width: usize, height: usize, pixel: impl Fn(usize, usize) -> [f64; 3]) -> Image {
         let rgb = (0..height)
             .flat_map(|y| (0..width).map(move |x| (x, y)))
-            .map(|(x, y)| pixel(x, y))
+            .map(|(x, y)| pixel(x, y).map(|c| (c * 255.0).round() as u8))
             .collect();
         Image { width, height, rgb }
     }
@@ -330,6 +440,38 @@ mod tests {
         assert_eq!(Numbered::parse("f%d.jpg").unwrap().path(12), "f12.jpg");
         assert!(Numbered::parse("f.png").is_none());
         assert!(Numbered::parse("f%x.png").is_none());
+    }
+
+    #[test]
+    fn numbered_patterns_refuse_widths_that_formatting_cannot_pad() {
+        // A width past u16 made `format!` panic; past usize it was read as 0.
+        for wide in ["f-%01000000000d.png", "f%99999999999999999999999d", "%021d"] {
+            assert!(
+                matches!(Numbered::new(wide), Err(PatternError::TooWide(_))),
+                "{wide}"
+            );
+            assert!(Numbered::parse(wide).is_none());
+        }
+        let widest = Numbered::new("%020d").unwrap();
+        assert_eq!(widest.path(u64::MAX), u64::MAX.to_string());
+        assert_eq!(widest.path(7), format!("{:020}", 7));
+        assert_eq!(Numbered::new("f%").err(), Some(PatternError::NoNumber));
+        assert_eq!(Numbered::new("%%d").err(), Some(PatternError::NoNumber));
+    }
+
+    #[test]
+    fn analysis_streams_frames_and_stops_at_a_change_of_size() {
+        let grey = |v: f64| image(8, 6, move |_, _| [v, v, v]);
+        let mut analysis = Analysis::new(2, 0.5);
+        assert!(analysis.next(&grey(0.2)).is_some());
+        assert!(analysis.next(&grey(0.4)).is_some());
+        assert!(analysis.next(&image(6, 8, |_, _| [0.0; 3])).is_none());
+        // Narrower than its regions.
+        assert!(Analysis::new(8, 0.5)
+            .next(&image(4, 4, |_, _| [0.0; 3]))
+            .is_none());
+        let frames = [grey(0.2), grey(0.4), image(6, 8, |_, _| [0.0; 3])];
+        assert_eq!(analyse(&frames, 2, 0.5).len(), 2);
     }
 
     #[test]
@@ -378,7 +520,7 @@ mod tests {
             if y < 6 {
                 [1.0, 0.0, 0.0]
             } else {
-                [0.1, 0.1, 0.1]
+                [0.2, 0.2, 0.2]
             }
         });
         let f = &analyse(&[frame], 1, 0.3)[0][0];
@@ -387,7 +529,7 @@ mod tests {
         assert!((f.saturation - 0.5).abs() < 1e-12);
         assert!(f.centroid_y < 0.5 && (f.centroid_x - 0.5).abs() < 1e-12);
         assert_eq!(f.rows[0], 1.0);
-        assert!((f.rows[11] - 0.1).abs() < 1e-12);
+        assert!((f.rows[11] - 0.2).abs() < 1e-12);
         // The scan starts and ends near 0 (faded) and is bright (positive) above.
         assert!(f.scan[0].abs() < 0.5 && f.scan[SCAN - 1].abs() < 0.5);
         assert!(f.scan[SCAN / 4] > 0.5 && f.scan[3 * SCAN / 4] < -0.5);
@@ -433,5 +575,20 @@ mod decode_tests {
             "{pa:?} {pb:?}"
         );
         assert!(Image::decode(b"not an image").is_err());
+    }
+
+    #[test]
+    fn frames_over_the_pixel_bound_are_refused_from_their_header() {
+        // 5000 × 4000 of one colour: a small file, 20 million pixels.
+        let (w, h) = (5000u32, 4000u32);
+        let pixels = vec![90u8; (w * h * 3) as usize];
+        let mut png = vec![];
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&pixels, w, h, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        assert!(png.len() < 1 << 20, "{} bytes", png.len());
+        assert_eq!(Image::dimensions(&png), Ok((w, h)));
+        let refused = Image::decode(&png).unwrap_err();
+        assert!(refused.contains("5000×4000"), "{refused}");
     }
 }

@@ -47,6 +47,11 @@ pub struct Limits {
     pub lane_samples: f64,
     /// Wall-clock time one render call may take (none by default).
     pub render_time: Option<Duration>,
+    /// Wall-clock time loading a script may take: reading and lowering its forms,
+    /// expanding named trees, making a score's notes, reading frames and tables
+    /// (none by default). Checked at each expression, form, frame, table row and
+    /// every few thousand beats, so a load stops soon after it.
+    pub load_time: Option<Duration>,
 }
 
 impl Default for Limits {
@@ -64,6 +69,7 @@ impl Default for Limits {
             sample_rate: 768_000.0,
             lane_samples: 1e12,
             render_time: None,
+            load_time: None,
         }
     }
 }
@@ -90,6 +96,7 @@ impl Limits {
             sample_rate: f64::INFINITY,
             lane_samples: f64::INFINITY,
             render_time: None,
+            load_time: None,
         }
     }
 }

@@ -93,6 +93,7 @@ impl Lowerer<'_> {
         let name_column = column(self, "name-column")?;
         let binds = self.bindings(&options, &table, origin)?;
         for (row, cells) in table.rows.iter().enumerate() {
+            self.check_load_time(path_expr.span, origin)?;
             let line = row + 2;
             let number = |l: &Self, index: usize| -> Result<f64, Diag> {
                 let text = cells[index].trim();
@@ -251,6 +252,7 @@ impl Lowerer<'_> {
             .collect();
         let mut rows = vec![];
         for record in reader.records() {
+            self.check_load_time(path_expr.span, origin)?;
             let record = record.map_err(|e| unreadable(self, e.to_string()))?;
             rows.push(record.iter().map(str::to_owned).collect());
         }

@@ -23,6 +23,7 @@ impl Lowerer<'_> {
         origin: &Origin,
         scope: &mut Scope,
     ) -> Result<NodeId, Diag> {
+        self.check_load_time(expr.span, origin)?;
         self.depth += 1;
         let result = if self.depth > MAX_LOWER_DEPTH {
             Err(self

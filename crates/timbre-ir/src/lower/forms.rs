@@ -71,6 +71,10 @@ impl Lowerer<'_> {
             .map(str::to_owned);
         let defined = defined_name(&form).map(str::to_owned);
         let head = head.as_deref();
+        if let Err(diag) = self.check_load_time(form.span, origin) {
+            self.errors.push(diag);
+            return;
+        }
         let result = match head {
             Some("define") => self.read_define(&form, origin, false),
             Some("define-sound") => self.read_define(&form, origin, true),

@@ -11,17 +11,28 @@
 
 use std::sync::Arc;
 
-use timbre_syntax::{Expr, ExprKind};
+use timbre_syntax::{Expr, ExprKind, Span};
 
 use super::{Lowerer, Origin};
 use crate::error::Diag;
-use crate::frames::{analyse, Features, Image, Numbered, MAX_REGIONS};
+use crate::frames::{
+    Analysis, Features, Image, Numbered, PatternError, FRAME_BYTES_PER_PIXEL, MAX_FRAME_PIXELS,
+    MAX_NUMBER_WIDTH, MAX_REGIONS,
+};
 use crate::keyframes::{Interpolation, KeyframeTrack};
 
 const USAGE: &str = "(frames name :pattern \"frames/f-%03d.png\" :fps 24 :regions 4)";
 
 /// Frames one form may read at most.
 pub const MAX_FRAMES: usize = 100_000;
+
+/// The largest `:first` frame number.
+const MAX_FIRST: f64 = 1e9;
+
+/// Bytes each frame costs per region until its keys are made: its features, and a
+/// key (time and value) of each of its 55 tracks (11 statistics, 12 rows, 32 scan
+/// samples).
+const FRAME_KEY_BYTES: u64 = (std::mem::size_of::<Features>() + 55 * 16) as u64;
 
 /// A statistic of a region, read from its features.
 type Statistic = fn(&Features) -> f64;
@@ -92,15 +103,30 @@ impl Lowerer<'_> {
             return Err(bad(self, alpha_span, format!("α {alpha} is not between 0 and 1"), "α weighs the newest frame in the running average that motion is measured against: 0 < α < 1"));
         }
 
-        // The files: listed, or numbered by a pattern until one is missing.
-        // Each frame's path, where it is named, and its bytes if already read.
-        let paths: Vec<(String, timbre_syntax::Span, Option<Vec<u8>>)> = match (
-            options.get("files"),
-            options.get("pattern"),
-        ) {
+        // The files: listed, or numbered by a pattern until one is missing. Each is
+        // read, checked and analysed in turn, so that only one frame's pixels are
+        // held at a time.
+        let mut reading = Reading {
+            name,
+            analysis: Analysis::new(regions, alpha),
+            features: vec![],
+            size: None,
+            per_frame_bytes: (regions as u64) * FRAME_KEY_BYTES,
+        };
+        match (options.get("files"), options.get("pattern")) {
             (Some(list), None) => {
                 let files = list.as_list().unwrap_or_default();
-                let mut paths = vec![];
+                if files.is_empty() {
+                    return Err(bad(
+                        self,
+                        list.span,
+                        "`:files` names no frame".into(),
+                        "write :files (\"f1.png\" \"f2.png\")",
+                    ));
+                }
+                if files.len() > MAX_FRAMES {
+                    return Err(too_many_frames(self, list.span, origin));
+                }
                 for file in files {
                     let ExprKind::Str(path) = &file.kind else {
                         return Err(bad(
@@ -110,17 +136,13 @@ impl Lowerer<'_> {
                             "write :files (\"f1.png\" \"f2.png\")",
                         ));
                     };
-                    paths.push((path.clone(), file.span, None));
+                    self.check_load_time(file.span, origin)?;
+                    let loaded = self.options.loader.load(path, origin.dir.as_deref());
+                    let bytes = loaded
+                        .map_err(|e| unreadable(self, path, file.span, e.to_string(), origin))?
+                        .1;
+                    self.read_frame(&mut reading, path, &bytes, file.span, origin)?;
                 }
-                if paths.is_empty() {
-                    return Err(bad(
-                        self,
-                        list.span,
-                        "`:files` names no frame".into(),
-                        "write :files (\"f1.png\" \"f2.png\")",
-                    ));
-                }
-                paths
             }
             (None, Some(pattern)) => {
                 let ExprKind::Str(text) = &pattern.kind else {
@@ -131,36 +153,56 @@ impl Lowerer<'_> {
                         "write :pattern \"frames/f-%03d.png\"",
                     ));
                 };
-                let Some(numbered) = Numbered::parse(text) else {
-                    return Err(bad(self, pattern.span, format!("pattern {text:?} has no frame number"), "mark where the number goes with %d, or %03d for three digits: \"frames/f-%03d.png\""));
+                let numbered = match Numbered::new(text) {
+                    Ok(numbered) => numbered,
+                    Err(PatternError::NoNumber) => return Err(bad(self, pattern.span, format!("pattern {text:?} has no frame number"), "mark where the number goes with %d, or %03d for three digits: \"frames/f-%03d.png\"")),
+                    Err(PatternError::TooWide(width)) => return Err(bad(self, pattern.span, format!("pattern {text:?} pads its frame number to {width} digits, more than {MAX_NUMBER_WIDTH}"), "write %d, or %0Nd for N digits (N at most 20): \"frames/f-%03d.png\"")),
                 };
                 let first = match options.get("first") {
-                    Some(e) => Some(self.constant_option(e, "`:first`", origin)?.max(0.0) as u64),
+                    Some(e) => {
+                        let first = self.constant_option(e, "`:first`", origin)?;
+                        if !((0.0..=MAX_FIRST).contains(&first) && first.fract() == 0.0) {
+                            return Err(bad(
+                                self,
+                                e.span,
+                                format!(
+                                    "`:first` {} is not a frame number",
+                                    timbre_syntax::number(first)
+                                ),
+                                "give the first frame's number, a whole number from 0 to 10⁹",
+                            ));
+                        }
+                        Some(first as u64)
+                    }
                     None => None,
                 };
                 // Numbered from `:first`, else from 0 or 1, until a number is missing.
-                let load = |l: &Self, k: u64| {
-                    l.options
-                        .loader
-                        .load(&numbered.path(k), origin.dir.as_deref())
-                };
                 let mut k = first.unwrap_or(0);
-                let mut paths = vec![];
-                while paths.len() < MAX_FRAMES {
-                    match load(self, k) {
-                        Ok((_, bytes)) => paths.push((numbered.path(k), pattern.span, Some(bytes))),
+                loop {
+                    self.check_load_time(pattern.span, origin)?;
+                    let path = numbered.path(k);
+                    match self.options.loader.load(&path, origin.dir.as_deref()) {
+                        Ok(_) if reading.features.len() == MAX_FRAMES => {
+                            return Err(too_many_frames(self, pattern.span, origin));
+                        }
+                        Ok((_, bytes)) => {
+                            self.read_frame(&mut reading, &path, &bytes, pattern.span, origin)?;
+                        }
                         // Without `:first`, the numbers may start at 1.
-                        Err(_) if paths.is_empty() && first.is_none() && k == 0 => {}
-                        // The first frame's error is reported below.
-                        Err(_) if paths.is_empty() => {
-                            paths.push((numbered.path(k), pattern.span, None));
-                            break;
+                        Err(_) if reading.features.is_empty() && first.is_none() && k == 0 => {}
+                        Err(e) if reading.features.is_empty() => {
+                            return Err(unreadable(
+                                self,
+                                &path,
+                                pattern.span,
+                                e.to_string(),
+                                origin,
+                            ));
                         }
                         Err(_) => break,
                     }
                     k += 1;
                 }
-                paths
             }
             _ => {
                 return Err(bad(
@@ -171,49 +213,8 @@ impl Lowerer<'_> {
                 ))
             }
         };
-        let mut images = Vec::with_capacity(paths.len());
-        for (path, span, read) in paths {
-            let unreadable = |l: &Self, why: String| {
-                l.diag(
-                    "timbre::frames-unreadable",
-                    format!("cannot read frame `{path}`: {why}"),
-                    origin,
-                )
-                .label(span, "this frame")
-                .help("frames are PNG or JPEG files, named relative to the file that names them")
-            };
-            let bytes = match read {
-                Some(bytes) => bytes,
-                None => {
-                    let loaded = self.options.loader.load(&path, origin.dir.as_deref());
-                    loaded.map_err(|e| unreadable(self, e.to_string()))?.1
-                }
-            };
-            let image = Image::decode(&bytes).map_err(|e| unreadable(self, e))?;
-            if let Some(first) = images.first().map(|f: &Image| (f.width, f.height)) {
-                if first != (image.width, image.height) {
-                    return Err(unreadable(
-                        self,
-                        format!(
-                            "it is {}×{} pixels, the first frame {}×{}",
-                            image.width, image.height, first.0, first.1
-                        ),
-                    ));
-                }
-            }
-            if image.width < regions {
-                return Err(unreadable(
-                    self,
-                    format!(
-                        "it is {} pixels wide, narrower than {regions} regions",
-                        image.width
-                    ),
-                ));
-            }
-            images.push(image);
-        }
+        let features = reading.features;
 
-        let features = analyse(&images, regions, alpha);
         let times: Vec<f64> = (0..features.len()).map(|j| j as f64 / fps).collect();
         let track = |values: Vec<f64>| {
             Arc::new(
@@ -243,4 +244,115 @@ impl Lowerer<'_> {
         }
         Ok(())
     }
+}
+
+/// The frames of one form read so far.
+struct Reading<'a> {
+    name: &'a str,
+    analysis: Analysis,
+    /// Each frame's features, region by region.
+    features: Vec<Vec<Features>>,
+    /// The first frame's width and height.
+    size: Option<(u32, u32)>,
+    /// Bytes each frame's keys take (see [`FRAME_KEY_BYTES`]).
+    per_frame_bytes: u64,
+}
+
+impl Lowerer<'_> {
+    /// Reads one frame's `bytes` (from `path`, named at `span`) into `reading`: its
+    /// size checked from its header against the first frame's and the bounds, then
+    /// decoded and analysed.
+    fn read_frame(
+        &mut self,
+        reading: &mut Reading<'_>,
+        path: &str,
+        bytes: &[u8],
+        span: Span,
+        origin: &Origin,
+    ) -> Result<(), Diag> {
+        let (width, height) =
+            Image::dimensions(bytes).map_err(|e| unreadable(self, path, span, e, origin))?;
+        let pixels = u64::from(width) * u64::from(height);
+        let frames = reading.features.len() as u64 + 1;
+        let keys = frames.saturating_mul(reading.per_frame_bytes);
+        let memory = pixels
+            .saturating_mul(FRAME_BYTES_PER_PIXEL)
+            .saturating_add(keys);
+        let limit = self.options.limits.memory;
+        if pixels > MAX_FRAME_PIXELS || pixels.saturating_mul(FRAME_BYTES_PER_PIXEL) > limit {
+            let bound = MAX_FRAME_PIXELS.min(limit / FRAME_BYTES_PER_PIXEL);
+            return Err(self
+                .diag(
+                    "timbre::frames-too-large",
+                    format!(
+                        "frame `{path}` is {width}×{height} pixels, more than the {bound} a frame may have"
+                    ),
+                    origin,
+                )
+                .label(span, "this frame")
+                .help(format!(
+                    "scale the frames down (to 1920×1080, say): each pixel takes {FRAME_BYTES_PER_PIXEL} bytes while it is analysed"
+                )));
+        }
+        if memory > limit {
+            return Err(self
+                .diag(
+                    "timbre::too-much-memory",
+                    format!(
+                        "the {frames} frames of `{}` need about {} MiB of memory, more than the limit of {} MiB",
+                        reading.name,
+                        memory >> 20,
+                        limit >> 20
+                    ),
+                    origin,
+                )
+                .label(span, "these frames")
+                .help("read fewer frames or fewer :regions, or relax the limit (--no-limits)"));
+        }
+        match reading.size {
+            Some(first) if first != (width, height) => {
+                let why = format!(
+                    "it is {width}×{height} pixels, the first frame {}×{}",
+                    first.0, first.1
+                );
+                return Err(unreadable(self, path, span, why, origin));
+            }
+            Some(_) => {}
+            None => reading.size = Some((width, height)),
+        }
+        let regions = reading.analysis.regions();
+        if (width as usize) < regions {
+            let why = format!("it is {width} pixels wide, narrower than {regions} regions");
+            return Err(unreadable(self, path, span, why, origin));
+        }
+        let image = Image::decode(bytes).map_err(|e| unreadable(self, path, span, e, origin))?;
+        let Some(features) = reading.analysis.next(&image) else {
+            // The header's size was checked; a decoder that disagrees with it lands here.
+            let why = format!("its pixels are not the {width}×{height} its header says");
+            return Err(unreadable(self, path, span, why, origin));
+        };
+        reading.features.push(features);
+        Ok(())
+    }
+}
+
+/// A frame that cannot be read, and why.
+fn unreadable(l: &Lowerer<'_>, path: &str, span: Span, why: String, origin: &Origin) -> Diag {
+    l.diag(
+        "timbre::frames-unreadable",
+        format!("cannot read frame `{path}`: {why}"),
+        origin,
+    )
+    .label(span, "this frame")
+    .help("frames are PNG or JPEG files, named relative to the file that names them")
+}
+
+fn too_many_frames(l: &Lowerer<'_>, span: Span, origin: &Origin) -> Diag {
+    l.diag(
+        "timbre::too-many-frames",
+        format!("`frames` reads at most {MAX_FRAMES} frames"),
+        origin,
+    )
+    .label(span, "more frames than that")
+    .help("read every other frame, or a part of the sequence (:first, or fewer :files)")
 }

@@ -34,6 +34,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use timbre_syntax::{Expr, Span};
 
@@ -234,6 +235,8 @@ pub(crate) struct Lowerer<'a> {
     checking_unused: bool,
     /// Lints met so far, at most one per place.
     warnings: Vec<Diag>,
+    /// When loading must have ended (see `Limits::load_time`).
+    deadline: Option<Instant>,
 }
 
 /// The code of a diagnostic that only follows from an earlier one; such diagnostics
@@ -277,7 +280,37 @@ impl<'a> Lowerer<'a> {
             expanded: HashSet::new(),
             checking_unused: false,
             warnings: vec![],
+            deadline: (options.limits.load_time).and_then(|d| Instant::now().checked_add(d)),
         }
+    }
+
+    /// The diagnostic for a load past `Limits::load_time`, if it is, labelled at
+    /// `span`, what was being loaded; once a limit is reported, a follow-on.
+    pub(crate) fn check_load_time(&mut self, span: Span, origin: &Origin) -> Result<(), Diag> {
+        if self
+            .deadline
+            .is_none_or(|deadline| Instant::now() < deadline)
+        {
+            return Ok(());
+        }
+        Err(self.load_too_slow(span, origin))
+    }
+
+    /// The diagnostic for a load past `Limits::load_time`, labelled at `span`.
+    pub(crate) fn load_too_slow(&mut self, span: Span, origin: &Origin) -> Diag {
+        let limit = self.options.limits.load_time.unwrap_or_default();
+        let diag = self
+            .diag(
+                "timbre::load-too-slow",
+                format!(
+                    "loading took longer than the limit of {} s",
+                    limit.as_secs_f64()
+                ),
+                origin,
+            )
+            .label(span, "still loading this")
+            .help("load less (fewer notes, frames, table rows or expansions), or relax Limits::load_time");
+        self.first_limit(diag, span, origin)
     }
 
     fn finish(mut self) -> Result<Program, Diagnostics> {

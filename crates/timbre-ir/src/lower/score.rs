@@ -6,14 +6,81 @@
 //!   (part lead pluck height :scale blues :key C :octaves (3 5) :tail 0.4))
 //! ```
 
-use timbre_syntax::{Expr, ExprKind, Span};
+use timbre_syntax::{number, Expr, ExprKind, Span};
 
 use super::{Lowerer, Origin};
 use crate::error::Diag;
 use crate::music::scale::{self, Scale};
-use crate::music::{self, Amount, Mapping, Mark, Playing, Rhythm, Score};
+use crate::music::{self, Amount, Mapping, Mark, Playing, Rhythm, Score, TooMuch};
 
 const USAGE: &str = "(score name :beat 0.5 (part name class variable :scale major :key C))";
+
+/// The shortest beat, seconds (the motion rhythm's fastest frame rate).
+const MIN_BEAT: f64 = 0.001;
+
+/// Readings per beat of a tempo at most: the MIDI file's ticks per quarter note.
+const MAX_DIVISION: f64 = 960.0;
+/// Readings per beat at least: one every thousand beats.
+const MIN_DIVISION: f64 = 0.001;
+
+/// The longest `:delay` or `:tail`, seconds: a day.
+const MAX_AMOUNT_SECONDS: f64 = 86_400.0;
+
+/// What a part's number may be: the test, what is expected (the label) and the help.
+type Range = (fn(f64) -> bool, &'static str, &'static str);
+
+const SEMITONES: Range = (
+    |x| x.abs() <= 1e6,
+    "semitones per unit, within ±10⁶",
+    "semitones per unit of the variable: 12 moves an octave per unit (a variable of \
+     small units may need more, up to 10⁶)",
+);
+const OFFSET: Range = (
+    |x| (-128.0..=255.0).contains(&x),
+    "a MIDI note number from -128 to 255",
+    "the offset is the pitch at value 0, a MIDI note number: 60 is middle C",
+);
+const CURVE: Range = (
+    |x| x > 0.0 && x <= 100.0,
+    "an exponent > 0, at most 100",
+    "the curve is the exponent on the variable's magnitude: 1 is linear, 2 a square",
+);
+const PROBABILITY: Range = (
+    |x| (0.0..=1.0).contains(&x),
+    "a probability from 0 to 1",
+    "give :on and :hold between 0 and 1, adding up to at most 1 (the rest are rests)",
+);
+const THRESHOLD: Range = (
+    |x| x >= 0.0,
+    "units per second ≥ 0",
+    "a note starts where the variable moves faster than the threshold (or the \
+     :trigger variable is above it)",
+);
+const MIN_DURATION: Range = (
+    |x| x >= 0.0,
+    "seconds ≥ 0",
+    "the least time from one note's onset to the next, in seconds",
+);
+const FRAME_RATE: Range = (
+    |x| x > 0.0 && x <= 1000.0,
+    "frames per second > 0, at most 1000",
+    "give :frame-rate between 0 and 1000 frames per second",
+);
+const SEED: Range = (
+    |x| (0.0..=9007199254740992.0).contains(&x) && x.fract() == 0.0,
+    "a whole number from 0 to 2⁵³",
+    "the seed picks the random rhythm: the same seed, the same rhythm",
+);
+const VELOCITY: Range = (
+    |x| (0.0..=1.0).contains(&x),
+    "a velocity from 0 to 1",
+    "the velocity is each note's `amp`, 0 to 1 (MIDI velocity round(127 · v))",
+);
+const BEND: Range = (
+    |x| (0.0..=1.0).contains(&x),
+    "a bend from 0 to 1",
+    "0 holds each note's pitch, 1 follows the variable, between them part way",
+);
 
 const SCORE_OPTIONS: &[&str] = &["beat", "tempo", "division", "start", "end"];
 
@@ -71,29 +138,55 @@ impl Lowerer<'_> {
                 .label(form.span, "no (part …)")
                 .help(format!("write {USAGE}")));
         }
-        // A positive number, if given.
-        let positive = |l: &mut Self, key: &str, what: &str| -> Result<Option<f64>, Diag> {
+        // A number of the score's, if given, refused outside `accepted`.
+        let option = |l: &mut Self,
+                      key: &str,
+                      accepted: fn(f64) -> bool,
+                      expected: &str,
+                      help: &str|
+         -> Result<Option<(f64, Span)>, Diag> {
             let Some(e) = options.get(key) else {
                 return Ok(None);
             };
-            match l.constant_option(e, what, origin)? {
-                x if x > 0.0 && x.is_finite() => Ok(Some(x)),
-                x => Err(l
-                    .diag(
-                        "timbre::bad-score",
-                        format!("{what} {x} is not positive"),
-                        origin,
-                    )
-                    .label(e.span, "expected a number > 0")
-                    .help(format!("write {USAGE}"))),
+            let x = l.constant_option(e, &format!("`:{key}`"), origin)?;
+            if accepted(x) {
+                return Ok(Some((x, e.span)));
             }
+            Err(l
+                .diag(
+                    "timbre::bad-score",
+                    format!("score `{name}`: `:{key}` {} is out of range", number(x)),
+                    origin,
+                )
+                .label(e.span, format!("expected {expected}"))
+                .help(help.to_owned()))
         };
-        let beat = positive(self, "beat", "the beat")?;
-        let tempo = positive(self, "tempo", "the tempo")?;
-        let division = positive(self, "division", "the division")?;
+        let beat = option(
+            self,
+            "beat",
+            |x| x >= MIN_BEAT,
+            "seconds ≥ 0.001",
+            "the beat is the seconds between readings of the variables, such as 0.5; \
+             at least a millisecond",
+        )?;
+        let tempo = option(
+            self,
+            "tempo",
+            |x| x > 0.0,
+            "beats per minute > 0",
+            "give the tempo in beats per minute, such as 120",
+        )?;
+        let division = option(
+            self,
+            "division",
+            |x| (MIN_DIVISION..=MAX_DIVISION).contains(&x),
+            "readings per beat from 0.001 to 960",
+            "the division is readings per beat of the tempo: 2 reads every eighth note, \
+             0.5 every half note; at most 960, the MIDI file's ticks per beat",
+        )?;
         // The beat, and the quarter note the MIDI file counts in.
-        let (beat, quarter) = match (beat, tempo) {
-            (Some(_), Some(_)) => {
+        let (beat, quarter) = match (beat, tempo, division) {
+            (Some(_), Some(_), _) => {
                 return Err(self
                     .diag(
                         "timbre::bad-score",
@@ -103,15 +196,63 @@ impl Lowerer<'_> {
                     .label(form.span, "both :beat and :tempo")
                     .help("give :beat in seconds, or :tempo in beats per minute with :division"))
             }
-            (Some(beat), None) => (beat, beat),
-            (None, Some(tempo)) => (60.0 / tempo / division.unwrap_or(1.0), 60.0 / tempo),
-            (None, None) => (0.5, 0.5),
+            (Some(_), None, Some((_, span))) => {
+                return Err(self
+                    .diag(
+                        "timbre::bad-score",
+                        "`:division` divides a `:tempo`, not a `:beat`",
+                        origin,
+                    )
+                    .label(span, "with :beat")
+                    .help("give :beat alone (in seconds), or :tempo with :division"))
+            }
+            (Some((beat, _)), None, None) => (beat, beat),
+            (None, Some((tempo, span)), division) => {
+                let beat = 60.0 / tempo / division.map_or(1.0, |(d, _)| d);
+                if beat < MIN_BEAT {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-score",
+                            format!("score `{name}` reads its variables every {beat:.3e} s, more often than every millisecond"),
+                            origin,
+                        )
+                        .label(span, "too fast with this :division")
+                        .help("give a slower :tempo or a smaller :division: 60 / tempo / division ≥ 0.001 s"));
+                }
+                (beat, 60.0 / tempo)
+            }
+            (None, None, _) => (0.5, 0.5),
         };
-        let start = match options.get("start") {
-            Some(e) => self.constant_option(e, "the start", origin)?.max(0.0),
-            None => 0.0,
-        };
-        let end = positive(self, "end", "the end")?;
+        let start = option(
+            self,
+            "start",
+            |x| x >= 0.0,
+            "seconds ≥ 0",
+            "the start is the scene time of the first beat, 0 or later",
+        )?
+        .map_or(0.0, |(x, _)| x);
+        let end = option(
+            self,
+            "end",
+            |x| x > 0.0,
+            "seconds > 0",
+            "the end is the scene time the score stops, after its :start",
+        )?;
+        if let Some((end, span)) = end.filter(|(end, _)| *end <= start) {
+            return Err(self
+                .diag(
+                    "timbre::bad-score",
+                    format!(
+                        "score `{name}` ends at {} s, not after its start at {} s",
+                        number(end),
+                        number(start)
+                    ),
+                    origin,
+                )
+                .label(span, "not after :start")
+                .help("give an :end later than :start"));
+        }
+        let end = end.map(|(x, _)| x);
 
         let mut score = Score {
             name: name.to_owned(),
@@ -168,15 +309,31 @@ impl Lowerer<'_> {
                 .label(e.span, "here")
                 .help(help.to_owned())
         };
-        let number = |l: &mut Self, key: &str, default: f64| -> Result<f64, Diag> {
-            match options.get(key) {
-                Some(e) => l.constant_option(e, &format!("`:{key}`"), origin),
-                None => Ok(default),
+        // An option's number, refused outside `accepted` at its argument.
+        let ranged = |l: &mut Self,
+                      key: &str,
+                      default: f64,
+                      (accepted, expected, help): Range|
+         -> Result<f64, Diag> {
+            let Some(e) = options.get(key) else {
+                return Ok(default);
+            };
+            let x = l.constant_option(e, &format!("`:{key}`"), origin)?;
+            if accepted(x) {
+                return Ok(x);
             }
+            Err(l
+                .diag(
+                    "timbre::bad-score",
+                    format!("part `{name}`: `:{key}` {} is out of range", number(x)),
+                    origin,
+                )
+                .label(e.span, format!("expected {expected}"))
+                .help(help))
         };
-        let semitones = number(self, "semitones", 12.0)?;
-        let offset = number(self, "offset", 60.0)?;
-        let curve = number(self, "curve", 1.0)?;
+        let semitones = ranged(self, "semitones", 12.0, SEMITONES)?;
+        let offset = ranged(self, "offset", 60.0, OFFSET)?;
+        let curve = ranged(self, "curve", 1.0, CURVE)?;
         let scale = match options.get("scale") {
             None => Scale::named("chromatic").expect("a named scale"),
             Some(e) => match (&e.kind, e.as_symbol()) {
@@ -241,32 +398,43 @@ impl Lowerer<'_> {
         let (low, high) = match options.get("octaves") {
             None => (0.0, 127.0),
             Some(e) => {
-                let octaves: Vec<f64> = match e.as_list() {
-                    Some([lo, hi]) => vec![
-                        self.constant_option(lo, "the lowest octave", origin)?,
-                        self.constant_option(hi, "the highest octave", origin)?,
-                    ],
-                    _ => vec![],
+                let Some([lo, hi]) = e.as_list() else {
+                    return Err(bad(
+                        self,
+                        e,
+                        "`:octaves` is a list of two octave numbers, low to high".into(),
+                        "write :octaves (3 5): C3 to B5, middle C being C4",
+                    ));
                 };
-                match octaves[..] {
-                    [lo, hi]
-                        if lo <= hi
-                            && lo >= -1.0
-                            && hi <= 9.0
-                            && lo.fract() == 0.0
-                            && hi.fract() == 0.0 =>
-                    {
-                        (12.0 * (lo + 1.0), (12.0 * (hi + 1.0) + 11.0).min(127.0))
+                let octave = |l: &mut Self, at: &Expr, what: &str| -> Result<f64, Diag> {
+                    let x = l.constant_option(at, what, origin)?;
+                    if (-1.0..=9.0).contains(&x) && x.fract() == 0.0 {
+                        return Ok(x);
                     }
-                    _ => {
-                        return Err(bad(
-                            self,
-                            e,
-                            "`:octaves` is a list of two octave numbers, low to high".into(),
-                            "write :octaves (3 5): C3 to B5, middle C being C4",
-                        ))
-                    }
+                    Err(l
+                        .diag(
+                            "timbre::bad-score",
+                            format!("part `{name}`: octave {} is not a MIDI octave", number(x)),
+                            origin,
+                        )
+                        .label(at.span, "expected a whole number from -1 to 9")
+                        .help("MIDI's octaves are -1 (C-1 = 0) to 9 (G9 = 127), middle C being C4"))
+                };
+                let (lo, hi) = (
+                    octave(self, lo, "the lowest octave")?,
+                    octave(self, hi, "the highest octave")?,
+                );
+                if lo > hi {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-score",
+                            format!("`:octaves` is a list of two octave numbers, low to high: ({lo} {hi}) holds none"),
+                            origin,
+                        )
+                        .label(e.span, "an empty range")
+                        .help(format!("write :octaves ({hi} {lo}): C{hi} to B{lo}")));
                 }
+                (12.0 * (lo + 1.0), (12.0 * (hi + 1.0) + 11.0).min(127.0))
             }
         };
         let mapping = Mapping {
@@ -298,30 +466,22 @@ impl Lowerer<'_> {
                     }
                 }
                 (_, Some("random")) => {
-                    let on = number(self, "on", 0.5)?;
-                    let hold = number(self, "hold", 0.25)?;
+                    let on = ranged(self, "on", 0.5, PROBABILITY)?;
+                    let hold = ranged(self, "hold", 0.25, PROBABILITY)?;
                     if !(on >= 0.0 && hold >= 0.0 && on + hold <= 1.0) {
                         return Err(bad(self, e, format!("probabilities :on {on} and :hold {hold} do not fit in 1"), "give :on and :hold between 0 and 1, adding up to at most 1 (the rest are rests)"));
                     }
-                    let seed = number(self, "seed", 0.0)?;
+                    let seed = ranged(self, "seed", 0.0, SEED)?;
                     Rhythm::Random {
                         on,
                         hold,
-                        seed: seed.max(0.0) as u64,
+                        seed: seed as u64,
                     }
                 }
                 (_, Some("motion")) => {
-                    let threshold = number(self, "threshold", 1.0)?;
-                    let min_duration = number(self, "min-duration", beat)?;
-                    let frame_rate = number(self, "frame-rate", 30.0)?;
-                    if !(frame_rate > 0.0 && frame_rate <= 1000.0) {
-                        return Err(bad(
-                            self,
-                            e,
-                            format!("frame rate {frame_rate} is out of range"),
-                            "give :frame-rate between 0 and 1000 frames per second",
-                        ));
-                    }
+                    let threshold = ranged(self, "threshold", 1.0, THRESHOLD)?;
+                    let min_duration = ranged(self, "min-duration", beat, MIN_DURATION)?;
+                    let frame_rate = ranged(self, "frame-rate", 30.0, FRAME_RATE)?;
                     let trigger = match options.get("trigger") {
                         None => None,
                         Some(t) => match t.as_symbol().and_then(|v| self.keyframes.get(v)) {
@@ -353,13 +513,13 @@ impl Lowerer<'_> {
                 }
             },
         };
-        let velocity = number(self, "velocity", 0.8)?.clamp(0.0, 1.0);
+        let velocity = ranged(self, "velocity", 0.8, VELOCITY)?;
         let delay = self.amount(options.get("delay"), "delay", origin)?;
         let tail = self
             .amount(options.get("tail"), "tail", origin)?
             .unwrap_or(Amount::Fixed(0.25));
         let delay = delay.unwrap_or(Amount::Fixed(0.0));
-        let bend = number(self, "bend", 0.0)?;
+        let bend = ranged(self, "bend", 0.0, BEND)?;
         let slur = match options.get("slur").map(|e| (e, e.as_symbol())) {
             None | Some((_, Some("on"))) => true,
             Some((_, Some("off"))) => false,
@@ -384,7 +544,16 @@ impl Lowerer<'_> {
             slur,
             velocity: ((velocity * 127.0).round() as u8).max(1),
         };
-        let notes = music::notes(&track, &mapping, &playing);
+        let bounds = music::Bounds {
+            reads: music::MAX_READS,
+            // Each note is an instance: those the scene may still have.
+            notes: (self.options.limits.instances).saturating_sub(self.instances.len()),
+            deadline: self.deadline,
+        };
+        let notes = match music::notes(&track, &mapping, &playing, &bounds) {
+            Ok(notes) => notes,
+            Err(too_much) => return Err(self.too_much(too_much, name, &playing, form, origin)),
+        };
         // Each note an instance: (class :freq … :amp … :gate (< t duration)).
         let span = form.span;
         let num = |x: f64| atom(ExprKind::Number(x), span);
@@ -466,6 +635,55 @@ impl Lowerer<'_> {
 }
 
 impl Lowerer<'_> {
+    /// The diagnostic for part `name`, written `form`, whose notes went past a bound.
+    fn too_much(
+        &mut self,
+        too_much: TooMuch,
+        name: &str,
+        playing: &Playing,
+        form: &Expr,
+        origin: &Origin,
+    ) -> Diag {
+        let span = form.span;
+        match too_much {
+            TooMuch::Reads(count) => {
+                let every = match playing.rhythm {
+                    Rhythm::Motion { frame_rate, .. } => {
+                        format!("{} times a second", number(frame_rate))
+                    }
+                    _ => format!("every {} s", number(playing.beat)),
+                };
+                let diag = self
+                    .diag(
+                        "timbre::too-many-beats",
+                        format!(
+                            "part `{name}` would read its variable {count:.3e} times ({every} from {} s to {} s), more than {}",
+                            number(playing.start),
+                            number(playing.end),
+                            music::MAX_READS
+                        ),
+                        origin,
+                    )
+                    .label(span, "this part")
+                    .help("use a longer :beat or a lower :frame-rate, or end the score sooner (:end)");
+                self.first_limit(diag, span, origin)
+            }
+            TooMuch::Notes => {
+                let limit = self.options.limits.instances;
+                let diag = self
+                    .diag(
+                        "timbre::too-many-instances",
+                        format!("part `{name}` has more notes than the scene has room for: the limit is {limit} instances"),
+                        origin,
+                    )
+                    .label(span, "this part passes the limit")
+                    .help("each note is an instance: use a longer :beat, a rhythm with rests, or relax the limit (--no-limits)");
+                self.first_limit(diag, span, origin)
+            }
+            TooMuch::Time => self.load_too_slow(span, origin),
+        }
+    }
+
     /// `:delay` or `:tail`: seconds, or `(variable max)`, a keyframed variable in
     /// [0, 1] times `max` seconds, read at each note's beat.
     fn amount(
@@ -483,18 +701,48 @@ impl Lowerer<'_> {
                 .and_then(|v| self.keyframes.get(v))
                 .cloned()
             {
-                let max = self.constant_option(max, &format!("the longest `:{key}`"), origin)?;
-                return Ok(Some(Amount::Track(track, max.max(0.0))));
+                let seconds =
+                    self.constant_option(max, &format!("the longest `:{key}`"), origin)?;
+                self.check_seconds(seconds, max, key, origin)?;
+                return Ok(Some(Amount::Track(track, seconds)));
             }
             return Err(self
                 .diag("timbre::bad-score", format!("`:{key}` reads a keyframed variable, not {}", variable.describe()), origin)
                 .label(variable.span, "not a (keyframes …) name")
                 .help(format!("write :{key} 0.1, or :{key} (variable 0.5) for a variable in [0, 1] times 0.5 s")));
         }
-        Ok(Some(Amount::Fixed(
-            self.constant_option(value, &format!("`:{key}`"), origin)?
-                .max(0.0),
-        )))
+        let seconds = self.constant_option(value, &format!("`:{key}`"), origin)?;
+        self.check_seconds(seconds, value, key, origin)?;
+        Ok(Some(Amount::Fixed(seconds)))
+    }
+
+    /// Refuses a `:delay` or `:tail` of `seconds`, written at `at`, that is negative
+    /// or longer than a day.
+    fn check_seconds(
+        &self,
+        seconds: f64,
+        at: &Expr,
+        key: &str,
+        origin: &Origin,
+    ) -> Result<(), Diag> {
+        if (0.0..=MAX_AMOUNT_SECONDS).contains(&seconds) {
+            return Ok(());
+        }
+        let what = if key == "delay" {
+            "from the beat to the note's onset"
+        } else {
+            "the instrument sounds after its gate closes"
+        };
+        Err(self
+            .diag(
+                "timbre::bad-score",
+                format!("`:{key}` {} s is out of range", number(seconds)),
+                origin,
+            )
+            .label(at.span, "expected seconds from 0 to 86400")
+            .help(format!(
+                "`:{key}` is the seconds {what}, 0 or more, at most a day"
+            )))
     }
 }
 

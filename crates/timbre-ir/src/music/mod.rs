@@ -7,9 +7,14 @@
 pub mod scale;
 pub mod tempo;
 
+use std::time::Instant;
+
 use crate::dsp::noise::hash2;
 use crate::keyframes::KeyframeTrack;
 use scale::Scale;
+
+/// The largest pitch, in semitones, that keeps a fraction of a semitone in an f64.
+pub const PITCH_BOUND: f64 = (1u64 << 40) as f64;
 
 /// A score: its parts and the length of its quarter note (the MIDI tempo).
 #[derive(Clone, Debug, PartialEq)]
@@ -61,9 +66,16 @@ pub struct Mapping {
 }
 
 impl Mapping {
-    /// The pitch before quantising: offset + semitones · sign(v)·|v|^curve.
+    /// The pitch before quantising: offset + semitones · sign(v)·|v|^curve, held
+    /// within ±[`PITCH_BOUND`] (beyond it a pitch has no pitch class left to snap;
+    /// NaN, from 0 · ∞, is the offset).
     pub fn pitch(&self, value: f64) -> f64 {
-        self.offset + self.semitones * value.signum() * value.abs().powf(self.curve)
+        let pitch = self.offset + self.semitones * value.signum() * value.abs().powf(self.curve);
+        if pitch.is_nan() {
+            self.offset
+        } else {
+            pitch.clamp(-PITCH_BOUND, PITCH_BOUND)
+        }
     }
 
     /// The note: the pitch snapped to the scale, then moved by octaves into range.
@@ -157,9 +169,80 @@ pub struct Playing {
     pub velocity: u8,
 }
 
+/// Readings of a part's variable at most (beats, or frames of a motion rhythm): a
+/// tenth of a second's beat for a day, in about a second's work.
+pub const MAX_READS: u64 = 10_000_000;
+
+/// What making a part's notes may cost, checked before the variable is read (the
+/// readings) and as it is (the notes, the time).
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    /// Readings of the variable at most.
+    pub reads: u64,
+    /// Notes at most (each becomes an instance).
+    pub notes: usize,
+    /// When to stop, if the notes are not made by then.
+    pub deadline: Option<Instant>,
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Bounds {
+            reads: MAX_READS,
+            notes: usize::MAX,
+            deadline: None,
+        }
+    }
+}
+
+/// Why a part's notes were not made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TooMuch {
+    /// The part would read its variable this many times, more than `Bounds::reads`.
+    Reads(f64),
+    /// It makes more than `Bounds::notes` notes.
+    Notes,
+    /// The deadline passed.
+    Time,
+}
+
+/// Readings between two looks at the clock.
+const READS_PER_CLOCK: u64 = 4096;
+
+/// The number of readings a part makes: beats from `start` to `end`, or frames of a
+/// motion rhythm. NaN when the times make no sense.
+pub fn readings(playing: &Playing) -> f64 {
+    let span = playing.end - playing.start;
+    match playing.rhythm {
+        Rhythm::Motion { frame_rate, .. } => (span * frame_rate).floor().max(0.0),
+        _ => (span / playing.beat - 1e-9).ceil().max(0.0),
+    }
+}
+
 /// The notes of one part: the variable read every beat (or every frame, for a
-/// motion rhythm) from `playing.start` to `playing.end`.
-pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec<Note> {
+/// motion rhythm) from `playing.start` to `playing.end`, within `bounds`.
+pub fn notes(
+    track: &KeyframeTrack,
+    mapping: &Mapping,
+    playing: &Playing,
+    bounds: &Bounds,
+) -> Result<Vec<Note>, TooMuch> {
+    let count = readings(playing);
+    // NaN is refused too.
+    if count.is_nan() || count > bounds.reads as f64 {
+        return Err(TooMuch::Reads(count));
+    }
+    let count = count as u64;
+    let in_time = |read: u64| {
+        !read.is_multiple_of(READS_PER_CLOCK) || bounds.deadline.is_none_or(|d| Instant::now() < d)
+    };
+    let room = |notes: &Vec<Note>| {
+        if notes.len() < bounds.notes {
+            Ok(())
+        } else {
+            Err(TooMuch::Notes)
+        }
+    };
     let Playing {
         ref rhythm,
         beat,
@@ -178,10 +261,12 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
         trigger,
     } = rhythm
     {
-        let frames = ((end - start) * frame_rate).floor() as u64;
         let (threshold, min_duration, frame_rate) = (*threshold, *min_duration, *frame_rate);
         let mut previous = track.value(start);
-        for j in 1..=frames {
+        for j in 1..=count {
+            if !in_time(j) {
+                return Err(TooMuch::Time);
+            }
             let time = start + j as f64 / frame_rate;
             let value = track.value(time);
             let speed = match trigger {
@@ -194,6 +279,7 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
                 .last()
                 .is_none_or(|n| onset - n.start >= min_duration - 1e-9);
             if speed > threshold && rested {
+                room(&notes)?;
                 if let Some(last) = notes.last_mut() {
                     last.duration = onset - last.start;
                 }
@@ -209,12 +295,14 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
         if let Some(last) = notes.last_mut() {
             last.duration = end - last.beat;
         }
-        return notes;
+        return Ok(notes);
     }
-    let beats = ((end - start) / beat - 1e-9).ceil().max(0.0) as u64;
     // Whether the last note is still sounding at the beat being read.
     let mut sounding = false;
-    for k in 0..beats {
+    for k in 0..count {
+        if !in_time(k + 1) {
+            return Err(TooMuch::Time);
+        }
         let time = start + k as f64 * beat;
         let length = beat.min(end - time);
         match rhythm.mark(k) {
@@ -226,6 +314,7 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
                 match notes.last_mut() {
                     Some(last) if sounding && slur && last.key == note => last.duration += length,
                     _ => {
+                        room(&notes)?;
                         notes.push(Note {
                             beat: time,
                             start: time + delay.at(time),
@@ -239,13 +328,19 @@ pub fn notes(track: &KeyframeTrack, mapping: &Mapping, playing: &Playing) -> Vec
             }
         }
     }
-    notes
+    Ok(notes)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::keyframes::Interpolation;
+
+    const ANY: Bounds = Bounds {
+        reads: MAX_READS,
+        notes: usize::MAX,
+        deadline: None,
+    };
 
     fn ramp(from: f64, to: f64, seconds: f64) -> KeyframeTrack {
         KeyframeTrack::new(vec![0.0, seconds], vec![from, to], Interpolation::Linear).unwrap()
@@ -283,7 +378,9 @@ mod tests {
             &track,
             &mapping("blues"),
             &playing(every, 0.5, 8.0, 0.0, true),
-        );
+            &Bounds::default(),
+        )
+        .unwrap();
         let keys: Vec<u8> = notes.iter().map(|n| n.key).collect();
         assert!(keys.windows(2).all(|w| w[1] > w[0]), "{keys:?}");
         for k in &keys {
@@ -303,7 +400,13 @@ mod tests {
         let still = ramp(0.0, 0.0, 4.0);
         let m = mapping("major");
         let pattern = Rhythm::Pattern(vec![Mark::On, Mark::Hold, Mark::Off, Mark::On]);
-        let played = notes(&still, &m, &playing(pattern.clone(), 0.25, 2.0, 0.01, true));
+        let played = notes(
+            &still,
+            &m,
+            &playing(pattern.clone(), 0.25, 2.0, 0.01, true),
+            &ANY,
+        )
+        .unwrap();
         // x - . x | x - . x: the x after the rest starts a note, the next x (same
         // pitch, still sounding) is slurred into it.
         let cents = |x: f64| (x * 100.0).round() as i64;
@@ -312,7 +415,7 @@ mod tests {
             .map(|n| (cents(n.start), cents(n.duration)))
             .collect();
         assert_eq!(shape, vec![(1, 50), (76, 75), (176, 25)]);
-        let unslurred = notes(&still, &m, &playing(pattern, 0.25, 2.0, 0.0, false));
+        let unslurred = notes(&still, &m, &playing(pattern, 0.25, 2.0, 0.0, false), &ANY).unwrap();
         assert_eq!(unslurred.len(), 4);
     }
 
@@ -325,12 +428,64 @@ mod tests {
             hold: 0.3,
             seed,
         };
-        let play = |seed| notes(&track, &m, &playing(random(seed), 0.25, 30.0, 0.0, false));
+        let play = |seed| {
+            notes(
+                &track,
+                &m,
+                &playing(random(seed), 0.25, 30.0, 0.0, false),
+                &ANY,
+            )
+            .unwrap()
+        };
         let (a, b, c) = (play(1), play(1), play(2));
         assert_eq!(a, b);
         assert_ne!(a, c);
         // Half the 120 beats start a note.
         assert!((45..75).contains(&a.len()), "{}", a.len());
+    }
+
+    #[test]
+    fn readings_and_notes_are_bounded_before_they_are_made() {
+        let track = ramp(0.0, 1.0, 8.0);
+        let m = mapping("chromatic");
+        let every = || Rhythm::Pattern(vec![Mark::On]);
+        // A beat of 1e-12 s over 8 s: 8e12 readings, refused before the first.
+        let started = std::time::Instant::now();
+        let tiny = notes(&track, &m, &playing(every(), 1e-12, 8.0, 0.0, false), &ANY);
+        assert!(
+            matches!(tiny, Err(TooMuch::Reads(n)) if (n - 8e12).abs() < 1e3),
+            "{tiny:?}"
+        );
+        assert!(started.elapsed().as_millis() < 100);
+        let motion = Rhythm::Motion {
+            threshold: 0.0,
+            min_duration: 0.0,
+            frame_rate: 1000.0,
+            trigger: None,
+        };
+        let endless = Playing {
+            end: 1e300,
+            ..playing(motion, 0.5, 8.0, 0.0, false)
+        };
+        assert!(matches!(
+            notes(&track, &m, &endless, &ANY),
+            Err(TooMuch::Reads(_))
+        ));
+        // The notes stop at the bound (16 beats, 16 distinct notes).
+        let few = Bounds { notes: 10, ..ANY };
+        let played = notes(&track, &m, &playing(every(), 0.5, 8.0, 0.0, false), &few);
+        assert_eq!(played, Err(TooMuch::Notes));
+        let enough = Bounds { notes: 16, ..ANY };
+        let played = notes(&track, &m, &playing(every(), 0.5, 8.0, 0.0, false), &enough);
+        assert_eq!(played.map(|n| n.len()), Ok(16));
+        // A deadline already past stops the walk at its first look at the clock.
+        let late = Bounds {
+            deadline: Some(std::time::Instant::now()),
+            ..ANY
+        };
+        let slow = playing(every(), 1e-5, 8.0, 0.0, true);
+        assert_eq!(notes(&track, &m, &slow, &late), Err(TooMuch::Time));
+        assert!(notes(&track, &m, &slow, &ANY).is_ok());
     }
 }
 
@@ -368,7 +523,7 @@ mod motion_tests {
             slur: false,
             velocity: 64,
         };
-        let notes = notes(&track, &mapping, &playing);
+        let notes = notes(&track, &mapping, &playing, &Bounds::default()).unwrap();
         let onsets: Vec<i64> = notes
             .iter()
             .map(|n| (n.start * 100.0).round() as i64)
@@ -393,7 +548,8 @@ mod motion_tests {
             },
             ..playing
         };
-        let onsets: Vec<i64> = super::notes(&track, &mapping, &triggered)
+        let onsets: Vec<i64> = super::notes(&track, &mapping, &triggered, &Bounds::default())
+            .unwrap()
             .iter()
             .map(|n| (n.start * 100.0).round() as i64)
             .collect();

@@ -90,16 +90,31 @@ impl Scale {
 }
 
 /// `note` moved by whole octaves into [low, high] (a range of at least an octave
-/// keeps every pitch class; a narrower one clamps what does not fit).
+/// keeps every pitch class; a narrower one clamps what does not fit). The octaves
+/// are counted, not stepped, so a note of any size takes the same time; an infinite
+/// note clamps to its end of the range, NaN to `low`.
 pub fn into_range(note: f64, low: f64, high: f64) -> f64 {
-    let mut note = note;
-    while note > high && note - 12.0 >= low {
-        note -= 12.0;
+    // `clamp` below needs low ≤ high, neither NaN.
+    if note.is_nan() || low.is_nan() || high.is_nan() || low > high {
+        return low;
     }
-    while note < low && note + 12.0 <= high {
-        note += 12.0;
+    let moved = if note > high {
+        // Octaves down to reach `high`, but none that would pass below `low`.
+        let needed = ((note - high) / 12.0).ceil();
+        let allowed = ((note - low) / 12.0).floor();
+        note - 12.0 * needed.min(allowed).max(0.0)
+    } else if note < low {
+        let needed = ((low - note) / 12.0).ceil();
+        let allowed = ((high - note) / 12.0).floor();
+        note + 12.0 * needed.min(allowed).max(0.0)
+    } else {
+        note
+    };
+    // ∞ − 12·∞: an infinite note. (A huge one, rounded, is clamped below.)
+    if moved.is_nan() {
+        return if note > high { high } else { low };
     }
-    note.clamp(low, high)
+    moved.clamp(low, high)
 }
 
 /// The pitch class a key name stands for: `C`, `C#`, `Db` … `B` (0 to 11).
@@ -188,6 +203,10 @@ mod tests {
         assert_eq!(into_range(86.0, 48.0, 83.0), 74.0);
         assert_eq!(into_range(30.0, 48.0, 83.0), 54.0);
         assert_eq!(into_range(60.0, 48.0, 83.0), 60.0);
+        // A narrow range: as near as whole octaves go, then clamped.
+        assert_eq!(into_range(90.0, 60.0, 64.0), 64.0);
+        assert_eq!(into_range(62.0 + 36.0, 60.0, 64.0), 62.0);
+        assert_eq!(into_range(50.0, 60.0, 64.0), 62.0);
         assert_eq!(key_class("C"), Some(0.0));
         assert_eq!(key_class("F#"), Some(6.0));
         assert_eq!(key_class("Bb"), Some(10.0));
@@ -196,5 +215,19 @@ mod tests {
         assert_eq!(note_name(60), "C4");
         assert_eq!(note_name(70), "Bb4");
         assert_eq!(note_name(21), "A0");
+    }
+
+    #[test]
+    fn notes_of_any_size_reach_the_range_at_once() {
+        // Stepping by 12 from 1e300 would never end (1e300 − 12 == 1e300).
+        for note in [1e300, -1e300, f64::MAX, 1e15 + 3.0, -1e15 - 5.0] {
+            let moved = into_range(note, 48.0, 83.0);
+            assert!((48.0..=83.0).contains(&moved), "{note} → {moved}");
+        }
+        // Exact where the pitch class is representable.
+        assert_eq!(into_range(1e15 + 4.0, 48.0, 83.0), 80.0);
+        assert_eq!(into_range(f64::INFINITY, 48.0, 83.0), 83.0);
+        assert_eq!(into_range(f64::NEG_INFINITY, 48.0, 83.0), 48.0);
+        assert_eq!(into_range(f64::NAN, 48.0, 83.0), 48.0);
     }
 }
