@@ -304,7 +304,10 @@ fn named_pipes_are_refused_as_inputs_and_outputs() {
         "table.tt",
         "(define-sound ping (f) (sine (* t f)))\n(instances :csv \"pipe.csv\" :class ping :start-column \"time\")",
     );
-    write("frame.tt", "(frames v :files (\"pipe.png\"))\n(sine (* t 440))");
+    write(
+        "frame.tt",
+        "(frames v :files (\"pipe.png\"))\n(sine (* t 440))",
+    );
     for name in ["include.tt", "sample.tt", "table.tt", "frame.tt", "pipe.tt"] {
         let outcome = render(d, name, &output);
         check(name, &outcome, "not a regular file", &output);
@@ -312,10 +315,23 @@ fn named_pipes_are_refused_as_inputs_and_outputs() {
     write("tone.tt", "(sine (* t 440))");
     let outcome = run_capped(
         d,
-        &["render", "tone.tt", "-o", "out.wav", "--spectrogram", "pipe.png", "--quiet"],
+        &[
+            "render",
+            "tone.tt",
+            "-o",
+            "out.wav",
+            "--spectrogram",
+            "pipe.png",
+            "--quiet",
+        ],
         None,
     );
-    check("a picture onto a pipe", &outcome, "it is a named pipe", &output);
+    check(
+        "a picture onto a pipe",
+        &outcome,
+        "it is a named pipe",
+        &output,
+    );
 }
 
 /// Writes a PNG of `width × height` pixels of one grey, a row at a time (a 12000²
