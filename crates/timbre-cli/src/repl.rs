@@ -1208,6 +1208,24 @@ mod tests {
     }
 
     #[test]
+    fn save_never_writes_over_a_loaded_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let lib = dir.path().join("lib.tt");
+        std::fs::write(&lib, "(define a 1)\n").unwrap();
+        let mut session = Session::default();
+        session.entries.push(Entry::File {
+            path: std::fs::canonicalize(&lib).unwrap(),
+            names: vec!["a".into()],
+            hidden: BTreeSet::new(),
+        });
+        session.last_samples = vec![0.25; 480];
+        let err = session.write_wav(&lib).unwrap_err();
+        assert!(err.contains("the run reads that file"), "{err}");
+        assert_eq!(std::fs::read_to_string(&lib).unwrap(), "(define a 1)\n");
+        session.write_wav(&dir.path().join("take.wav")).unwrap();
+    }
+
+    #[test]
     fn redefining_replaces_and_forgetting_hides_loaded_names() {
         let mut session = Session::default();
         assert!(!session.redefine("a", "(define a 1)".into()));

@@ -348,6 +348,32 @@ fn named_pipes_are_refused_by_every_reader_without_blocking() {
 }
 
 #[test]
+fn fmt_reads_no_more_than_a_script_may_be() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 9 MB of numbers: past the 8 MiB a script may have, as a file and on stdin.
+    let big = format!("(+ {})\n", "1 ".repeat(4_500_000));
+    write(d, "big.tt", &big);
+    run_in(Some(d), ["fmt", "big.tt"])
+        .assert_code(1)
+        .assert_stderr_has("cannot read `big.tt`: more than 8 MiB");
+    let mut child = command()
+        .args(["fmt", "-"])
+        .current_dir(d)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // It may stop reading once past the bound: a broken pipe here is expected.
+    let _ = std::io::Write::write_all(&mut child.stdin.take().unwrap(), big.as_bytes());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("more than 8 MiB"), "{stderr}");
+}
+
+#[test]
 fn a_folder_name_cannot_become_code_in_the_scene_sonify_writes() {
     let dir = tempfile::tempdir().unwrap();
     let frames = dir
