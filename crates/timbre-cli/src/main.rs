@@ -1149,13 +1149,21 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     }
     scores.write(outputs.midi, outputs.notes)?;
     if args.play && !to_stdout {
-        // What was written, as written; a FLAC file is rendered again instead of
-        // decoded (the same samples before they were made integers).
-        let samples = match container {
-            Container::Wav => read_wav(&args.output, f64::INFINITY)?.0,
-            Container::Flac => render_to_memory(&plan, length, scale, &interrupted)?,
+        // What was written, as written, streamed from the file; a FLAC file is
+        // rendered again into a temporary WAV instead of decoded (the same samples
+        // before they were made integers).
+        let played = match container {
+            Container::Wav => playback::play_file(&args.output, &interrupted),
+            Container::Flac => {
+                let (wav, _) = render_to_temp_wav(&plan, length, scale, &interrupted)?;
+                playback::play_file(wav.path(), &interrupted)
+            }
         };
-        play_samples(&samples, plan.channels, plan.sample_rate, &interrupted)?;
+        match played {
+            Ok(playback::Played::Whole) => {}
+            Ok(playback::Played::Cancelled) => return Err(Failure::Interrupted),
+            Err(why) => eprintln!("cannot play: {why}"),
+        }
     }
     Ok(())
 }
@@ -1268,25 +1276,25 @@ fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, ou
     );
 }
 
-/// Renders and plays; without a way to play, writes the WAV and says why.
+/// Renders and plays; without a way to play, writes the WAV and says why. The sound
+/// is rendered into a temporary WAV file as it is made and played from there, so its
+/// length costs no memory.
 fn play(args: PlayArgs) -> Result<(), Failure> {
     let source = compile_source(&args.source)?;
     let plan = plan(&source, &args.sound)?;
     let interrupted = interrupt_flag();
     let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;
-    let samples = render_to_memory(&plan, length, scale, &interrupted)?;
-    let done = samples.len() / plan.channels;
-    let peak = samples.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (wav, summary) = render_to_temp_wav(&plan, length, scale, &interrupted)?;
     if !plan.quiet {
         eprintln!(
             "playing {:.3} s ({} channel{}); peak {}",
-            done as f64 / plan.sample_rate,
+            summary.frames as f64 / plan.sample_rate,
             plan.channels,
             if plan.channels == 1 { "" } else { "s" },
-            format_db(peak)
+            format_db(summary.peak)
         );
     }
-    match playback::play(&samples, plan.channels, plan.sample_rate, &interrupted) {
+    match playback::play_file(wav.path(), &interrupted) {
         Ok(playback::Played::Whole) => Ok(()),
         Ok(playback::Played::Cancelled) => Err(Failure::Interrupted),
         Err(why) => {
@@ -1296,15 +1304,15 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
                     args.output.display()
                 )));
             }
-            audio_out::write_wav_samples(
-                &args.output,
-                &samples,
-                plan.channels,
-                plan.sample_rate,
-                &source.inputs,
-                &interrupted,
-            )
-            .map_err(Failure::Message)?;
+            // The WAV already made, copied into place through the one way out.
+            let mut output =
+                output::prepare(&args.output, &source.inputs).map_err(Failure::Message)?;
+            let cannot = |e: &dyn std::fmt::Display| {
+                Failure::Message(format!("cannot write `{}`: {e}", args.output.display()))
+            };
+            let mut made = timbre_ir::open_regular(wav.path()).map_err(|e| cannot(&e))?;
+            std::io::copy(&mut made, output.file()).map_err(|e| cannot(&e))?;
+            output.commit().map_err(Failure::Message)?;
             eprintln!(
                 "cannot play: {why}; wrote {} instead",
                 args.output.display()
@@ -1314,41 +1322,26 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
     }
 }
 
-/// Renders the whole of `plan` into memory (for playing), interleaved.
-fn render_to_memory(
+/// Renders `plan` into a temporary 32-bit float WAV file as it is made (for playing).
+fn render_to_temp_wav(
     plan: &Plan<'_>,
     length: u64,
     scale: f64,
     interrupted: &AtomicBool,
-) -> Result<Vec<f64>, Failure> {
+) -> Result<(playback::TempWav, audio_out::Summary), Failure> {
     let mut pass = Pass::new(plan, length, scale)?;
-    // Played from memory: a sound too long to hold is refused, not attempted.
-    let count = length.saturating_mul(plan.channels as u64);
-    let mut samples = vec![];
-    if count > MAX_WAV_SAMPLES || samples.try_reserve_exact(count as usize).is_err() {
-        return Err(Failure::Message(format!(
-            "{} s of {} channels is more than can be played from memory ({} GiB at most); \
-             write it with `timbre render -o FILE.wav` and play the file",
-            length as f64 / plan.sample_rate,
-            plan.channels,
-            (MAX_WAV_SAMPLES * 8) >> 30
-        )));
-    }
-    samples.resize(count as usize, 0.0);
-    let mut done = 0usize;
-    for chunk in samples.chunks_mut(8192 * plan.channels) {
-        if interrupted.load(Ordering::Relaxed) {
-            return Err(Failure::Interrupted);
-        }
-        let n = chunk.len() / plan.channels;
-        let last = pass.next(chunk).map_err(|e| pass.failure(e))?;
-        done += last.map_or(n, |k| k.min(n));
-        if last.is_some() {
-            break;
-        }
-    }
-    samples.truncate(done * plan.channels);
-    Ok(samples)
+    let job = OutputJob {
+        container: Container::Wav,
+        sample_rate: plan.sample_rate as u32,
+        channels: plan.channels as u16,
+        format: SampleFormat::F32,
+        frames: length,
+        interrupted,
+    };
+    playback::TempWav::render(&job, |out| pass.next(out)).map_err(|e| match e {
+        audio_out::WriteError::Interrupted => Failure::Interrupted,
+        other => pass.failure(other.to_string()),
+    })
 }
 
 /// The samples of a WAV file's first `max_seconds` (the most that is used),
@@ -1397,25 +1390,8 @@ pub(crate) fn read_wav(
     Ok((read?, spec))
 }
 
-/// The most samples `read_wav` and a play hold (an hour of stereo at 96 kHz, 5.5 GB
-/// as f64).
+/// The most samples `read_wav` holds (an hour of stereo at 96 kHz, 5.5 GB as f64).
 const MAX_WAV_SAMPLES: u64 = 3600 * 96_000 * 2;
-
-fn play_samples(
-    samples: &[f64],
-    channels: usize,
-    sample_rate: f64,
-    interrupted: &AtomicBool,
-) -> Result<(), Failure> {
-    match playback::play(samples, channels, sample_rate, interrupted) {
-        Ok(playback::Played::Whole) => Ok(()),
-        Ok(playback::Played::Cancelled) => Err(Failure::Interrupted),
-        Err(why) => {
-            eprintln!("cannot play: {why}");
-            Ok(())
-        }
-    }
-}
 
 /// A progress bar for renders that take more than about a second: shown on a
 /// terminal only (indicatif hides it otherwise), never with `--quiet`.

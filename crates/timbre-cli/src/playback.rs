@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::audio_out::{write_audio, Container, Destination, OutputJob, SampleFormat};
+use crate::audio_out::{
+    write_audio, Container, Destination, OutputJob, SampleFormat, Summary, WriteError,
+};
 
 /// How a play ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -34,6 +36,55 @@ pub fn play(
         Err(why) => play_with_system_player(samples, channels, sample_rate, cancel)
             .map_err(|none| format!("{why}; {none}")),
     }
+}
+
+/// Plays the WAV file `wav` and waits until it has played, or until `cancel` is set.
+/// A system player is given the file itself, so a sound of any length streams from
+/// it (a player that needs 16-bit samples gets a copy, converted a chunk at a time);
+/// the sound device (with the `playback` feature) is fed from memory, at most as
+/// much as `crate::read_wav` holds. `Err` says why nothing could be played.
+pub fn play_file(wav: &Path, cancel: &AtomicBool) -> Result<Played, String> {
+    let device = play_file_on_device(wav, cancel);
+    match device {
+        Ok(played) => Ok(played),
+        Err(why) => {
+            let players = system_players()?;
+            let mut failures = vec![];
+            for (program, args, s16) in players {
+                let converted;
+                let file = if s16 {
+                    converted = TempWav::convert(wav, SampleFormat::S16)?;
+                    &converted.path
+                } else {
+                    wav
+                };
+                match run_player(&program, &args, file, cancel) {
+                    Ok(played) => return Ok(played),
+                    Err(e) => failures.push(format!("{program}: {e}")),
+                }
+            }
+            Err(format!("{why}; {}", failures.join("; ")))
+        }
+    }
+}
+
+#[cfg(feature = "playback")]
+fn play_file_on_device(wav: &Path, cancel: &AtomicBool) -> Result<Played, String> {
+    let (samples, spec) = crate::read_wav(wav, f64::INFINITY).map_err(|e| match e {
+        crate::Failure::Message(m) => m,
+        _ => "cannot read the sound to play".into(),
+    })?;
+    play_on_device(
+        &samples,
+        usize::from(spec.channels),
+        f64::from(spec.sample_rate),
+        cancel,
+    )
+}
+
+#[cfg(not(feature = "playback"))]
+fn play_file_on_device(_wav: &Path, cancel: &AtomicBool) -> Result<Played, String> {
+    play_on_device(&[], 1, 48_000.0, cancel)
 }
 
 /// Plays on the default output device.
@@ -132,6 +183,26 @@ fn play_with_system_player(
     sample_rate: f64,
     cancel: &AtomicBool,
 ) -> Result<Played, String> {
+    let candidates = system_players()?;
+    let mut failures = vec![];
+    for (program, args, s16) in candidates {
+        let format = if s16 {
+            SampleFormat::S16
+        } else {
+            SampleFormat::F32
+        };
+        let wav = TempWav::write(samples, channels, sample_rate, format)?;
+        match run_player(&program, &args, &wav.path, cancel) {
+            Ok(played) => return Ok(played),
+            Err(why) => failures.push(format!("{program}: {why}")),
+        }
+    }
+    Err(failures.join("; "))
+}
+
+/// The system players to try: `TIMBRE_PLAYER`'s, or those of [`PLAYERS`] on the
+/// `PATH`, each with its arguments and whether it needs 16-bit samples.
+fn system_players() -> Result<Vec<(String, Vec<String>, bool)>, String> {
     let candidates: Vec<(String, Vec<String>, bool)> = match std::env::var(PLAYER_VARIABLE) {
         Ok(command) if command.trim() == "none" => {
             return Err(format!("no system player ({PLAYER_VARIABLE}=none)"))
@@ -162,20 +233,7 @@ fn play_with_system_player(
             tried.join(", ")
         ));
     }
-    let mut failures = vec![];
-    for (program, args, s16) in candidates {
-        let format = if s16 {
-            SampleFormat::S16
-        } else {
-            SampleFormat::F32
-        };
-        let wav = TempWav::write(samples, channels, sample_rate, format)?;
-        match run_player(&program, &args, &wav.path, cancel) {
-            Ok(played) => return Ok(played),
-            Err(why) => failures.push(format!("{program}: {why}")),
-        }
-    }
-    Err(failures.join("; "))
+    Ok(candidates)
 }
 
 /// Runs a player on `wav` until it ends, or kills it when `cancel` is set.
@@ -209,24 +267,34 @@ fn run_player(
 
 /// A WAV file in a directory of its own in the temporary directory (private, with an
 /// unpredictable name, so nothing planted there can receive it), removed when dropped.
-struct TempWav {
+pub struct TempWav {
     _dir: tempfile::TempDir,
     path: PathBuf,
 }
 
 impl TempWav {
+    /// Renders a sound into a temporary WAV as it is made (`render` as
+    /// `write_audio` calls it), so its length costs no memory.
+    pub fn render(
+        job: &OutputJob<'_>,
+        render: impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
+    ) -> Result<(Self, Summary), WriteError> {
+        let dir = tempfile::Builder::new()
+            .prefix("timbre-play-")
+            .tempdir()
+            .map_err(|e| WriteError::Render(format!("cannot make a temporary directory: {e}")))?;
+        let path = dir.path().join("play.wav");
+        let output = crate::output::prepare(&path, &[]).map_err(WriteError::Render)?;
+        let summary = write_audio(Destination::File(output), job, render)?;
+        Ok((TempWav { _dir: dir, path }, summary))
+    }
+
     fn write(
         samples: &[f64],
         channels: usize,
         sample_rate: f64,
         format: SampleFormat,
     ) -> Result<Self, String> {
-        let dir = tempfile::Builder::new()
-            .prefix("timbre-play-")
-            .tempdir()
-            .map_err(|e| format!("cannot make a temporary directory: {e}"))?;
-        let path = dir.path().join("play.wav");
-        let output = crate::output::prepare(&path, &[])?;
         let never = AtomicBool::new(false);
         let job = OutputJob {
             container: Container::Wav,
@@ -237,13 +305,61 @@ impl TempWav {
             interrupted: &never,
         };
         let mut written = 0;
-        write_audio(Destination::File(output), &job, |out| {
+        let (wav, _) = TempWav::render(&job, |out| {
             out.copy_from_slice(&samples[written..written + out.len()]);
             written += out.len();
             Ok(None)
         })
         .map_err(|e| e.to_string())?;
-        Ok(TempWav { _dir: dir, path })
+        Ok(wav)
+    }
+
+    /// A copy of the WAV file `wav` in `format`, converted a chunk at a time.
+    fn convert(wav: &Path, format: SampleFormat) -> Result<Self, String> {
+        let cannot = |e: &dyn std::fmt::Display| format!("cannot read `{}`: {e}", wav.display());
+        let file = timbre_ir::open_regular(wav).map_err(|e| cannot(&e))?;
+        let mut reader =
+            hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| cannot(&e))?;
+        let spec = reader.spec();
+        let full = match spec.sample_format {
+            hound::SampleFormat::Float => None,
+            hound::SampleFormat::Int => {
+                Some(((1i64 << (spec.bits_per_sample.min(32) - 1)) - 1) as f64)
+            }
+        };
+        let never = AtomicBool::new(false);
+        let job = OutputJob {
+            container: Container::Wav,
+            sample_rate: spec.sample_rate,
+            channels: spec.channels,
+            format,
+            frames: u64::from(reader.duration()),
+            interrupted: &never,
+        };
+        let (converted, _) = TempWav::render(&job, |out| {
+            for y in out.iter_mut() {
+                *y = match full {
+                    None => reader
+                        .samples::<f32>()
+                        .next()
+                        .transpose()
+                        .map(|x| x.map_or(0.0, f64::from)),
+                    Some(full) => reader
+                        .samples::<i32>()
+                        .next()
+                        .transpose()
+                        .map(|x| x.map_or(0.0, |x| x as f64 / full)),
+                }
+                .map_err(|e| cannot(&e))?;
+            }
+            Ok(None)
+        })
+        .map_err(|e| e.to_string())?;
+        Ok(converted)
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 }
 

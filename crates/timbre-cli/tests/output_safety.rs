@@ -421,7 +421,7 @@ fn flac_is_encoded_in_flat_memory_and_decodes_to_what_a_wav_holds() {
         "-o",
         "long.flac",
     ];
-    let peak = peak_memory_kib(d, &args);
+    let peak = peak_memory_kib(d, &args, &[]);
     assert!(peak < 150 << 10, "peak resident memory {} MiB", peak >> 10);
     let mut reader = claxon::FlacReader::open(d.join("long.flac")).unwrap();
     let info = reader.streaminfo();
@@ -439,11 +439,47 @@ fn flac_is_encoded_in_flat_memory_and_decodes_to_what_a_wav_holds() {
     }
 }
 
+#[test]
+fn play_streams_the_sound_through_a_file_in_flat_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A player that keeps the size of what it was given.
+    let player = d.join("player.sh");
+    let heard = d.join("heard");
+    std::fs::write(
+        &player,
+        format!("#!/bin/sh\nwc -c < \"$1\" > '{}'\n", heard.display()),
+    )
+    .unwrap();
+    std::fs::set_permissions(&player, std::fs::Permissions::from_mode(0o755)).unwrap();
+    // Ten minutes of stereo: 460 MB as the f64 samples a play used to hold.
+    let args = [
+        "play",
+        "--expr",
+        "(* 0.5 (sine (* t 441)))",
+        "-d",
+        "600",
+        "--channels",
+        "2",
+    ];
+    let peak = peak_memory_kib(d, &args, &[("TIMBRE_PLAYER", &player)]);
+    assert!(peak < 150 << 10, "peak resident memory {} MiB", peak >> 10);
+    let bytes: u64 = std::fs::read_to_string(&heard)
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // A float WAV: 600 s × 48 000 frames × 2 channels × 4 bytes, and its 56-byte
+    // header (RIFF, fmt, fact, data).
+    assert_eq!(bytes, 600 * 48_000 * 2 * 4 + 56);
+}
+
 /// Runs `timbre ARGS…` in `dir` to success and returns its peak resident memory
 /// (its `VmHWM`, a high-water mark, read until it exits), KiB.
-fn peak_memory_kib(dir: &Path, args: &[&str]) -> u64 {
+fn peak_memory_kib(dir: &Path, args: &[&str], env: &[(&str, &Path)]) -> u64 {
     let mut child = command()
         .args(args)
+        .envs(env.iter().copied())
         .current_dir(dir)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
