@@ -30,11 +30,12 @@ pub fn play(
     sample_rate: f64,
     cancel: &AtomicBool,
 ) -> Result<Played, String> {
-    let device = play_on_device(samples, channels, sample_rate, cancel);
-    match device {
+    match play_on_device(samples, channels, sample_rate, cancel) {
         Ok(played) => Ok(played),
-        Err(why) => play_with_system_player(samples, channels, sample_rate, cancel)
-            .map_err(|none| format!("{why}; {none}")),
+        Err(why) => {
+            let wav = TempWav::write(samples, channels, sample_rate)?;
+            play_with_system_player(&wav.path, cancel).map_err(|none| format!("{why}; {none}"))
+        }
     }
 }
 
@@ -44,27 +45,9 @@ pub fn play(
 /// the sound device (with the `playback` feature) is fed from memory, at most as
 /// much as `crate::read_wav` holds. `Err` says why nothing could be played.
 pub fn play_file(wav: &Path, cancel: &AtomicBool) -> Result<Played, String> {
-    let device = play_file_on_device(wav, cancel);
-    match device {
+    match play_file_on_device(wav, cancel) {
         Ok(played) => Ok(played),
-        Err(why) => {
-            let players = system_players()?;
-            let mut failures = vec![];
-            for (program, args, s16) in players {
-                let converted;
-                let file = if s16 {
-                    converted = TempWav::convert(wav, SampleFormat::S16)?;
-                    &converted.path
-                } else {
-                    wav
-                };
-                match run_player(&program, &args, file, cancel) {
-                    Ok(played) => return Ok(played),
-                    Err(e) => failures.push(format!("{program}: {e}")),
-                }
-            }
-            Err(format!("{why}; {}", failures.join("; ")))
-        }
+        Err(why) => play_with_system_player(wav, cancel).map_err(|none| format!("{why}; {none}")),
     }
 }
 
@@ -176,23 +159,19 @@ const PLAYERS: &[(&str, &[&str], bool)] = &[
 /// file's path), or `none` for no player.
 const PLAYER_VARIABLE: &str = "TIMBRE_PLAYER";
 
-/// Writes the sound to a temporary WAV and plays it with the first player that works.
-fn play_with_system_player(
-    samples: &[f64],
-    channels: usize,
-    sample_rate: f64,
-    cancel: &AtomicBool,
-) -> Result<Played, String> {
-    let candidates = system_players()?;
+/// Plays the WAV file `wav` with the first system player that works; one that needs
+/// 16-bit samples is given a copy converted a chunk at a time.
+fn play_with_system_player(wav: &Path, cancel: &AtomicBool) -> Result<Played, String> {
     let mut failures = vec![];
-    for (program, args, s16) in candidates {
-        let format = if s16 {
-            SampleFormat::S16
+    for (program, args, s16) in system_players()? {
+        let converted;
+        let file = if s16 {
+            converted = TempWav::convert(wav, SampleFormat::S16)?;
+            &converted.path
         } else {
-            SampleFormat::F32
+            wav
         };
-        let wav = TempWav::write(samples, channels, sample_rate, format)?;
-        match run_player(&program, &args, &wav.path, cancel) {
+        match run_player(&program, &args, file, cancel) {
             Ok(played) => return Ok(played),
             Err(why) => failures.push(format!("{program}: {why}")),
         }
@@ -289,18 +268,14 @@ impl TempWav {
         Ok((TempWav { _dir: dir, path }, summary))
     }
 
-    fn write(
-        samples: &[f64],
-        channels: usize,
-        sample_rate: f64,
-        format: SampleFormat,
-    ) -> Result<Self, String> {
+    /// Samples already in memory as a 32-bit float temporary WAV.
+    fn write(samples: &[f64], channels: usize, sample_rate: f64) -> Result<Self, String> {
         let never = AtomicBool::new(false);
         let job = OutputJob {
             container: Container::Wav,
             sample_rate: sample_rate as u32,
             channels: channels as u16,
-            format,
+            format: SampleFormat::F32,
             frames: (samples.len() / channels.max(1)) as u64,
             interrupted: &never,
         };
