@@ -728,26 +728,22 @@ impl RenderOutputs {
                 "pictures are drawn from the WAV file the render writes: give `-o FILE.wav` (or draw a FLAC's with `timbre plot` after converting it)".into(),
             ));
         }
-        let asked: [Option<&Path>; 5] = [
-            Some(args.output.as_path()).filter(|p| !is_stdout(p)),
-            args.pictures.spectrogram.as_deref(),
-            args.pictures.wave.as_deref(),
-            args.midi.as_deref(),
-            args.notes.as_deref().filter(|p| !is_stdout(p)),
-        ];
-        let paths: Vec<&Path> = asked.iter().flatten().copied().collect();
-        let mut prepared = output::prepare_all(&paths, reads)
-            .map_err(Failure::Message)?
-            .into_iter();
-        let mut take = |asked: Option<&Path>| asked.and_then(|_| prepared.next());
+        let [sound, spectrogram, wave, midi, notes] = output::prepare_asked(
+            [
+                Some(args.output.as_path()).filter(|p| !is_stdout(p)),
+                args.pictures.spectrogram.as_deref(),
+                args.pictures.wave.as_deref(),
+                args.midi.as_deref(),
+                args.notes.as_deref().filter(|p| !is_stdout(p)),
+            ],
+            reads,
+        )
+        .map_err(Failure::Message)?;
         Ok(RenderOutputs {
-            sound: take(asked[0]),
-            pictures: plot::PictureOutputs {
-                spectrogram: take(asked[1]),
-                wave: take(asked[2]),
-            },
-            midi: take(asked[3]),
-            notes: take(asked[4]),
+            sound,
+            pictures: plot::PictureOutputs { spectrogram, wave },
+            midi,
+            notes,
         })
     }
 }

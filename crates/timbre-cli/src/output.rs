@@ -113,6 +113,17 @@ pub fn prepare_all(requested: &[&Path], reads: &[PathBuf]) -> Result<Vec<Output>
     Ok(outputs.into_iter().map(|(_, output)| output).collect())
 }
 
+/// [`prepare_all`] of the outputs a run may or may not ask for, each given back in
+/// its place (`None` where none was asked for).
+pub fn prepare_asked<const N: usize>(
+    asked: [Option<&Path>; N],
+    reads: &[PathBuf],
+) -> Result<[Option<Output>; N], String> {
+    let paths: Vec<&Path> = asked.iter().flatten().copied().collect();
+    let mut prepared = prepare_all(&paths, reads)?.into_iter();
+    Ok(asked.map(|path| path.and_then(|_| prepared.next())))
+}
+
 /// Replaces the file at `path` (or creates it) with `bytes`, through [`prepare`].
 pub fn replace_file(path: &Path, bytes: &[u8], reads: &[PathBuf]) -> Result<(), String> {
     let mut output = prepare(path, reads)?;

@@ -348,7 +348,7 @@ pub fn plot(args: PlotArgs) -> Result<(), String> {
     draw_pictures(&args.file, &args.pictures, outputs, false)
 }
 
-/// The pictures' outputs, prepared before the sound is read (`output::prepare_all`).
+/// The pictures' outputs, prepared before the sound is read (`output::prepare_asked`).
 #[derive(Debug, Default)]
 pub struct PictureOutputs {
     pub spectrogram: Option<Output>,
@@ -358,14 +358,11 @@ pub struct PictureOutputs {
 impl PictureOutputs {
     /// Prepares the pictures `pictures` asks for, none of them one of `reads`.
     pub fn prepare(pictures: &PictureArgs, reads: &[PathBuf]) -> Result<Self, String> {
-        let asked = [pictures.spectrogram.as_deref(), pictures.wave.as_deref()];
-        let paths: Vec<&Path> = asked.iter().flatten().copied().collect();
-        let mut prepared = crate::output::prepare_all(&paths, reads)?.into_iter();
-        let mut take = |asked: Option<&Path>| asked.and_then(|_| prepared.next());
-        Ok(PictureOutputs {
-            spectrogram: take(asked[0]),
-            wave: take(asked[1]),
-        })
+        let [spectrogram, wave] = crate::output::prepare_asked(
+            [pictures.spectrogram.as_deref(), pictures.wave.as_deref()],
+            reads,
+        )?;
+        Ok(PictureOutputs { spectrogram, wave })
     }
 
     pub fn any(&self) -> bool {

@@ -335,16 +335,8 @@ fn the_load_deadline_stops_a_score_that_is_merely_slow() {
 
 #[test]
 fn the_load_deadline_stops_named_trees_that_are_merely_slow_to_expand() {
-    // Each level calls the next with two different arguments (x + 1 and 3x, whose
-    // orders give different numbers): 2¹⁵ expansions.
-    let mut text = String::from("(define f0 (x) (sine (* t x)))\n");
-    for k in 1..=15 {
-        text.push_str(&format!(
-            "(define f{k} (x) (+ (f{} (+ x 1)) (f{} (* x 3))))\n",
-            k - 1,
-            k - 1
-        ));
-    }
+    // 2¹⁵ expansions.
+    let mut text = timbre_testkit::doubling_trees(15);
     text.push_str("(* 0.001 (f15 1))");
     let started = Instant::now();
     assert!(compile_limited(&text, &NoFiles, Limits::default()).is_ok());

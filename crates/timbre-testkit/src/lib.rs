@@ -19,6 +19,21 @@ use realfft::RealFftPlanner;
 // ---------------------------------------------------------------------- levels
 
 /// Root mean square of `x` (NaN for an empty slice).
+/// Named trees `f0` … `fN` whose expansions double at each level: each calls the
+/// next with two different arguments (x + 1 and 3x, whose orders give different
+/// numbers), so calling `fN` costs 2ᴺ expansions. Slow to lower, within every limit.
+pub fn doubling_trees(levels: usize) -> String {
+    let mut text = String::from("(define f0 (x) (sine (* t x)))\n");
+    for k in 1..=levels {
+        text.push_str(&format!(
+            "(define f{k} (x) (+ (f{} (+ x 1)) (f{} (* x 3))))\n",
+            k - 1,
+            k - 1
+        ));
+    }
+    text
+}
+
 pub fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }

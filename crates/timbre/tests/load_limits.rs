@@ -108,16 +108,8 @@ fn a_score_merely_slow_to_lower_stops_at_the_deadline() {
 
 #[test]
 fn the_deadline_bounds_libraries_too() {
-    // Each tree calls the next with two different arguments (x + 1 and 3x, whose
-    // orders give different numbers): 2¹⁵ expansions.
-    let mut library = String::from("(define f0 (x) (sine (* t x)))\n");
-    for k in 1..=15 {
-        library.push_str(&format!(
-            "(define f{k} (x) (+ (f{} (+ x 1)) (f{} (* x 3))))\n",
-            k - 1,
-            k - 1
-        ));
-    }
+    // 2¹⁵ expansions.
+    let mut library = timbre_testkit::doubling_trees(15);
     library.push_str("(define-sound organ () (* 0.001 (f15 1)))");
     let started = Instant::now();
     assert!(Engine::new(SR).load_library(&library).is_ok());
