@@ -124,3 +124,21 @@ fn a_scene_prints_each_instance_as_its_timer_lets_it_out() {
         "; instance a (hum), from 0 s\n(sine (* t 220))\n"
     );
 }
+
+/// Every bundled example is in the layout `timbre fmt` gives, so a newcomer's
+/// `timbre fmt --check examples/*.tt` passes.
+#[test]
+fn the_bundled_examples_are_in_the_canonical_layout() {
+    let root = common::workspace_root();
+    let mut files: Vec<String> = std::fs::read_dir(root.join("examples"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "tt"))
+        .map(|p| p.display().to_string())
+        .collect();
+    files.sort();
+    assert!(files.len() >= 10, "examples found: {files:?}");
+    let mut args = vec!["fmt".to_owned(), "--check".to_owned()];
+    args.extend(files);
+    run_in(Some(&root), args).assert_success();
+}

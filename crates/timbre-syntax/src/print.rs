@@ -368,7 +368,7 @@ fn gap(comments: Vec<String>, blank_before: bool) -> Item {
 fn header_arguments(head: &str) -> Option<usize> {
     Some(match head {
         "define" | "define-sound" | "instance" | "define-timer" => 2,
-        "let" | "let*" | "lambda" | "keyframes" | "scene" | "include" => 1,
+        "let" | "let*" | "lambda" | "keyframes" | "scene" | "include" | "score" => 1,
         _ => return None,
     })
 }
@@ -497,17 +497,31 @@ impl Writer {
         let mut k = 0;
         // Data (numbers, keyframe rows): as many to a line as fit.
         let (header, tail) = rest.split_at(on_head_line.min(rest.len()));
-        if let Some(units) = data_units(tail).filter(|_| !line_ended) {
+        let rows_nest = head_symbol == Some("keyframes");
+        if let Some(units) = data_units(tail, rows_nest).filter(|_| !line_ended) {
             let header: Option<Vec<String>> = header.iter().map(plain_flat).collect();
             if let Some(header) = header {
                 for text in &header {
                     self.push(" ");
                     self.push(text);
                 }
-                // A form with a body starts it on a line of its own.
-                let mut fresh_line = head_symbol.and_then(header_arguments).is_some();
-                for text in &units {
+                // A form with a body starts it on a line of its own, after the
+                // options that lead its rows (`:interp step`), which stay on the
+                // head's line while they fit.
+                let has_body = head_symbol.and_then(header_arguments).is_some();
+                let options = if has_body && units.iter().any(|u| !u.starts_with(':')) {
+                    units.iter().take_while(|u| u.starts_with(':')).count()
+                } else {
+                    0
+                };
+                let mut fresh_line = has_body;
+                for (n, text) in units.iter().enumerate() {
                     let fits = self.column + 1 + text.chars().count() <= WIDTH;
+                    if n < options && fresh_line && fits {
+                        self.push(" ");
+                        self.push(text);
+                        continue;
+                    }
                     if (fresh_line || !fits) && !text.starts_with("//") {
                         self.newline(column);
                     } else {
@@ -520,13 +534,42 @@ impl Writer {
                 return;
             }
         }
+        // A form with a body keeps the options that lead it on the head's line while
+        // they fit: `(score swing :beat 0.5` over its parts.
+        let options_end = if head_symbol.and_then(header_arguments).is_some() {
+            let mut end = on_head_line;
+            while end + 1 < rest.len() && is_keyword(&rest[end]) && !is_keyword(&rest[end + 1]) {
+                end += 2;
+            }
+            if end < rest.len() {
+                end
+            } else {
+                on_head_line
+            }
+        } else {
+            on_head_line
+        };
+        let mut on_head = true;
         while k < rest.len() {
             let item = &rest[k];
-            let same_line = k < on_head_line
+            let plain =
+                item.leading.is_empty() && !item.blank_before && !matches!(item.node, Node::Gap(_));
+            let option_fits = || {
+                let value = rest
+                    .get(k + 1)
+                    .filter(|v| v.leading.is_empty() && !v.blank_before);
+                match (plain_flat(item), value.and_then(plain_flat)) {
+                    (Some(key), Some(value)) => {
+                        self.column + 2 + key.chars().count() + value.chars().count() <= WIDTH
+                    }
+                    _ => false,
+                }
+            };
+            let same_line = on_head
                 && !line_ended
-                && item.leading.is_empty()
-                && !item.blank_before
-                && !matches!(item.node, Node::Gap(_));
+                && plain
+                && (k < on_head_line || (k < options_end && option_fits()));
+            on_head = same_line;
             if same_line {
                 self.push(" ");
             } else if self.break_before(item, column) && item.blank_before {
@@ -572,7 +615,9 @@ impl Writer {
 
 /// Elements that are data, as the texts to fill lines with (a keyword with its
 /// value as one): at least four, each an atom or a list of atoms, with no comments.
-fn data_units(items: &[Item]) -> Option<Vec<String>> {
+/// With `rows_nest` (keyframe rows), a list may also hold lists of atoms: a row
+/// whose value is a vector, `(0.5 (1.2 1.2 0.1))`.
+fn data_units(items: &[Item], rows_nest: bool) -> Option<Vec<String>> {
     if items.len() < 4 {
         return None;
     }
@@ -583,8 +628,14 @@ fn data_units(items: &[Item]) -> Option<Vec<String>> {
             Node::Atom(_) => true,
             Node::List(list) => {
                 list.dangling.is_empty()
-                    && (list.items.iter())
-                        .all(|i| matches!(i.node, Node::Atom(_)) && !i.has_notes())
+                    && list.items.iter().all(|i| {
+                        !i.has_notes()
+                            && match &i.node {
+                                Node::Atom(_) => true,
+                                Node::List(inner) => rows_nest && data_row(inner),
+                                Node::Gap(_) => false,
+                            }
+                    })
             }
             Node::Gap(_) => false,
         };
@@ -605,6 +656,12 @@ fn data_units(items: &[Item]) -> Option<Vec<String>> {
         }
     }
     Some(units)
+}
+
+/// A list of atoms without comments.
+fn data_row(list: &List) -> bool {
+    list.dangling.is_empty()
+        && (list.items.iter()).all(|i| matches!(i.node, Node::Atom(_)) && !i.has_notes())
 }
 
 /// An item without comments as one line.
@@ -698,6 +755,27 @@ mod tests {
         assert_eq!(
             stable(source),
             "(instance b1 (bee 220 0.5 0.25 0.75 0.125)\n  :start 0.25 :stop 2.5 :gain 0.5 :pan -0.5 :seed 7)\n"
+        );
+    }
+
+    #[test]
+    fn options_before_rows_stay_on_the_head_line() {
+        let source = "(keyframes melody :interp step (0 659.26) (0.75 587.33) (1.5 523.25) (2.25 587.33) (3 659.26) (3.5 783.99) (4 880))";
+        assert_eq!(
+            stable(source),
+            "(keyframes melody :interp step\n  (0 659.26) (0.75 587.33) (1.5 523.25) (2.25 587.33) (3 659.26) (3.5 783.99) (4 880))\n"
+        );
+        // Rows whose values are vectors fill lines too.
+        let source = "(keyframes ball :interp smooth (0.0 (0.5 1.0 1.6)) (0.5 (1.2 1.2 0.1)) (0.8 (1.6 1.3 0.9)) (1.1 (2.0 1.4 0.1)))";
+        assert_eq!(
+            stable(source),
+            "(keyframes ball :interp smooth\n  (0.0 (0.5 1.0 1.6)) (0.5 (1.2 1.2 0.1)) (0.8 (1.6 1.3 0.9)) (1.1 (2.0 1.4 0.1)))\n"
+        );
+        // A score's options too, before its parts.
+        let source = "(score swing :beat 0.5 (part low marimba c1 :scale blues :key C :rhythm \"x-x.\") (part c2 marimba c2 :scale blues :key C :rhythm \"x.x-\"))";
+        assert_eq!(
+            stable(source),
+            "(score swing :beat 0.5\n  (part low marimba c1 :scale blues :key C :rhythm \"x-x.\")\n  (part c2 marimba c2 :scale blues :key C :rhythm \"x.x-\"))\n"
         );
     }
 
