@@ -123,3 +123,36 @@ fn a_table_s_missing_column_is_named() {
     run.assert_stderr_has("the table has no column `forse`");
     run.assert_stderr_has("its columns are time, force");
 }
+
+/// An animator's hit list is in frames: with `:frame-rate 24 :first-frame 1` the
+/// row of frame f starts at (f − 1)/24 s, on that sample exactly.
+#[test]
+fn instances_from_frame_numbers_start_on_their_frames_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("hits.csv"), "frame,end\n13,25\n37,49\n").unwrap();
+    let path = write(
+        dir.path(),
+        "(scene :sample-rate 48000 :duration 2.5)
+         (define-sound hum () 0.5)
+         (instances :csv \"hits.csv\" :class hum :start-column \"frame\" :stop-column \"end\"
+                    :frame-rate 24 :first-frame 1)",
+    );
+    let wav = render_wav([path.as_os_str()]);
+    let samples = &wav.samples;
+    // Frame 13 is 0.5 s in: sample 24 000; frame 37 is 1.5 s: sample 72 000.
+    for (onset, stop) in [(24_000, 48_000), (72_000, 96_000)] {
+        assert_eq!(samples[onset - 1], 0.0, "silent before {onset}");
+        assert!(samples[onset + 1] > 0.0, "sounding just after {onset}");
+        assert!(samples[stop - 1] > 0.4, "still at full level before {stop}");
+        assert!(samples[stop + 300].abs() < 1e-9, "stopped after {stop}");
+    }
+    // Frames without a rate are refused in words.
+    let bad = write(
+        dir.path(),
+        "(define-sound hum () 0.5)
+         (instances :csv \"hits.csv\" :class hum :start-column \"frame\" :first-frame 1)",
+    );
+    run(["check".as_ref(), bad.as_os_str()])
+        .assert_code(1)
+        .assert_stderr_has("`:first-frame` counts frames, and the times are in seconds");
+}

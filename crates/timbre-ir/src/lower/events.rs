@@ -2,6 +2,10 @@
 //! :start-column "time" :bind (:amp "force" :n_freq 50))` makes one instance per row,
 //! so a physics simulation's collision log becomes a soundtrack.
 //!
+//! With `:frame-rate R` the start and stop columns hold frame numbers (an
+//! animator's hit list): frame f starts at (f − first) / R seconds, `first` being
+//! `:first-frame` (0 unless given; a Blender shot usually starts at frame 1).
+//!
 //! Each row becomes the form `(instance NAME (CLASS :param value …) :start s :stop e
 //! :gain g)`, with the row's numbers in place of the column names, lowered like a
 //! written one (its diagnostics point at the `instances` form).
@@ -37,6 +41,8 @@ impl Lowerer<'_> {
                 "bind",
                 "gain",
                 "source",
+                "frame-rate",
+                "first-frame",
             ],
             origin,
         )?;
@@ -63,6 +69,7 @@ impl Lowerer<'_> {
                 .label(class_expr.span, "expected a name")
                 .help(format!("write {USAGE}")));
         };
+        let frames = self.frame_timing(&options, origin)?;
         let table = self.read_table(path_expr, origin)?;
         let column = |l: &Self, key: &str| -> Result<Option<usize>, Diag> {
             let Some(e) = options.get(key) else {
@@ -146,11 +153,11 @@ impl Lowerer<'_> {
                     span,
                 },
                 key("start", span),
-                num(number(self, start_column)?),
+                num(frames.seconds(number(self, start_column)?)),
             ];
             if let Some(index) = stop_column {
                 instance.push(key("stop", span));
-                instance.push(num(number(self, index)?));
+                instance.push(num(frames.seconds(number(self, index)?)));
             }
             for option in ["gain", "source"] {
                 if let Some(e) = options.get(option) {
@@ -166,6 +173,43 @@ impl Lowerer<'_> {
             self.instances.push(instance);
         }
         Ok(())
+    }
+
+    /// How the start and stop columns count time: seconds, or frames with
+    /// `:frame-rate` (and `:first-frame`).
+    fn frame_timing(&mut self, options: &Options<'_>, origin: &Origin) -> Result<Frames, Diag> {
+        let rate = match options.get("frame-rate") {
+            Some(e) => {
+                let rate = self.constant_option(e, "the frame rate", origin)?;
+                if !(rate > 0.0 && rate.is_finite()) {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-instances",
+                            format!("frame rate {rate} is not positive"),
+                            origin,
+                        )
+                        .label(e.span, "frames per second")
+                        .help("write e.g. :frame-rate 24 (frame f starts at f/24 s)"));
+                }
+                Some(rate)
+            }
+            None => None,
+        };
+        let first = match (options.get("first-frame"), rate) {
+            (Some(e), None) => {
+                return Err(self
+                    .diag(
+                        "timbre::bad-instances",
+                        "`:first-frame` counts frames, and the times are in seconds",
+                        origin,
+                    )
+                    .label(e.span, "no :frame-rate")
+                    .help("add :frame-rate 24 to read the start column as frame numbers"))
+            }
+            (Some(e), Some(_)) => self.constant_option(e, "the first frame", origin)?,
+            (None, _) => 0.0,
+        };
+        Ok(Frames { rate, first })
     }
 
     /// `:bind (:param "column" :param constant …)`.
@@ -257,6 +301,23 @@ impl Lowerer<'_> {
             rows.push(record.iter().map(str::to_owned).collect());
         }
         Ok(Table { header, rows })
+    }
+}
+
+/// The timing of the start and stop columns.
+struct Frames {
+    /// Frames per second, or `None` for times in seconds.
+    rate: Option<f64>,
+    /// The frame at scene time 0.
+    first: f64,
+}
+
+impl Frames {
+    fn seconds(&self, cell: f64) -> f64 {
+        match self.rate {
+            Some(rate) => (cell - self.first) / rate,
+            None => cell,
+        }
     }
 }
 
