@@ -127,3 +127,36 @@ fn a_form_whose_lines_are_not_indented_still_compiles() {
     let text = "(define f (x)\n(* x 2))\n(sine (* t (f 220)))";
     assert!(common::compile_with(text, &[], 0).is_ok());
 }
+
+/// A keyframed path with a wrong column or file name is one error, however many
+/// instances ride the source that follows it.
+#[test]
+fn a_source_on_a_broken_csv_track_is_reported_once() {
+    let dir = dir_with(&[("path.csv", "x,y,z\n0,1,0\n1,2,0\n")]);
+    let scene = |track: &str| {
+        format!(
+            "(scene :duration 2)\n{track}\n(source car :position path)\n\
+             (listener :position (0 0 0))\n(define-sound a () (sine (* t 440)))\n\
+             (instance x (a) :source car)\n(instance y (a) :source car)\n\
+             (instance z (a) :source car)"
+        )
+    };
+    let wrong_column =
+        "(keyframes path :csv \"path.csv\" :columns (\"x\" \"y\" \"w\") :frame-rate 24)";
+    let wrong_file =
+        "(keyframes path :csv \"paht.csv\" :columns (\"x\" \"y\" \"z\") :frame-rate 24)";
+    for (track, code) in [
+        (wrong_column, "timbre::bad-keyframes"),
+        (wrong_file, "timbre::csv-unreadable"),
+    ] {
+        let diags = errors_in(&dir, &scene(track));
+        assert_eq!(codes(&diags), [code], "{track}");
+    }
+    // A source that is really missing is still reported at each use.
+    let diags = errors_in(
+        &dir,
+        "(scene :duration 2)\n(listener :position (0 0 0))\n\
+         (define-sound a () (sine (* t 440)))\n(instance x (a) :source cra)",
+    );
+    assert_eq!(codes(&diags), ["timbre::unknown-source"]);
+}

@@ -226,6 +226,9 @@ pub(crate) struct Lowerer<'a> {
     /// Names whose defining form failed (a `define` or `keyframes` with an error):
     /// their uses report nothing more, since the first error explains them.
     failed_names: HashSet<String>,
+    /// Sources whose `source` form failed: instances placed at them report nothing
+    /// more.
+    failed_sources: HashSet<String>,
     /// Set when an include failed or a file had syntax errors, so that forms may be
     /// missing: an unknown name is then no error of its own.
     names_incomplete: bool,
@@ -276,6 +279,7 @@ impl<'a> Lowerer<'a> {
             time_offset: 0.0,
             expansions: HashMap::new(),
             failed_names: HashSet::new(),
+            failed_sources: HashSet::new(),
             names_incomplete: false,
             expanded: HashSet::new(),
             checking_unused: false,
@@ -354,6 +358,19 @@ impl<'a> Lowerer<'a> {
         }
         for (form, origin) in std::mem::take(&mut self.space_forms) {
             if let Err(diag) = self.read_space_form(&form, &origin) {
+                // A source that failed is not unknown where instances name it.
+                if let Some(["source", name, ..]) = form
+                    .as_list()
+                    .map(|items| {
+                        items
+                            .iter()
+                            .map(|e| e.as_symbol().unwrap_or(""))
+                            .collect::<Vec<_>>()
+                    })
+                    .as_deref()
+                {
+                    self.failed_sources.insert((*name).to_owned());
+                }
                 self.errors.push(diag);
             }
         }

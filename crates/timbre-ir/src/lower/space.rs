@@ -1026,6 +1026,9 @@ impl Lowerer<'_> {
                 if let Some((_, path, _)) = self.space.sources.iter().find(|s| s.0 == name) {
                     return Ok(Some((path.clone(), name_expr.span)));
                 }
+                if self.names_incomplete || self.failed_sources.contains(name) {
+                    return Err(self.follow_on(name, name_expr.span, origin));
+                }
                 let names = self.space.sources.iter().map(|s| s.0.as_str());
                 let help = match super::did_you_mean(name, names) {
                     Some(close) => format!("did you mean `{close}`?"),
