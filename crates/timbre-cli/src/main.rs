@@ -345,8 +345,9 @@ struct SoundArgs {
     #[arg(long, short = 'r', value_parser = parse_sample_rate)]
     sample_rate: Option<f64>,
 
-    /// Output channels: a mono sound is copied to each; a sound of several channels
-    /// may be mixed down to 1 (their mean), and no other count.
+    /// Output channels: a file without `(scene :channels …)` has this many (a sound
+    /// as wide is one lane per channel; a mono sound is copied to each); a sound of
+    /// several channels may be mixed down to 1 (their mean), and no other count.
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
     channels: Option<u16>,
 
@@ -516,12 +517,17 @@ struct Source {
     inputs: Vec<PathBuf>,
 }
 
-/// Reads and lowers the file, standard input (`-`) or expression.
-fn compile_source(args: &SourceArgs) -> Result<Source, Failure> {
+/// Reads and lowers the file, standard input (`-`) or expression; `channels` (the
+/// command's `--channels`) are the output's where the file gives none, so a sound
+/// that many lanes wide is read as one lane per channel.
+fn compile_source(args: &SourceArgs, channels: Option<u16>) -> Result<Source, Failure> {
     let loader = Arc::new(RecordingLoader::default());
     let mut engine = timbre::Engine::new(48_000.0)
         .with_loader(loader.clone())
         .with_limits(args.limits());
+    if let Some(channels) = channels {
+        engine = engine.with_channels(usize::from(channels));
+    }
     if let Some(seed) = args.seed {
         engine = engine.with_seed(seed);
     }
@@ -596,7 +602,7 @@ struct GraphArgs {
 }
 
 fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
-    let source = compile_source(&args.source)?;
+    let source = compile_source(&args.source, None)?;
     let program = source.file.program();
     let title = match (&args.source.file, &args.source.expr) {
         (Some(path), _) => path.display().to_string(),
@@ -611,7 +617,7 @@ fn draw_graph(args: GraphArgs) -> Result<(), Failure> {
 }
 
 fn check(args: CheckArgs) -> Result<(), Failure> {
-    let source = compile_source(&args.source)?;
+    let source = compile_source(&args.source, None)?;
     let program = source.file.program();
     if args.ir {
         let roots: Vec<_> = program.sound_roots().collect();
@@ -1053,7 +1059,7 @@ fn interrupt_flag() -> Arc<AtomicBool> {
 }
 
 fn render(args: RenderArgs) -> Result<(), Failure> {
-    let source = compile_source(&args.source)?;
+    let source = compile_source(&args.source, args.sound.channels)?;
     let to_stdout = args.output.as_os_str() == "-";
     let container = if to_stdout {
         Container::Wav
@@ -1276,7 +1282,7 @@ fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, ou
 /// is rendered into a temporary WAV file as it is made and played from there, so its
 /// length costs no memory.
 fn play(args: PlayArgs) -> Result<(), Failure> {
-    let source = compile_source(&args.source)?;
+    let source = compile_source(&args.source, args.sound.channels)?;
     let plan = plan(&source, &args.sound)?;
     let interrupted = interrupt_flag();
     let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;

@@ -305,6 +305,8 @@ impl Session {
         let mut options = CompileOptions::new(&registry, &loader);
         options.bindings = self.bindings.clone();
         options.seed = (!own_seed).then_some(self.seed);
+        // A `(scene :channels …)` typed earlier holds for this input too.
+        options.channels = Some(self.channels);
         compile_after(
             SourceFile::new("<session>", self.prelude(exclude)),
             SourceFile::new("<input>", input),

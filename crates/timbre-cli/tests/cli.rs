@@ -1313,6 +1313,46 @@ fn a_stereo_scene_writes_two_interleaved_channels() {
     assert!(peak(&left) > 0.99 && peak(&right) < 1e-6);
 }
 
+/// `--channels 2` on a file that does not say how many: a two-lane sound is
+/// written one lane per channel, and a mono one is copied to both.
+#[test]
+fn channels_given_on_the_command_line_let_a_two_lane_sound_through() {
+    let wav = render_wav([
+        "-e",
+        "(vector (* 0.5 (sine (* t 440))) (* 0.25 (sine (* t 660))))",
+        "--channels",
+        "2",
+        "--duration",
+        "0.5",
+    ]);
+    assert_eq!(wav.spec.channels, 2);
+    let left: Vec<f64> = wav.samples.iter().step_by(2).copied().collect();
+    let right: Vec<f64> = wav.samples.iter().skip(1).step_by(2).copied().collect();
+    assert!((peak(&left) - 0.5).abs() < 1e-3 && (peak(&right) - 0.25).abs() < 1e-3);
+    let mono = render_wav([
+        "-e",
+        "(* 0.5 (sine (* t 440)))",
+        "--channels",
+        "2",
+        "-d",
+        "0.1",
+    ]);
+    assert_eq!(mono.spec.channels, 2);
+    assert!(mono.samples.chunks(2).all(|lr| lr[0] == lr[1]));
+    // Three lanes are still refused with two channels.
+    run([
+        "render",
+        "-e",
+        "(vector 0 0 0)",
+        "--channels",
+        "2",
+        "-o",
+        "-",
+    ])
+    .assert_code(1)
+    .assert_stderr_has("the sound is 3 lanes wide");
+}
+
 /// `timbre graph` of the paper's Figure 4 scene, as DOT text.
 fn cubes_dot() -> String {
     let run = run(["graph", example("cubes").to_str().unwrap(), "-o", "-"]);

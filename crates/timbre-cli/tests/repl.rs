@@ -223,3 +223,47 @@ fn a_tweak_loop_in_a_pseudo_terminal() {
     repl.send_line(":quit").unwrap();
     repl.exp_eof().unwrap();
 }
+
+/// `(scene :channels 2)` typed on its own line holds for the inputs after it: a
+/// two-lane sound is heard as stereo, its left and right lanes in their channels.
+#[test]
+fn a_scene_s_channels_hold_for_the_next_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let saved = dir.path().join("stereo.wav");
+    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    command
+        .arg("repl")
+        .arg("--audition")
+        .arg(dir.path().join("audition.wav"))
+        .current_dir(dir.path())
+        .env("HOME", dir.path())
+        .env("TIMBRE_PLAYER", "none")
+        .env("NO_COLOR", "1");
+    let mut repl = spawn_command(command, Some(20_000)).unwrap();
+    let prompt = |repl: &mut rexpect::session::PtySession| {
+        repl.exp_string("timbre> ").unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(150));
+    };
+    prompt(&mut repl);
+    repl.send_line("(scene :channels 2 :duration 0.5)").unwrap();
+    repl.exp_string("channels = 2").unwrap();
+    prompt(&mut repl);
+    repl.send_line("(vector (* 0.5 (sine (* t 440))) (* 0.5 (sine (* t 660))))")
+        .unwrap();
+    repl.exp_string("0.500 s").unwrap();
+    prompt(&mut repl);
+    repl.send_line(&format!(":save {}", saved.display()))
+        .unwrap();
+    repl.exp_string("saved").unwrap();
+    prompt(&mut repl);
+    repl.send_line(":quit").unwrap();
+    repl.exp_eof().unwrap();
+
+    let wav = read_wav(&saved);
+    assert_eq!(wav.spec.channels, 2);
+    let lane = |k: usize| -> Vec<f64> { wav.samples.iter().skip(k).step_by(2).copied().collect() };
+    for (k, expected) in [(0, 440.0), (1, 660.0)] {
+        let freq = strongest_peak_in(&lane(k), wav.rate(), 100.0, 2000.0);
+        assert!((freq - expected).abs() < 2.0, "channel {k} at {freq} Hz");
+    }
+}

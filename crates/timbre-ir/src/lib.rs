@@ -63,6 +63,7 @@ impl<'a> CompileOptions<'a> {
             registry,
             loader,
             limits: Default::default(),
+            channels: None,
         }
     }
 }

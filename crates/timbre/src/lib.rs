@@ -348,7 +348,8 @@ impl Engine {
     }
 
     /// Output channels of the scenes it makes for a library (1 by default): frames of
-    /// this many interleaved samples. A one-lane instance is heard in every channel
+    /// this many interleaved samples; also the channels of a file read without
+    /// `(scene :channels …)`, whose sound may then be as wide. A one-lane instance is heard in every channel
     /// unless it is placed (see [`Play::pan`] and [`Play::channel`]). From 1 to
     /// [`MAX_CHANNELS`]; another number is refused when a scene is made
     /// (`timbre::bad-channels`).
@@ -478,6 +479,10 @@ impl Engine {
         options.seed = self.seed;
         options.bindings = self.bindings.clone();
         options.limits = self.limits.clone();
+        // A file without `(scene :channels …)` has the engine's channels (mono is
+        // the file's own default, so leaving it unset changes nothing).
+        options.channels =
+            (self.channels != 1 && self.channels <= MAX_CHANNELS).then_some(self.channels);
         options
     }
 
@@ -598,7 +603,8 @@ impl Engine {
     }
 
     /// A scene written as a file (what `timbre render` renders): its instances, at the
-    /// engine's sample rate, with the scene's channels (`:channels`). Rendered to its
+    /// engine's sample rate, with the scene's channels (`:channels`, else the
+    /// engine's). Rendered to its
     /// end, its samples are the command line's, bit for bit (before `--gain` and
     /// fades): the command line renders through this. The scene has no classes of its
     /// own to start; a host adds to it from a library through [`Scene::start`] only

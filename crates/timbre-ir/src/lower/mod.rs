@@ -88,6 +88,9 @@ pub struct CompileOptions<'a> {
     pub loader: &'a dyn Loader,
     /// What the script may ask for (nodes, lanes, expansions, include depth).
     pub limits: crate::limits::Limits,
+    /// Output channels of a file that does not give `(scene :channels …)` (the
+    /// command line's `--channels`): its sound may be that many lanes wide.
+    pub channels: Option<usize>,
 }
 
 /// Render settings a file may give with `(scene :sample-rate … :duration … :seed …)`.
@@ -320,6 +323,9 @@ impl<'a> Lowerer<'a> {
     fn finish(mut self) -> Result<Program, Diagnostics> {
         if let Some(seed) = self.options.seed {
             self.settings.seed = seed;
+        }
+        if self.settings.channels.is_none() {
+            self.settings.channels = self.options.channels;
         }
         let sounds = std::mem::take(&mut self.sounds);
         let mut roots = vec![];
