@@ -91,10 +91,12 @@ pub struct Mappings {
     /// How far each note bends toward the continuous pitch, 0 to 1.
     #[arg(long, default_value_t = 0.4)]
     pub bend: f64,
-    /// Longest attack delay, seconds (set by the brightness's centre across the region).
-    #[arg(long, default_value_t = 0.1)]
-    pub max_delay: f64,
-    /// Longest tail, seconds (set by the brightness's centre down the region).
+    /// Longest attack, seconds: each note rises to full level over this times the
+    /// brightness's centre across the region (long sounds bowed, short pizzicato).
+    #[arg(long, alias = "max-delay", default_value_t = 0.1)]
+    pub max_attack: f64,
+    /// Longest tail, seconds: each note decays 60 dB over this times the brightness's
+    /// centre down the region. The sound also rings out this long after the last frame.
     #[arg(long, default_value_t = 1.0)]
     pub max_tail: f64,
 }
@@ -201,6 +203,9 @@ fn natural(name: &str) -> Vec<(u8, u128, String)> {
 pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
     let regions = usize::from(m.regions);
     let seconds = files.len() as f64 / fps;
+    // The gates close with the last frame; the scene lasts until the longest tail
+    // has decayed, so the render ends quiet instead of cutting a sounding note.
+    let duration = seconds + m.max_tail;
     // Every user-given string is quoted as a timbre string, comments included: a
     // name cannot end the string or the comment and become code.
     let quoted: Vec<String> = files.iter().map(|f| quote(f)).collect();
@@ -221,25 +226,28 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
     };
     let mut text = format!(
         "; Sound from the {} frames of {source} at {fps} frames per second (timbre sonify,\n\
-         ; after Unemi 2012): one voice per vertical region, panned left to right.\n\
+         ; after Unemi 2012): one voice per vertical region, panned left to right, and\n\
+         ; {} s after the last frame for the sound to decay.\n\
          (scene :channels 2 :duration {})\n\n\
          (frames video :fps {fps} :regions {regions} :alpha {}\n        :files ({}))\n\n",
         files.len(),
-        number(seconds),
+        number(m.max_tail),
+        number(duration),
         m.alpha,
         quoted.join(" ")
     );
     text += &format!(
         "; A region's voice: its pitch in freq, its loudness in amp; FM by hue, a low-pass\n\
          ; opened by the brightness's deviation, AM by saturation, white noise by roughness,\n\
-         ; and the right channel delayed by the rows' variance.\n\
-         (define voice (freq amp gate bdev sat sdev hue hdev rough rowvar {table} pan shift)\n\
+         ; and the right channel delayed by the rows' variance. It rises over attack seconds\n\
+         ; from the gate's opening and decays 60 dB over tail seconds from its closing.\n\
+         (define voice (freq amp gate attack tail bdev sat sdev hue hdev rough rowvar {table} pan shift)\n\
          \x20 (let ((f (* freq (pow 2 (* {fm} (min 1 (* 4 hdev)) (sine (phasor (+ 0.5 (* 7.5 hue))))))))\n\
          \x20       (tone (+ (* {keep} {own}) (* {mix} {shifted})))\n\
          \x20       (clear (lowpass tone (min 20000 (* f (+ 1 (* {lowpass} bdev))))))\n\
          \x20       (am (- 1 (* {am} (min 1 (* 2 sdev)) (+ 0.5 (* 0.5 (sine (phasor (+ 0.5 (* 7.5 sat)))))))))\n\
          \x20       (hiss (* {noise} (clamp (/ (- rough {threshold}) {span}) 0 1) (white)))\n\
-         \x20       (mono (* amp gate (+ (* am clear) hiss)))\n\
+         \x20       (mono (* amp (adsr gate attack 0 1 tail :exp-release 1) (+ (* am clear) hiss)))\n\
          \x20       (angle (* (+ pan 1) (/ pi 4))))\n\
          \x20   (vector (* (cos angle) mono)\n\
          \x20           (* (sin angle) (delay mono (* {phase} (min 1 (* 8 rowvar))) :max {phase})))))\n\n",
@@ -288,11 +296,15 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
     match &m.scale {
         None => {
             for k in 1..=regions {
+                // Held from the first frame to the last, then faded out over the
+                // longest tail.
                 text += &format!(
-                    "(define-sound region-{k} ()\n  (voice (* {} (pow {} video-{k}-brightness)) {} 1\n         {} {} {}))\n",
+                    "(define-sound region-{k} ()\n  (voice (* {} (pow {} video-{k}-brightness)) {} (< t {}) 0 {}\n         {} {} {}))\n",
                     number(m.low),
                     number(m.high / m.low),
                     loudness(&format!("video-{k}-motion")),
+                    number(seconds),
+                    number(m.max_tail),
                     features(k),
                     number(pan(k)),
                     number(shift(k)),
@@ -317,14 +329,14 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
             let mut parts = String::new();
             for k in 1..=regions {
                 text += &format!(
-                    "(define-sound note-{k} (freq amp gate)\n  (voice freq (* amp {}) gate\n         {} {} {}))\n",
+                    "(define-sound note-{k} (freq amp gate attack tail)\n  (voice freq (* amp {}) gate attack tail\n         {} {} {}))\n",
                     loudness(&format!("video-{k}-motion")),
                     features(k),
                     number(pan(k)),
                     number(shift(k)),
                 );
                 parts += &format!(
-                    "\n  (part region-{k} note-{k} video-{k}-brightness :scale {scale} :key {} :offset {} :semitones {}\n        {} :bend {} :delay (video-{k}-centroid-x {}) :tail (video-{k}-centroid-y {}))",
+                    "\n  (part region-{k} note-{k} video-{k}-brightness :scale {scale} :key {} :offset {} :semitones {}\n        {} :bend {} :attack (video-{k}-centroid-x {}) :tail (video-{k}-centroid-y {}))",
                     m.key,
                     number(offset),
                     number(semitones),
@@ -332,11 +344,16 @@ pub fn scene(source: &str, files: &[String], fps: f64, m: &Mappings) -> String {
                         .replace(":seed 1", &format!(":seed {k}"))
                         .replace("video-K-", &format!("video-{k}-")),
                     number(m.bend),
-                    number(m.max_delay),
+                    number(m.max_attack),
                     number(m.max_tail),
                 );
             }
-            text += &format!("\n(score music :beat {}{parts})\n", number(m.beat));
+            // The notes end with the frames; their tails sound after.
+            text += &format!(
+                "\n(score music :beat {} :end {}{parts})\n",
+                number(m.beat),
+                number(seconds)
+            );
         }
     }
     // Laid out as `timbre fmt` would; the text always parses.

@@ -388,7 +388,8 @@ fn sunrise_is_what_sonify_renders() {
     .assert_success();
     let (a, b) = (timbre_testkit::read_wav(&a), timbre_testkit::read_wav(&b));
     assert_eq!(a.spec.channels, 2);
-    assert_eq!(a.samples.len(), 2 * 96_000);
+    // Two seconds of frames, then `--max-tail` (1 s) for the voices to fade out.
+    assert_eq!(a.samples.len(), 2 * 144_000);
     assert!(a.samples == b.samples, "sonify and the example differ");
     // The leftmost region's voice (panned hard left) rises with the sun.
     let left: Vec<f64> = a.samples.iter().step_by(2).copied().collect();

@@ -297,3 +297,47 @@ fn bend_moves_the_note_toward_the_motion() {
     assert!((straight / midi(62.0) - 1.0).abs() < 0.002, "{straight}");
     assert!((bent / midi(62.2) - 1.0).abs() < 0.002, "{bent}");
 }
+
+/// `:attack` and `:tail` reach an instrument that declares them, read at each note's
+/// beat: a probe sounds its attack while the gate is open and minus its tail after.
+/// Notes at 0 s and 2 s, a second each; the attack is `(level 0.5)`, level rising
+/// from 0.2 to 0.8 over 3 s (0.1 s at the first note, 0.3 s at the second).
+#[test]
+fn attack_and_tail_reach_the_instrument_s_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = concat!(
+        "(scene :duration 3)\n",
+        "(keyframes level :interp linear (0 0.2) (3 0.8))\n",
+        "(define-sound probe (freq amp gate attack tail) (if gate attack (- tail)))\n",
+        "(score s :beat 1\n",
+        "  (part p probe level :rhythm \"x.\" :attack (level 0.5) :tail 0.25))\n",
+    );
+    let scene = write(dir.path(), "probe.tt", text);
+    let wav = render_wav([scene.to_str().unwrap()]);
+    let at = |t: f64| wav.samples[(t * 48_000.0) as usize];
+    assert!((at(0.5) - 0.1).abs() < 1e-6, "{}", at(0.5));
+    assert!((at(1.1) + 0.25).abs() < 1e-6, "{}", at(1.1));
+    assert_eq!(at(1.5), 0.0, "stopped after its tail");
+    assert!((at(2.5) - 0.3).abs() < 1e-6, "{}", at(2.5));
+    // An attack for an instrument that cannot hear it is refused at the attack.
+    let deaf = write(
+        dir.path(),
+        "deaf.tt",
+        &RISING.replace(":tail 0.1", ":attack 0.05 :tail 0.1"),
+    );
+    let result = run(["check", deaf.to_str().unwrap()]);
+    result.assert_code(1);
+    result.assert_stderr_has("timbre::bad-score");
+    result.assert_stderr_has("part `lead` gives an attack, but `pluck` has no `attack` parameter");
+    result.assert_stderr_has("not heard by the instrument");
+    result.assert_stderr_has("(define-sound pluck (freq amp gate attack tail)");
+    let negative = write(
+        dir.path(),
+        "negative.tt",
+        &RISING.replace(":tail 0.1", ":attack -1 :tail 0.1"),
+    );
+    let result = run(["check", negative.to_str().unwrap()]);
+    result.assert_code(1);
+    result.assert_stderr_has("`:attack` -1 s is out of range");
+    result.assert_stderr_has("the instrument takes to rise to full level");
+}

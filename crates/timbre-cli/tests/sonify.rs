@@ -246,3 +246,168 @@ fn saturation_sets_the_amplitude_modulation() {
     // Gain 1 − 0.5·(0.5 + 0.5 sin): between 0.5 and 1.
     assert!((lo / hi - 0.5).abs() < 0.1, "{lo} / {hi}");
 }
+
+/// Black frames, 17 × 17 pixels, with a white dash five pixels long centred on
+/// column `x` of row `y`: the brightness's centre is (x/16, y/16), across and down,
+/// and only one of the 12 bands is lit, so the voice is one overtone, a sine.
+fn dash_at(dir: &Path, frames: usize, (x, y): (usize, usize)) {
+    write_animation(&dir.join("frames"), frames, (17, 17), |_, px, py| {
+        grey(if px.abs_diff(x) <= 2 && py == y {
+            1.0
+        } else {
+            0.0
+        })
+    });
+}
+
+/// A held note of the dash's frames: one region at full loudness (`--floor 1`), no
+/// noise, no octave-shifted copy, overtones hardly weighted down (γ 0.99) and one
+/// chromatic note slurred over every beat, from the first frame to the last.
+fn held_note(dir: &Path, max_attack: &str, max_tail: &str) -> Vec<f64> {
+    let args = [
+        "--regions",
+        "1",
+        "--floor",
+        "1",
+        "--noise",
+        "0",
+        "--octave-mix",
+        "0",
+        "--gamma",
+        "0.99",
+        "--scale",
+        "chromatic",
+        "--rhythm",
+        "x",
+        "--max-attack",
+        max_attack,
+        "--max-tail",
+        max_tail,
+    ];
+    sonify(dir, "12", &args).0
+}
+
+/// The level in windows of 10 ms, every 1 ms: (centre in seconds, RMS).
+fn level(x: &[f64]) -> Vec<(f64, f64)> {
+    (0..x.len().saturating_sub(480))
+        .step_by(48)
+        .map(|i| ((i + 240) as f64 / SR, rms(&x[i..i + 480])))
+        .collect()
+}
+
+fn db(x: f64) -> f64 {
+    20.0 * x.max(1e-300).log10()
+}
+
+/// The paper's attack: a note rises to full level over centroid x times
+/// `--max-attack` (long sounds bowed, short pizzicato). A linear rise of A seconds
+/// goes from 10 % to 90 % of its level in 0.8 A: 80 ms for a dash at x = 4/16 and
+/// 240 ms at x = 12/16 with a longest attack of 0.4 s.
+#[test]
+fn a_note_rises_over_its_attack_set_by_the_centroid_across() {
+    for column in [4, 12] {
+        let dir = tempfile::tempdir().unwrap();
+        dash_at(dir.path(), 24, (column, 8));
+        let left = held_note(dir.path(), "0.4", "1");
+        let envelope = level(&left);
+        let full = rms(&left[(0.8 * SR) as usize..(1.8 * SR) as usize]);
+        let reaches = |fraction: f64| {
+            envelope
+                .iter()
+                .find(|(_, l)| *l >= fraction * full)
+                .unwrap()
+                .0
+        };
+        let rise = reaches(0.9) - reaches(0.1);
+        let attack = 0.4 * column as f64 / 16.0;
+        assert!(
+            (rise / (0.8 * attack) - 1.0).abs() < 0.05,
+            "x = {column}/16: 10 %→90 % in {rise} s, expected {} s",
+            0.8 * attack
+        );
+    }
+}
+
+/// The paper's tail: after the last frame closes the gate, the note decays
+/// exponentially, a straight line in dB (r² > 0.999) that falls 60 dB in centroid y
+/// times `--max-tail`: 1.5 s for a dash at y = 12/16 with a longest tail of 2 s.
+#[test]
+fn a_note_decays_exponentially_over_its_tail_set_by_the_centroid_down() {
+    let dir = tempfile::tempdir().unwrap();
+    dash_at(dir.path(), 24, (8, 12));
+    let left = held_note(dir.path(), "0.1", "2");
+    let tail = 2.0 * 12.0 / 16.0;
+    // From just after the gate closes at 2 s (the last frame) to −48 dB.
+    let points: Vec<(f64, f64)> = level(&left)
+        .into_iter()
+        .filter(|(t, _)| *t > 2.03 && *t < 2.0 + 0.8 * tail)
+        .map(|(t, l)| (t, db(l)))
+        .collect();
+    let slope = timbre_testkit::slope(&points);
+    let n = points.len() as f64;
+    let mean = points.iter().map(|p| p.1).sum::<f64>() / n;
+    let t0 = points.iter().map(|p| p.0).sum::<f64>() / n;
+    let residual: f64 = points
+        .iter()
+        .map(|(t, y)| (y - mean - slope * (t - t0)).powi(2))
+        .sum();
+    let total: f64 = points.iter().map(|p| (p.1 - mean).powi(2)).sum();
+    let r2 = 1.0 - residual / total;
+    let t60 = -60.0 / slope;
+    assert!(r2 > 0.999, "r² {r2}");
+    assert!(
+        (t60 / tail - 1.0).abs() < 0.01,
+        "T60 {t60} s, expected {tail} s"
+    );
+}
+
+/// The sound outlives the frames by `--max-tail` and fades out through it, so the
+/// render does not end on a sounding note: its last 10 ms are more than 50 dB below
+/// the held level, with notes (the tail of the last one) and without (each voice
+/// released at the last frame); half way through the fade it is still heard (about
+/// −30 dB for the continuous voices' whole-length tail).
+#[test]
+fn the_render_fades_out_after_the_last_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    dash_at(dir.path(), 24, (8, 12));
+    let notes = held_note(dir.path(), "0.1", "1");
+    // Without notes, a dash near the top (the second overtone, loud enough that the
+    // voice is not ended by the −120 dBFS rule before the scene ends).
+    let dir = tempfile::tempdir().unwrap();
+    dash_at(dir.path(), 24, (8, 1));
+    let continuous = sonify(
+        dir.path(),
+        "12",
+        &[
+            "--regions",
+            "1",
+            "--floor",
+            "1",
+            "--octave-mix",
+            "0",
+            "--max-tail",
+            "1",
+        ],
+    )
+    .0;
+    for (left, what) in [(notes, "notes"), (continuous, "continuous")] {
+        assert_eq!(
+            left.len(),
+            3 * 48_000,
+            "{what}: 2 s of frames and 1 s of tail"
+        );
+        let held = rms(&left[(0.5 * SR) as usize..(1.9 * SR) as usize]);
+        let end = rms(&left[left.len() - 480..]);
+        assert!(
+            db(end / held) < -50.0,
+            "{what}: the last 10 ms at {} dB",
+            db(end / held)
+        );
+        let half = rms(&left[(2.45 * SR) as usize..(2.55 * SR) as usize]);
+        assert!(
+            db(half / held) > -45.0,
+            "{what}: at 2.5 s {} dB",
+            db(half / held)
+        );
+    }
+}

@@ -723,6 +723,7 @@ pub static NODES: &[NodeSpec] = &[
             p("decay"),
             p("sustain"),
             p("release"),
+            opt("exp-release", 0.0),
         ],
         ENVELOPES,
         Build::Args(adsr),

@@ -467,6 +467,28 @@ fn adsr_follows_its_gate() {
     assert!(x[24_000 + 9600 + 10..].iter().all(|v| *v == 0.0));
 }
 
+/// `:exp-release 1`: from the level where the gate closes, a straight line in dB
+/// that is 60 dB down after `release` seconds, then 0.
+#[test]
+fn adsr_releases_exponentially_to_minus_60_db() {
+    let x = render("(adsr (< t 0.5) 0.01 0 1 0.4 :exp-release 1)", &[], 1.0);
+    let db = |s: f64| 20.0 * x[(s * SR) as usize].log10();
+    assert_eq!(x[24_000], 1.0, "held until the gate closes");
+    for (after, want) in [(0.1, -15.0), (0.2, -30.0), (0.3, -45.0)] {
+        assert!(
+            (db(0.5 + after) - want).abs() < 1e-6,
+            "{after} s into the release: {} dB",
+            db(0.5 + after)
+        );
+    }
+    assert!(db(0.5 + 0.4 - 1.0 / SR) < -59.9);
+    let zero = 24_000 + x[24_000..].iter().position(|v| *v == 0.0).unwrap();
+    assert_eq!(zero, 24_000 + (0.4 * SR) as usize);
+    // Without it, the same release is linear: half way, half the level.
+    let linear = render("(adsr (< t 0.5) 0.01 0 1 0.4)", &[], 1.0);
+    assert!(approx(linear[24_000 + 9_600], 0.5, 1e-9));
+}
+
 // ------------------------------------------------------------------ the language
 
 #[test]

@@ -266,6 +266,23 @@ fn compiled_white_noise_is_the_interpreters_bit_for_bit() {
     }
 }
 
+/// `adsr`'s exponential release (the note envelope of `timbre sonify`): re-gated
+/// twice a second, per lane, and shaping a wave whose arithmetic is exact, its
+/// release multiplied sample by sample, the same bits in both engines.
+#[test]
+fn exponential_adsr_release_is_the_interpreters_bit_for_bit() {
+    let mut jit = Jit::new().unwrap();
+    for text in [
+        "(adsr (< (frac (* 2 t)) 0.3) 0.05 0 1 0.15 :exp-release 1)",
+        "(combine (adsr (< t 0.2) (vector 0.01 0.1) 0.02 0.7 (vector 0.1 0.3) :exp-release (vector 0 1)))",
+        "(* (adsr (< t 0.5) (+ 0.1 (* 0.05 (square (* t 3)))) 0 1 0.3 :exp-release 1) (- (frac (* t 220)) 0.5))",
+    ] {
+        if let Err(e) = compare(&mut jit, &compile_text(text), 48_000, 0.0) {
+            panic!("{text}: {e}");
+        }
+    }
+}
+
 /// A tree longer than one fused region is split into several (see
 /// `plan::MAX_REGION_NODES`) and renders as the interpreter does.
 #[test]

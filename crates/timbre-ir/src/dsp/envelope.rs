@@ -1,5 +1,6 @@
 //! Envelopes: curved segment shapes, a pure attack–hold–decay envelope of
-//! time, and a gate-driven linear ADSR.
+//! time, and a gate-driven ADSR with linear segments and a linear or exponential
+//! release.
 
 use super::{clamp_or, sane_rate};
 use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
@@ -87,7 +88,8 @@ enum Stage {
     Release,
 }
 
-/// Gate-driven ADSR envelope with linear segments.
+/// Gate-driven ADSR envelope with linear segments, and a linear or exponential
+/// release.
 ///
 /// Each call to [`Adsr::next`] returns the level for the current sample and
 /// then advances it by one sample, so with the gate rising at sample 0 and
@@ -98,9 +100,17 @@ pub struct Adsr {
     level: f64,
     stage: Stage,
     gate: bool,
-    /// Per-sample decrement of the current release.
+    /// Per-sample decrement of the current release (linear), or its per-sample
+    /// factor (exponential).
     release_step: f64,
+    /// Whether the current release is exponential (decided when the gate falls).
+    release_exponential: bool,
+    /// The level at which an exponential release ends: 10⁻³ (−60 dB) of its start.
+    release_floor: f64,
 }
+
+/// An exponential release falls by this factor (−60 dB) over its length.
+const RELEASE_FALL: f64 = 1e-3;
 
 /// Tolerance for reaching a segment target by repeated addition.
 const REACH_EPS: f64 = 1e-9;
@@ -125,11 +135,14 @@ impl Adsr {
     ///   `(1 − sustain)/decay` per second; then hold `sustain` while gated
     ///   (following changes of `sustain`).
     /// - Falling edge: release linearly from the current level `L` to 0 in
-    ///   `release` seconds (rate `L/release`).
+    ///   `release` seconds (rate `L/release`); or, with `exponential > 0`,
+    ///   multiply the level by `10^(−3/(release·sr))` each sample, so that it
+    ///   falls 60 dB (to `L·10⁻³`) in `release` seconds, and then drop to 0.
     /// - Zero (or negative/NaN) times jump to the segment's target at once.
     ///
     /// `sustain` is clamped to `[0, 1]` (NaN → 0); a non-finite sample rate is
     /// replaced by 48 kHz. The output is in `[0, 1]`.
+    #[allow(clippy::too_many_arguments)]
     pub fn next(
         &mut self,
         gate: f64,
@@ -137,6 +150,7 @@ impl Adsr {
         decay: f64,
         sustain: f64,
         release: f64,
+        exponential: f64,
         sample_rate: f64,
     ) -> f64 {
         let sr = sane_rate(sample_rate);
@@ -152,10 +166,14 @@ impl Adsr {
             self.stage = Stage::Attack;
         } else if !gated && self.gate {
             self.stage = Stage::Release;
-            self.release_step = if r_n > 0.0 {
-                self.level / r_n
-            } else {
+            self.release_exponential = exponential > 0.0;
+            self.release_floor = self.level * RELEASE_FALL;
+            self.release_step = if r_n <= 0.0 {
                 f64::INFINITY
+            } else if self.release_exponential {
+                (RELEASE_FALL.ln() / r_n).exp()
+            } else {
+                self.level / r_n
             };
         }
         self.gate = gated;
@@ -192,6 +210,14 @@ impl Adsr {
                 if self.level <= sustain + REACH_EPS {
                     self.level = sustain;
                     self.stage = Stage::Sustain;
+                }
+            }
+            Stage::Release if self.release_exponential => {
+                self.level *= self.release_step;
+                // Rounding over many products: the floor is reached within 10⁻⁹.
+                if self.level <= self.release_floor * (1.0 + 1e-9) {
+                    self.level = 0.0;
+                    self.stage = Stage::Idle;
                 }
             }
             Stage::Release => {
@@ -297,7 +323,17 @@ mod tests {
     ) -> Vec<f64> {
         let (a, d, s, r) = adsr;
         (0..n)
-            .map(|i| e.next(if i >= on && i < off { 1.0 } else { 0.0 }, a, d, s, r, SR))
+            .map(|i| {
+                e.next(
+                    if i >= on && i < off { 1.0 } else { 0.0 },
+                    a,
+                    d,
+                    s,
+                    r,
+                    0.0,
+                    SR,
+                )
+            })
             .collect()
     }
 
@@ -326,6 +362,35 @@ mod tests {
     }
 
     #[test]
+    fn adsr_exponential_release_falls_60_db_over_its_length() {
+        let mut e = Adsr::new();
+        // Held at sustain 0.5, released at sample 1000 over 0.1 s = 4800 samples.
+        let y: Vec<f64> = (0..10_000)
+            .map(|i| {
+                e.next(
+                    if i < 1000 { 1.0 } else { 0.0 },
+                    0.0,
+                    0.0,
+                    0.5,
+                    0.1,
+                    1.0,
+                    SR,
+                )
+            })
+            .collect();
+        assert_eq!(y[1000], 0.5);
+        // A straight line in dB: −15 dB a quarter of the way, −30 dB half way.
+        let db = |i: usize| 20.0 * (y[i] / 0.5).log10();
+        assert!((db(1000 + 1200) + 15.0).abs() < 1e-6, "{}", db(2200));
+        assert!((db(1000 + 2400) + 30.0).abs() < 1e-6, "{}", db(3400));
+        assert!((db(1000 + 4799) + 60.0 * 4799.0 / 4800.0).abs() < 1e-6);
+        // Then 0, from the release's length on.
+        let zero = y.iter().position(|&v| v == 0.0).unwrap();
+        assert_eq!(zero, 1000 + 4800);
+        assert!(y[zero..].iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
     fn adsr_retrigger_and_zero_times() {
         let mut e = Adsr::new();
         // Release starts at 1000 from sustain 0.8; retrigger 600 samples later.
@@ -343,14 +408,14 @@ mod tests {
         assert_eq!(y[15], 1.0);
         // Zero times jump at once.
         let mut e = Adsr::new();
-        assert_eq!(e.next(1.0, 0.0, 0.0, 0.3, 0.0, SR), 0.3);
-        assert_eq!(e.next(0.0, 0.0, 0.0, 0.3, 0.0, SR), 0.0);
+        assert_eq!(e.next(1.0, 0.0, 0.0, 0.3, 0.0, 0.0, SR), 0.3);
+        assert_eq!(e.next(0.0, 0.0, 0.0, 0.3, 0.0, 0.0, SR), 0.0);
         let mut e = Adsr::new();
-        assert_eq!(e.next(1.0, 0.0, 0.01, 0.3, 0.0, SR), 1.0);
+        assert_eq!(e.next(1.0, 0.0, 0.01, 0.3, 0.0, 0.0, SR), 1.0);
         // Sustain follows changes while held.
         let mut e = Adsr::new();
-        e.next(1.0, 0.0, 0.0, 0.3, 0.0, SR);
-        assert_eq!(e.next(1.0, 0.0, 0.0, 0.6, 0.0, SR), 0.6);
+        e.next(1.0, 0.0, 0.0, 0.3, 0.0, 0.0, SR);
+        assert_eq!(e.next(1.0, 0.0, 0.0, 0.6, 0.0, 0.0, SR), 0.6);
     }
 
     #[test]
@@ -374,7 +439,7 @@ mod tests {
                 for &sr in &[f64::NAN, 0.0, 48_000.0, f64::INFINITY] {
                     for k in 0..10 {
                         let gate = if k % 3 == 0 { g } else { (i % 2) as f64 };
-                        let v = e.next(gate, p, p, p, p, sr);
+                        let v = e.next(gate, p, p, p, p, p, sr);
                         assert!((0.0..=1.0).contains(&v), "{v}");
                     }
                 }
@@ -383,7 +448,8 @@ mod tests {
     }
 }
 
-/// The `adsr` node; arguments: gate, attack, decay, sustain, release.
+/// The `adsr` node; arguments: gate, attack, decay, sustain, release,
+/// exp-release.
 #[derive(Debug)]
 pub struct AdsrEnvelope;
 
@@ -401,10 +467,10 @@ impl StatefulKernel for AdsrEnvelope {
     fn process(&self, lanes: &mut Vec<Adsr>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
         let sr = inputs.sample_rate;
         for (lane, adsr) in lanes.iter_mut().enumerate() {
-            let args: [&[f64]; 5] = std::array::from_fn(|a| inputs.lane(a, lane));
+            let args: [&[f64]; 6] = std::array::from_fn(|a| inputs.lane(a, lane));
             for (k, y) in out.lane(lane).iter_mut().enumerate() {
                 *y = adsr.next(
-                    args[0][k], args[1][k], args[2][k], args[3][k], args[4][k], sr,
+                    args[0][k], args[1][k], args[2][k], args[3][k], args[4][k], args[5][k], sr,
                 );
             }
         }

@@ -23,7 +23,7 @@ const MAX_DIVISION: f64 = 960.0;
 /// Readings per beat at least: one every thousand beats.
 const MIN_DIVISION: f64 = 0.001;
 
-/// The longest `:delay` or `:tail`, seconds: a day.
+/// The longest `:delay`, `:attack` or `:tail`, seconds: a day.
 const MAX_AMOUNT_SECONDS: f64 = 86_400.0;
 
 /// What a part's number may be: the test, what is expected (the label) and the help.
@@ -101,6 +101,7 @@ const PART_OPTIONS: &[&str] = &[
     "trigger",
     "velocity",
     "delay",
+    "attack",
     "tail",
     "bend",
     "slur",
@@ -519,6 +520,34 @@ impl Lowerer<'_> {
             .amount(options.get("tail"), "tail", origin)?
             .unwrap_or(Amount::Fixed(0.25));
         let delay = delay.unwrap_or(Amount::Fixed(0.0));
+        let attack = self.amount(options.get("attack"), "attack", origin)?;
+        // The class hears its note's attack and tail if it declares them.
+        let declares = |l: &Self, param: &str| {
+            l.definitions
+                .get(class)
+                .is_some_and(|d| d.params.iter().any(|(p, _)| p == param))
+        };
+        let (takes_attack, takes_tail) = (declares(self, "attack"), declares(self, "tail"));
+        if let (Some(given), false, true) = (
+            options.get("attack"),
+            takes_attack,
+            self.definitions.contains_key(class),
+        ) {
+            return Err(self
+                .diag(
+                    "timbre::bad-score",
+                    format!(
+                        "part `{name}` gives an attack, but `{class}` has no `attack` parameter"
+                    ),
+                    origin,
+                )
+                .label(given.span, "not heard by the instrument")
+                .help(format!(
+                    "declare (define-sound {class} (freq amp gate attack tail) …) and shape the \
+                     sound with it, such as (adsr gate attack 0 1 tail :exp-release 1)"
+                )));
+        }
+        let attack = attack.unwrap_or(Amount::Fixed(0.0));
         let bend = ranged(self, "bend", 0.0, BEND)?;
         let slur = match options.get("slur").map(|e| (e, e.as_symbol())) {
             None | Some((_, Some("on"))) => true,
@@ -554,7 +583,8 @@ impl Lowerer<'_> {
             Ok(notes) => notes,
             Err(too_much) => return Err(self.too_much(too_much, name, &playing, form, origin)),
         };
-        // Each note an instance: (class :freq … :amp … :gate (< t duration)).
+        // Each note an instance: (class :freq … :amp … :gate (< t duration)), with
+        // :attack … :tail … for a class that declares them.
         let span = form.span;
         let num = |x: f64| atom(ExprKind::Number(x), span);
         let sym = |s: &str| atom(ExprKind::Symbol(s.to_owned()), span);
@@ -602,7 +632,8 @@ impl Lowerer<'_> {
                 ])
             };
             let gate = list(vec![sym("<"), sym("t"), num(note.duration)]);
-            let call = list(vec![
+            let tail = tail.at(note.beat);
+            let mut call = vec![
                 sym(class),
                 key_word("freq"),
                 freq,
@@ -610,7 +641,14 @@ impl Lowerer<'_> {
                 num(velocity),
                 key_word("gate"),
                 gate,
-            ]);
+            ];
+            if takes_attack {
+                call.extend([key_word("attack"), num(attack.at(note.beat))]);
+            }
+            if takes_tail {
+                call.extend([key_word("tail"), num(tail)]);
+            }
+            let call = list(call);
             let mut instance = vec![
                 sym("instance"),
                 sym(&format!("{score}-{name}-{}", k + 1)),
@@ -618,7 +656,7 @@ impl Lowerer<'_> {
                 key_word("start"),
                 num(note.start),
                 key_word("stop"),
-                num(note.start + note.duration + tail.at(note.beat)),
+                num(note.start + note.duration + tail),
             ];
             if let Some(gain) = options.get("gain") {
                 instance.extend([key_word("gain"), gain.clone()]);
@@ -684,8 +722,8 @@ impl Lowerer<'_> {
         }
     }
 
-    /// `:delay` or `:tail`: seconds, or `(variable max)`, a keyframed variable in
-    /// [0, 1] times `max` seconds, read at each note's beat.
+    /// `:delay`, `:attack` or `:tail`: seconds, or `(variable max)`, a keyframed
+    /// variable in [0, 1] times `max` seconds, read at each note's beat.
     fn amount(
         &mut self,
         value: Option<&Expr>,
@@ -716,8 +754,8 @@ impl Lowerer<'_> {
         Ok(Some(Amount::Fixed(seconds)))
     }
 
-    /// Refuses a `:delay` or `:tail` of `seconds`, written at `at`, that is negative
-    /// or longer than a day.
+    /// Refuses a `:delay`, `:attack` or `:tail` of `seconds`, written at `at`, that is
+    /// negative or longer than a day.
     fn check_seconds(
         &self,
         seconds: f64,
@@ -728,10 +766,10 @@ impl Lowerer<'_> {
         if (0.0..=MAX_AMOUNT_SECONDS).contains(&seconds) {
             return Ok(());
         }
-        let what = if key == "delay" {
-            "from the beat to the note's onset"
-        } else {
-            "the instrument sounds after its gate closes"
+        let what = match key {
+            "delay" => "from the beat to the note's onset",
+            "attack" => "the instrument takes to rise to full level",
+            _ => "the instrument sounds after its gate closes",
         };
         Err(self
             .diag(
