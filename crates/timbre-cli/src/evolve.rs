@@ -79,6 +79,22 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
     let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
     let seed = Genome::from_source(&text, args.class.as_deref())
         .map_err(|e| Failure::Message(format!("`{}`: {e}", args.seed_file.display())))?;
+    if !seed.values_given {
+        let example: Vec<String> = seed.params.iter().map(|p| format!(":{p} …")).collect();
+        let (names, verb) = match seed.params.len() {
+            1 => (format!("`{}`", seed.params[0]), "starts"),
+            _ => (
+                format!("its parameters ({})", seed.params.join(", ")),
+                "start",
+            ),
+        };
+        eprintln!(
+            "note: no instance of `{}` in the file gives every parameter a number, so {names} {verb} at 1; write one, e.g. (instance a ({} {}))",
+            seed.name,
+            seed.name,
+            example.join(" ")
+        );
+    }
     match &args.target {
         Some(target) => toward(&args, seed, target),
         None => by_ear(&args, seed),

@@ -165,3 +165,48 @@ fn match_params_finds_a_target_frequency() {
     let peak = timbre_testkit::strongest_peak_in(&samples, 16_000.0, 100.0, 2_000.0);
     assert!((peak / 523.25 - 1.0).abs() < 0.01, "{peak} Hz");
 }
+
+/// Without `--match-params` the search tunes the class's parameter too, and a class
+/// with no instance to take values from is said to start at 1.
+#[test]
+fn the_search_without_match_params_tunes_the_parameter_and_says_where_it_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tone.tt"),
+        "(define-sound tone (f) (* 0.5 (sine (* t f))))\n",
+    )
+    .unwrap();
+    let timbre = || {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+        command.current_dir(dir.path());
+        command
+    };
+    let render = timbre()
+        .args(["render", "-q", "--expr", "(* 0.5 (sine (* t 30)))"])
+        .args(["-d", "1", "-r", "16000", "-o", "target.wav"])
+        .status()
+        .unwrap();
+    assert!(render.success());
+    let run = timbre()
+        .args(["evolve", "tone.tt", "--target", "target.wav"])
+        .args(["--generations", "1", "--population", "4"])
+        .args(["--seconds", "0.5", "-o", "best.tt"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stdout}{stderr}");
+    assert!(
+        stderr.contains(
+            "no instance of `tone` in the file gives every parameter a number, so `f` starts at 1"
+        ),
+        "{stderr}"
+    );
+    let f: f64 = stdout
+        .split("f = ")
+        .nth(1)
+        .and_then(|rest| rest.split(|c: char| c.is_whitespace() || c == ',').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(f != 1.0, "the parameter was never tuned: {stdout}");
+}

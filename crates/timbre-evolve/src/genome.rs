@@ -12,6 +12,8 @@ pub struct Genome {
     pub params: Vec<String>,
     /// What each parameter is set to when the class is rendered to be judged.
     pub values: Vec<f64>,
+    /// Whether `values` came from an instance in the file; if not, each is 1.
+    pub values_given: bool,
     pub body: Expr,
     /// The file's other definitions (not its instances or sound), before the class.
     pub context: Vec<Expr>,
@@ -58,6 +60,8 @@ impl Genome {
             .filter_map(|p| p.as_symbol().map(str::to_owned))
             .collect();
         let values = instance_values(&parsed.exprs, name, &params);
+        let values_given = values.is_some() || params.is_empty();
+        let values = values.unwrap_or_else(|| vec![1.0; params.len()]);
         let context = (parsed.exprs.iter())
             .filter(|e| is_definition(e) && !std::ptr::eq(e.as_list().unwrap_or_default(), items))
             .map(strip)
@@ -66,6 +70,7 @@ impl Genome {
             name: name.to_owned(),
             params,
             values,
+            values_given,
             body: strip(&items[3]),
             context,
         })
@@ -128,7 +133,7 @@ fn is_definition(expr: &Expr) -> bool {
 }
 
 /// The values of the first instance of `class` whose arguments are all numbers.
-fn instance_values(forms: &[Expr], class: &str, params: &[String]) -> Vec<f64> {
+fn instance_values(forms: &[Expr], class: &str, params: &[String]) -> Option<Vec<f64>> {
     for form in forms {
         let Some(items) = form.as_list() else {
             continue;
@@ -164,10 +169,10 @@ fn instance_values(forms: &[Expr], class: &str, params: &[String]) -> Vec<f64> {
             k += 1;
         }
         if values.iter().all(Option::is_some) {
-            return values.into_iter().flatten().collect();
+            return Some(values.into_iter().flatten().collect());
         }
     }
-    vec![1.0; params.len()]
+    None
 }
 
 /// A copy without source spans (a tree made in code).

@@ -210,6 +210,9 @@ pub enum Knobs {
     Values,
     /// The constants of its body: a new structure's numbers.
     Constants,
+    /// Both: the values of its parameters, then the constants of its body (what the
+    /// two-stage search tunes, so a class with parameters is tuned through them too).
+    All,
 }
 
 /// The numbers of a genome that `which` names.
@@ -220,6 +223,11 @@ pub fn knobs(genome: &Genome, which: Knobs) -> Vec<Knob> {
             .filter(|p| matches!(get(&genome.body, p).kind, ExprKind::Number(_)))
             .map(Knob::Constant)
             .collect(),
+        Knobs::All => {
+            let mut all = knobs(genome, Knobs::Values);
+            all.extend(knobs(genome, Knobs::Constants));
+            all
+        }
     }
 }
 
@@ -434,7 +442,8 @@ pub struct Found {
 
 /// Two-stage search: each generation's candidates (mutants and crossovers of the
 /// better half of the last, by tournament) are measured in parallel, and the best is
-/// tuned by [`tune`]; the best ever is kept. Random choices are drawn in order on the
+/// tuned by [`tune`] (its parameters' values and its constants); the best ever is
+/// kept. Random choices are drawn in order on the
 /// calling thread, so the result does not depend on the number of threads.
 pub fn search(rng: &mut impl Rng, seed: &Genome, target: &Target, search: &Search) -> Found {
     let settings = Settings {
@@ -442,7 +451,7 @@ pub fn search(rng: &mut impl Rng, seed: &Genome, target: &Target, search: &Searc
         ..search.settings.clone()
     };
     let untuned = target.measure(seed);
-    let first = tune(seed, target, Knobs::Constants, search.tune_iterations);
+    let first = tune(seed, target, Knobs::All, search.tune_iterations);
     let mut renders = 1 + first.renders;
     let mut best = (first.genome.clone(), first.distance);
     let mut history = vec![untuned, first.distance];
@@ -484,12 +493,7 @@ pub fn search(rng: &mut impl Rng, seed: &Genome, target: &Target, search: &Searc
         renders += measured.len();
         let mut ranked = measured;
         ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let tuned = tune(
-            &ranked[0].0,
-            target,
-            Knobs::Constants,
-            search.tune_iterations,
-        );
+        let tuned = tune(&ranked[0].0, target, Knobs::All, search.tune_iterations);
         renders += tuned.renders;
         if tuned.distance < ranked[0].1 {
             ranked[0] = (tuned.genome, tuned.distance);

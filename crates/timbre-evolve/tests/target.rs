@@ -99,3 +99,42 @@ fn the_same_seed_gives_the_same_result_on_one_thread_and_on_two() {
     assert_eq!(one.best, two.best);
     assert_eq!(one.history, two.history);
 }
+
+/// Without `--match-params`, the search still tunes the class's parameters: a tone
+/// whose instance gives 300 Hz finds the target's 440 Hz through its parameter.
+#[test]
+fn the_search_tunes_the_parameters_of_a_class() {
+    let target = target_of(TONE, &[440.0], 0.5);
+    let start = seed(TONE, &[300.0]);
+    let found = search(
+        &mut rand::rngs::StdRng::seed_from_u64(5),
+        &start,
+        &target,
+        &Search {
+            generations: 1,
+            ..small_search()
+        },
+    );
+    assert!(
+        found.history[1] < found.history[0] / 10.0,
+        "tuning the seed: {:?}",
+        found.history
+    );
+    // The body may have changed too; the frequency heard is the target's.
+    let audition = Audition {
+        sample_rate: RATE,
+        seconds: 0.5,
+    };
+    let samples = check::render(&found.best, &audition).unwrap();
+    let heard = timbre_testkit::strongest_peak_in(&samples, RATE, 50.0, 4000.0);
+    assert!((heard - 440.0).abs() < 3.0, "heard {heard} Hz");
+}
+
+/// A class without an instance starts its parameters at 1, and the genome says so.
+#[test]
+fn a_class_without_an_instance_says_its_values_are_not_given() {
+    assert!(!Genome::from_source(TONE, None).unwrap().values_given);
+    let with = format!("{TONE}\n(instance a (tone :f 440))");
+    let genome = Genome::from_source(&with, None).unwrap();
+    assert!(genome.values_given && genome.values == [440.0]);
+}
