@@ -22,7 +22,7 @@ use crate::dsp::expressive::{
     locked_weights, Energetic, InverseImportance, LockError, Sputter, SweepCurve,
 };
 use crate::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator};
-use crate::dsp::noise::{hash2, MarkovNoise, PinkNoise};
+use crate::dsp::noise::{hash2, lane_seeds, MarkovNoise, PinkNoise};
 use crate::dsp::tube::{Quantity, Tube, TubeError, ALUMINIUM, MATERIALS};
 use crate::error::Diag;
 use crate::graph::NodeId;
@@ -504,7 +504,14 @@ pub static NODES: &[NodeSpec] = &[
         "(* 0.01 (hzmidi (+ 440 (* 200 (sine (* t 440))))))",
     ),
     // Noises.
-    NodeSpec::new("noise", X, NOISES, Build::Args(noise), "(noise (* t 440))").random(),
+    NodeSpec::new(
+        "noise",
+        &[p("x"), opt("lanes", 1.0)],
+        NOISES,
+        Build::Args(noise),
+        "(* 0.5 (combine (noise (* t (vector 440 660)) :lanes 2)))",
+    )
+    .random(),
     NodeSpec::new(
         "white",
         &[opt("lanes", 1.0)],
@@ -513,15 +520,21 @@ pub static NODES: &[NodeSpec] = &[
         "(white :seed 3)",
     )
     .random(),
-    NodeSpec::new("pink", &[], NOISES, Build::Args(pink), "(pink)")
-        .random()
-        .stateful(),
+    NodeSpec::new(
+        "pink",
+        &[opt("lanes", 1.0)],
+        NOISES,
+        Build::Args(pink),
+        "(combine (* (pink :lanes 2) (vector 0.3 -0.3)))",
+    )
+    .random()
+    .stateful(),
     NodeSpec::new(
         "markov",
-        &[p("rate")],
+        &[p("rate"), opt("lanes", 1.0)],
         NOISES,
         Build::Args(markov),
-        "(markov (+ 50 (* 40 (sine t))))",
+        "(combine (markov (+ 50 (* 40 (sine t))) :lanes 3))",
     )
     .random()
     .stateful(),
@@ -831,25 +844,59 @@ fn divide(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
 }
 
 fn noise(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
-    let seed = l.random_seed("noise", b, &b.nodes());
-    Ok(l.graph.add(Op::Noise { seed }, b.nodes()))
+    let x = b.args[0].node;
+    let lanes = noise_lanes(l, b)?;
+    // The seed hashes `x` alone, so `:lanes` leaves lane 0 as the one-lane noise.
+    let seed = l.random_seed("noise", b, &[x]);
+    let seeds = lane_seeds(seed, lanes);
+    Ok(l.graph.add(Op::Noise { seeds }, vec![x]))
 }
 
 fn white(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     let lanes = l.const_count(&b.args[0], "the number of lanes", b.origin)?;
     let seed = l.random_seed("white", b, &[]);
-    let seeds = (0..lanes as u64).map(|k| seed.wrapping_add(k)).collect();
-    Ok(l.graph.add(Op::White { seeds }, vec![]))
+    Ok(l.graph.add(
+        Op::White {
+            seeds: lane_seeds(seed, lanes),
+        },
+        vec![],
+    ))
 }
 
 fn pink(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    let lanes = l.const_count(&b.args[0], "the number of lanes", b.origin)?;
     let seed = l.random_seed("pink", b, &[]);
-    Ok(l.stateful(PinkNoise { seed }, vec![]))
+    let seeds = lane_seeds(seed, lanes);
+    Ok(l.stateful(PinkNoise { seeds }, vec![]))
 }
 
 fn markov(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
-    let seed = l.random_seed("markov", b, &b.nodes());
-    Ok(l.stateful(MarkovNoise { seed }, b.nodes()))
+    let rate = b.args[0].node;
+    let lanes = noise_lanes(l, b)?;
+    let seed = l.random_seed("markov", b, &[rate]);
+    let seeds = lane_seeds(seed, lanes);
+    Ok(l.stateful(MarkovNoise { seeds }, vec![rate]))
+}
+
+/// The lanes of a noise of one argument and `:lanes`: as many as the argument has,
+/// or as `:lanes` asks (each lane a noise of its own seed, see `dsp::noise::lane_seeds`).
+fn noise_lanes(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<usize, Diag> {
+    let (input, lanes_arg) = (&b.args[0], &b.args[1]);
+    let lanes = l.const_count(lanes_arg, "the number of lanes", b.origin)?;
+    let width = l.graph.width(input.node);
+    if width != 1 && lanes != 1 && width != lanes {
+        let name = b.call.name;
+        return Err(l
+            .diag(
+                "timbre::width-mismatch",
+                format!("`{name}` of {lanes} lanes with an argument of {width} lanes"),
+                b.origin,
+            )
+            .label(input.span, format!("{width} lanes"))
+            .label(lanes_arg.span, format!("{lanes} lanes"))
+            .help("give `:lanes` the argument's width, or leave it out: a wide argument already gives each lane its own noise"));
+    }
+    Ok(width.max(lanes))
 }
 
 fn rvector(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {

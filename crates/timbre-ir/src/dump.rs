@@ -56,14 +56,9 @@ fn describe(op: &Op) -> String {
             }
             text
         }
-        Op::Noise { seed } => format!("{}(seed={seed:#018x})", op.name()),
-        Op::White { seeds } => match seeds[..] {
-            [seed] => format!("{}(seed={seed:#018x})", op.name()),
-            [seed, ..] if seeds.windows(2).all(|w| w[1] == w[0].wrapping_add(1)) => {
-                format!("{}(seed={seed:#018x}, lanes={})", op.name(), seeds.len())
-            }
-            _ => format!("{}(lanes={}, seeds of their own)", op.name(), seeds.len()),
-        },
+        Op::Noise { seeds } | Op::White { seeds } => {
+            format!("{}({})", op.name(), crate::dsp::noise::seeds_detail(seeds))
+        }
         Op::Stateful(kernel) => match kernel.detail() {
             detail if detail.is_empty() => kernel.name().into(),
             detail => format!("{}({detail})", kernel.name()),
@@ -122,7 +117,12 @@ mod tests {
         let sine = g.add(Op::Unary(UnaryOp::Sine), vec![phase]);
         let v = g.const_vector(vec![0.25, 0.5]);
         let wide = g.add(Op::Binary(BinaryOp::Mul), vec![sine, v]);
-        let noise = g.add(Op::Noise { seed: 0xabc }, vec![t]);
+        let noise = g.add(
+            Op::Noise {
+                seeds: std::sync::Arc::from([0xabc]),
+            },
+            vec![t],
+        );
         let text = dump(&g, &[wide, noise]);
         assert!(!text.contains(&format!("%{} ", unused.0)));
         assert_eq!(

@@ -239,6 +239,15 @@ struct Gen<'a, R: Rng> {
 
 /// A number as a literal of at most four significant digits (never `-0` or an
 /// exponent, which the grammar would accept anyway).
+/// ` :lanes w` for a noise of `w` lanes (each its own noise), nothing for one.
+fn lanes_option(w: usize) -> String {
+    if w == 1 {
+        String::new()
+    } else {
+        format!(" :lanes {w}")
+    }
+}
+
 fn num(x: f64) -> String {
     if !x.is_finite() || x == 0.0 {
         return "0".into();
@@ -599,7 +608,7 @@ impl<'a, R: Rng> Gen<'a, R> {
             choices.push((1.0, Leaf::Noise));
             choices.push((0.4, Leaf::Env));
             choices.push((0.4, Leaf::Damp));
-            if w == 1 && !self.slow {
+            if !self.slow {
                 choices.push((1.0, Leaf::White));
                 if self.stateful {
                     choices.push((0.6, Leaf::Pink));
@@ -650,12 +659,12 @@ impl<'a, R: Rng> Gen<'a, R> {
             Leaf::White => {
                 self.spend(1);
                 let seed = self.seed();
-                Ex::new(format!("(white{seed})"), 1.0, false)
+                Ex::new(format!("(white{}{seed})", lanes_option(w)), 1.0, false)
             }
             Leaf::Pink => {
                 self.spend(1);
                 let seed = self.seed();
-                Ex::new(format!("(pink{seed})"), 1.0, false)
+                Ex::new(format!("(pink{}{seed})", lanes_option(w)), 1.0, false)
             }
             Leaf::Noise => {
                 self.spend(2);

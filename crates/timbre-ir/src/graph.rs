@@ -216,7 +216,7 @@ impl Graph {
         let widths = args.iter().map(|a| self.width(*a));
         match op {
             Op::Const(values) => values.len(),
-            Op::White { seeds } => seeds.len(),
+            Op::White { seeds } | Op::Noise { seeds } => seeds.len(),
             Op::Time | Op::Variable(_) => 1,
             Op::Combine | Op::Index => 1,
             Op::Concat => widths.sum(),
@@ -249,9 +249,8 @@ impl Graph {
             Op::Ternary(t) => (0..width)
                 .map(|l| t.apply(lane(consts[0], l), lane(consts[1], l), lane(consts[2], l)))
                 .collect(),
-            Op::Noise { seed } => consts[0]
-                .iter()
-                .map(|x| crate::op::noise(*seed, *x))
+            Op::Noise { seeds } => (0..seeds.len())
+                .map(|l| crate::op::noise(seeds[l], lane(consts[0], l)))
                 .collect(),
             Op::Env => (0..width)
                 .map(|l| crate::op::env(std::array::from_fn(|i| lane(consts[i], l))))

@@ -260,9 +260,10 @@ impl Interpreter {
                         o[k] = op.apply(a[k], b[k], c[k]);
                     }
                 }
-                (Op::Noise { seed }, _) => {
+                (Op::Noise { seeds }, _) => {
+                    let seed = seeds[lane];
                     for (y, x) in o.iter_mut().zip(self.arg(i, 0, lane, n)) {
-                        *y = noise(*seed, *x);
+                        *y = noise(seed, *x);
                     }
                 }
                 (Op::Variable(variable), _) => o.fill(variable.get()),

@@ -32,9 +32,11 @@ pub enum Op {
     Unary(UnaryOp),
     Binary(BinaryOp),
     Ternary(TernaryOp),
-    /// Smooth gradient noise of the argument, seeded.
+    /// Smooth gradient noise of the argument: lane k with `seeds[k]` (consecutive:
+    /// `(noise x :lanes n)` has seeds s, s + 1, …); the argument is one lane or as
+    /// many as there are seeds.
     Noise {
-        seed: u64,
+        seeds: Arc<[u64]>,
     },
     /// `(env x attack decay :hold h :attack-curve c :decay-curve c)`: six arguments.
     Env,
@@ -229,8 +231,14 @@ impl Op {
             Op::Const(values) => {
                 d.f64s(values);
             }
-            Op::Noise { seed } => {
-                d.u64(*seed);
+            // One seed alone, as before noises had lanes (see `dsp::noise`).
+            Op::Noise { seeds } => {
+                for seed in seeds.iter() {
+                    d.u64(*seed);
+                }
+                if seeds.len() > 1 {
+                    d.u64(seeds.len() as u64);
+                }
             }
             Op::White { seeds } => {
                 for seed in seeds.iter() {

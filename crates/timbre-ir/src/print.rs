@@ -206,26 +206,15 @@ impl Printer<'_> {
             Op::Unary(op) => call(op.name(), args),
             Op::Binary(op) => call(op.name(), args),
             Op::Ternary(op) => call(op.name(), args),
-            Op::Noise { seed } => with_seed(call("noise", args), *seed),
+            Op::Noise { seeds } => {
+                let x_width = graph.width(graph.node(id).args[0]);
+                noise_call("noise", args, seeds, x_width).map_err(unprintable)?
+            }
             Op::Env => call("env", args),
             Op::Combine => call("combine", args),
             Op::Index => call("index", args),
             Op::Concat => call("vector", args),
-            Op::White { seeds } => {
-                let first = seeds[0];
-                let consecutive =
-                    (0..seeds.len() as u64).all(|k| seeds[k as usize] == first.wrapping_add(k));
-                if !consecutive {
-                    return Err(unprintable(
-                        "only the optimiser joins white noises of unrelated seeds",
-                    ));
-                }
-                let lanes = match seeds.len() {
-                    1 => vec![],
-                    n => vec![number(n as f64)],
-                };
-                with_seed(call("white", lanes), first)
-            }
+            Op::White { seeds } => noise_call("white", args, seeds, 1).map_err(unprintable)?,
             Op::Phasor => call("phasor", args),
             Op::Conv(ImpulseResponse::Wav { path, .. }) => {
                 let mut items = args;
@@ -238,7 +227,7 @@ impl Printer<'_> {
                 items.extend([keyword("length"), number(*seconds)]);
                 call("conv", items)
             }
-            Op::Stateful(kernel) => match self.kernel(kernel.as_ref(), args)? {
+            Op::Stateful(kernel) => match self.kernel(graph, id, kernel.as_ref(), args)? {
                 Some(expr) => expr,
                 None => {
                     return Err(unprintable(
@@ -264,6 +253,8 @@ impl Printer<'_> {
     /// A stateful node's call, or None for a kernel no call makes.
     fn kernel(
         &mut self,
+        graph: &Graph,
+        node: NodeId,
         kernel: &dyn DynKernel,
         args: Vec<Expr>,
     ) -> Result<Option<Expr>, Unprintable> {
@@ -291,11 +282,19 @@ impl Printer<'_> {
             items.extend([keyword("curve"), number(curve)]);
             return Ok(Some(call("sputter", items)));
         }
+        let noise = |name, seeds: &[u64], x_width| {
+            noise_call(name, args.clone(), seeds, x_width).map_err(|reason| Unprintable {
+                node,
+                kind: name.into(),
+                reason,
+            })
+        };
         if let Some(k) = any.downcast_ref::<PinkNoise>() {
-            return Ok(Some(with_seed(call("pink", args), k.seed)));
+            return noise("pink", &k.seeds, 1).map(Some);
         }
         if let Some(k) = any.downcast_ref::<MarkovNoise>() {
-            return Ok(Some(with_seed(call("markov", args), k.seed)));
+            let rate_width = graph.width(graph.node(node).args[0]);
+            return noise("markov", &k.seeds, rate_width).map(Some);
         }
         if let Some(k) = any.downcast_ref::<SamplePlayer>() {
             let mut items = vec![string(&k.path)];
@@ -422,6 +421,26 @@ fn number(x: f64) -> Expr {
 }
 
 /// A random node's call with its seed itself.
+/// A noise's call: its arguments, `:lanes` where it has more lanes than its argument
+/// (`x_width`; the argument's own lanes each have their seed already), and its first
+/// lane's seed. Only consecutive seeds have a spelling.
+fn noise_call(
+    name: &str,
+    mut args: Vec<Expr>,
+    seeds: &[u64],
+    x_width: usize,
+) -> Result<Expr, &'static str> {
+    let first = seeds[0];
+    let consecutive = (0..seeds.len() as u64).all(|k| seeds[k as usize] == first.wrapping_add(k));
+    if !consecutive {
+        return Err("only the optimiser joins noises of unrelated seeds");
+    }
+    if seeds.len() > x_width {
+        args.extend([keyword("lanes"), number(seeds.len() as f64)]);
+    }
+    Ok(with_seed(call(name, args), first))
+}
+
 fn with_seed(mut expr: Expr, seed: u64) -> Expr {
     if let ExprKind::List(items) = &mut expr.kind {
         items.extend([keyword("seed-bits"), string(&format!("{seed:016x}"))]);

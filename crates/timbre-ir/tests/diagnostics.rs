@@ -145,6 +145,31 @@ const CASES: &[(&str, &str, &str, &str)] = &[
         "the number of lanes must be a constant number",
         "(sine t)",
     ),
+    // A noise's `:lanes` is checked as `white`'s is.
+    (
+        "(combine (noise t :lanes 0))",
+        "timbre::bad-count",
+        "the number of lanes must be a whole number ≥ 1, not 0",
+        "0",
+    ),
+    (
+        "(combine (pink :lanes 2.5))",
+        "timbre::bad-count",
+        "the number of lanes must be a whole number ≥ 1, not 2.5",
+        "2.5",
+    ),
+    (
+        "(combine (markov 5 :lanes 1e9))",
+        "timbre::too-wide",
+        "1000000000 lanes is too many",
+        "1e9",
+    ),
+    (
+        "(combine (noise (vector 1 2) :lanes 3))",
+        "timbre::width-mismatch",
+        "`noise` of 3 lanes with an argument of 2 lanes",
+        "(vector 1 2)",
+    ),
     (
         "(lowpass (white) 1000 :qq 2)",
         "timbre::unknown-keyword",

@@ -128,11 +128,15 @@ fn printed(text: &str) -> String {
 
 #[test]
 fn random_nodes_keep_their_seeds_whatever_the_render_seed() {
+    // Noises of one lane and of several (by `:lanes` or by a wide argument).
     let source =
-        "(scene :seed 7)\n(+ (noise (* t 9)) (combine (white 2 :seed 3)) (pink) (markov 40))";
+        "(scene :seed 7)\n(+ (noise (* t 9)) (combine (white 2 :seed 3)) (pink) (markov 40) \
+         (combine (noise (* t 9) :lanes 3)) (combine (pink :lanes 2)) \
+         (combine (markov (vector 40 50))) (combine (noise (* t (vector 9 8)))))";
     let program = lower(source);
     let text = print_tree(&program.graph, program.root.unwrap(), &[]).unwrap();
-    assert_eq!(text.matches(":seed-bits").count(), 4, "{text}");
+    assert_eq!(text.matches(":seed-bits").count(), 8, "{text}");
+    assert_eq!(text.matches(":lanes").count(), 3, "{text}");
     // The text carries no scene seed: lowered under the default seed, it is the
     // same noise.
     let again = lower(&text);

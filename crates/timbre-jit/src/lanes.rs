@@ -163,6 +163,9 @@ fn widen(steps: &[Step]) -> Vec<Step> {
                 Op::White { seeds } => Op::White {
                     seeds: vec![seeds[0]; BATCH_LANES].into(),
                 },
+                Op::Noise { seeds } => Op::Noise {
+                    seeds: vec![seeds[0]; BATCH_LANES].into(),
+                },
                 op => op.clone(),
             },
             width: BATCH_LANES,
@@ -284,8 +287,8 @@ impl LaneBatch {
         // Seeds now (the lane's state is reset at its first sample).
         for (i, step) in instance.steps.iter().enumerate() {
             match &step.op {
-                Op::Noise { seed } => {
-                    let mixed = f64::from_bits(timbre_ir::dsp::noise::mix64(*seed));
+                Op::Noise { seeds } => {
+                    let mixed = f64::from_bits(timbre_ir::dsp::noise::mix64(seeds[0]));
                     self.states[i][NOISE_SEED * BATCH_LANES + lane] = mixed;
                 }
                 Op::White { seeds } => {

@@ -429,14 +429,16 @@ impl Jit {
             .iter()
             .map(|s| match s.op {
                 Op::Phasor => vec![0.0; s.width],
-                Op::Noise { seed } => {
+                Op::Noise { ref seeds } => {
                     // Slot-major: each slot's lanes side by side (see NOISE_SLOTS).
                     let lanes = s.width;
                     let mut state = vec![0.0; NOISE_SLOTS * lanes];
                     state[..lanes].fill(no_cell);
-                    // The bits of the mixed seed, which the kernel loads as an integer.
-                    let mixed = f64::from_bits(timbre_ir::dsp::noise::mix64(seed));
-                    state[NOISE_SEED * lanes..(NOISE_SEED + 1) * lanes].fill(mixed);
+                    // The bits of each lane's mixed seed, which the kernel loads as an
+                    // integer.
+                    for (slot, seed) in state[NOISE_SEED * lanes..].iter_mut().zip(seeds.iter()) {
+                        *slot = f64::from_bits(timbre_ir::dsp::noise::mix64(*seed));
+                    }
                     state
                 }
                 // The bits of each lane's mixed seed, as for a noise.

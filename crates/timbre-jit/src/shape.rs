@@ -49,7 +49,7 @@ impl Kind {
             Op::Unary(op) => Kind::Unary(*op),
             Op::Binary(op) => Kind::Binary(*op),
             Op::Ternary(op) => Kind::Ternary(*op),
-            Op::Noise { seed: _ } => Kind::Noise,
+            Op::Noise { .. } => Kind::Noise,
             Op::White { .. } => Kind::White,
             Op::Phasor => Kind::Phasor,
             Op::Combine => Kind::Combine,
@@ -150,7 +150,13 @@ mod tests {
             step(Op::Time, &[], 1),
             step(Op::Const(Arc::from([k].as_slice())), &[], 1),
             step(Op::Binary(BinaryOp::Mul), &[0, 1], 1),
-            step(Op::Noise { seed }, &[2], 1),
+            step(
+                Op::Noise {
+                    seeds: Arc::from([seed]),
+                },
+                &[2],
+                1,
+            ),
         ]
     }
 
@@ -207,7 +213,9 @@ mod tests {
     fn inline_ops_have_distinct_kinds() {
         let mut ops: Vec<Op> = vec![
             Op::Time,
-            Op::Noise { seed: 0 },
+            Op::Noise {
+                seeds: Arc::from([0]),
+            },
             Op::White {
                 seeds: Arc::from([0]),
             },

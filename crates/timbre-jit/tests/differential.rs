@@ -221,6 +221,45 @@ fn compiled_noise_agrees_with_the_interpreter_to_rounding() {
     }
 }
 
+/// Noises of several lanes: each lane with its own seed under both engines (a lane
+/// given another's seed would differ by the noise's whole size, not by rounding).
+/// Every lane of the root is compared, so no lane hides behind a sum.
+#[test]
+fn noise_lanes_keep_their_own_seeds_compiled() {
+    let mut jit = Jit::new().unwrap();
+    // A sound is one lane: each noise is written under `combine` and compared itself.
+    let lanes_of = |text: &str| {
+        let program = compile_text(&format!("(combine {text})"));
+        let noise = program.graph.node(program.root.unwrap()).args[0];
+        (program, noise)
+    };
+    for text in [
+        "(noise (* t 3) :lanes 8)",
+        "(noise (* t 977.7) :lanes 5)",
+        "(* 0.25 (noise (* t (vector 30 40 50))))",
+        "(noise (+ (* t 40) (vector 0 0 0 0)) :lanes 4)",
+        "(* 12 (noise (* t 3) :lanes 3 :seed 4))",
+    ] {
+        let (program, noise) = lanes_of(text);
+        let voice = jit.voice(&program.graph, noise, config()).unwrap();
+        assert_eq!(voice.kernel().callback_nodes, 0, "{text}: inline");
+        if let Err(e) = compare_root(&mut jit, &program, noise, 96_000, 12e-13) {
+            panic!("{text}: {e}");
+        }
+    }
+    // Pink and Markov noise are callbacks: the interpreter's own code, bit for bit.
+    for text in [
+        "(pink :lanes 3)",
+        "(markov (vector 20 30))",
+        "(markov 20 :lanes 3)",
+    ] {
+        let (program, noise) = lanes_of(text);
+        if let Err(e) = compare_root(&mut jit, &program, noise, 48_000, 0.0) {
+            panic!("{text}: {e}");
+        }
+    }
+}
+
 /// White noise is compiled inline, with one lane or many: the interpreter's hash of
 /// the sample index, bit for bit, alone, in arithmetic, read by a lane region, through
 /// a filter, and as the peers' 50 jitters; and nothing of it is left to callbacks.

@@ -55,7 +55,7 @@ fn noise_seeds(graph: &Graph, root: NodeId) -> Vec<u64> {
         .steps()
         .iter()
         .filter_map(|s| match s.op {
-            Op::Noise { seed } => Some(seed),
+            Op::Noise { ref seeds } => Some(seeds[0]),
             _ => None,
         })
         .collect()

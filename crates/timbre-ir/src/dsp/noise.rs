@@ -495,47 +495,86 @@ mod tests {
     }
 }
 
-/// The `pink` node: 1/f noise from white noise of the sample index.
+/// The seeds of a noise's lanes: lane k has `seed + k` (wrapping), so lane 0 has the
+/// node's own seed and a noise of one lane is the noise it always was. Every noise
+/// (`white`, `noise`, `pink`, `markov`) derives its lanes' seeds this way; the hash
+/// mixes each seed before use, so neighbouring seeds give unrelated noises.
+pub fn lane_seeds(seed: u64, lanes: usize) -> std::sync::Arc<[u64]> {
+    (0..lanes as u64).map(|k| seed.wrapping_add(k)).collect()
+}
+
+/// A noise's seeds for people (`timbre check --ir`): `seed=…` for one lane,
+/// `seed=…, lanes=n` for consecutive seeds, and only the count for any others (the
+/// optimiser's joined white noises).
+pub fn seeds_detail(seeds: &[u64]) -> String {
+    match seeds {
+        [seed] => format!("seed={seed:#018x}"),
+        [seed, ..] if seeds.windows(2).all(|w| w[1] == w[0].wrapping_add(1)) => {
+            format!("seed={seed:#018x}, lanes={}", seeds.len())
+        }
+        _ => format!("lanes={}, seeds of their own", seeds.len()),
+    }
+}
+
+/// Writes a noise's seeds into its description: one seed as the seed alone (as
+/// noises were described before they had lanes, so one-lane trees keep their
+/// identity and the seeds derived from it), more as each seed and then the count.
+fn describe_seeds(d: &mut Description, seeds: &[u64]) {
+    for seed in seeds {
+        d.u64(*seed);
+    }
+    if seeds.len() > 1 {
+        d.u64(seeds.len() as u64);
+    }
+}
+
+/// The `pink` node: 1/f noise from white noise of the sample index, one independent
+/// noise per lane (lane k from white noise of `seeds[k]`).
 #[derive(Debug)]
 pub struct PinkNoise {
-    pub seed: u64,
+    pub seeds: std::sync::Arc<[u64]>,
 }
 
 impl StatefulKernel for PinkNoise {
-    type State = Pink;
+    type State = Vec<Pink>;
 
     fn name(&self) -> &'static str {
         "pink"
     }
 
     fn describe(&self, d: &mut Description) {
-        d.u64(self.seed);
+        describe_seeds(d, &self.seeds);
     }
 
     fn detail(&self) -> String {
-        format!("seed={:#018x}", self.seed)
+        seeds_detail(&self.seeds)
     }
 
     fn width(&self, _args: &[usize]) -> usize {
-        1
+        self.seeds.len()
     }
 
-    fn new_state(&self, _ctx: &StateContext) -> Pink {
-        Pink::new()
+    fn new_state(&self, ctx: &StateContext) -> Vec<Pink> {
+        vec![Pink::new(); ctx.width]
     }
 
-    fn process(&self, pink: &mut Pink, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+    fn process(&self, lanes: &mut Vec<Pink>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
         let n0 = inputs.first_sample;
-        for (k, y) in out.lane(0).iter_mut().enumerate() {
-            *y = pink.next(white(self.seed, n0 + k as u64));
+        for (lane, pink) in lanes.iter_mut().enumerate() {
+            let seed = self.seeds[lane];
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                *y = pink.next(white(seed, n0 + k as u64));
+            }
         }
     }
 }
 
-/// The `markov` node: per-lane AR(2) noise; argument: rate in Hz.
+/// The `markov` node: per-lane AR(2) noise; argument: rate in Hz. Lane k is driven
+/// by white noise of seed `hash2(seeds[k], 0)` (hashed once more, so that it is not
+/// the white noise a `white` of the same seed makes).
 #[derive(Debug)]
 pub struct MarkovNoise {
-    pub seed: u64,
+    pub seeds: std::sync::Arc<[u64]>,
 }
 
 impl StatefulKernel for MarkovNoise {
@@ -546,11 +585,15 @@ impl StatefulKernel for MarkovNoise {
     }
 
     fn describe(&self, d: &mut Description) {
-        d.u64(self.seed);
+        describe_seeds(d, &self.seeds);
     }
 
     fn detail(&self) -> String {
-        format!("seed={:#018x}", self.seed)
+        seeds_detail(&self.seeds)
+    }
+
+    fn width(&self, _args: &[usize]) -> usize {
+        self.seeds.len()
     }
 
     fn new_state(&self, ctx: &StateContext) -> Vec<Markov> {
@@ -560,10 +603,10 @@ impl StatefulKernel for MarkovNoise {
     fn process(&self, lanes: &mut Vec<Markov>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
         let (n0, sr) = (inputs.first_sample, inputs.sample_rate);
         for (lane, markov) in lanes.iter_mut().enumerate() {
-            let lane_seed = hash2(self.seed, lane as u64);
+            let white_seed = hash2(self.seeds[lane], 0);
             let rate = inputs.lane(0, lane);
             for (k, y) in out.lane(lane).iter_mut().enumerate() {
-                *y = markov.next(white(lane_seed, n0 + k as u64), rate[k], sr);
+                *y = markov.next(white(white_seed, n0 + k as u64), rate[k], sr);
             }
         }
     }
