@@ -1284,13 +1284,31 @@ fn report_render(plan: &Plan<'_>, summary: &audio_out::Summary, format: &str, ou
 fn play(args: PlayArgs) -> Result<(), Failure> {
     let source = compile_source(&args.source, args.sound.channels)?;
     let plan = plan(&source, &args.sound)?;
+    // Without a sound device or a player, the WAV is the result: said first, and
+    // its name checked before any rendering.
+    let no_way_to_play = playback::way_to_play().err();
+    if let Some(why) = &no_way_to_play {
+        check_fallback(&args.output, why)?;
+        eprintln!(
+            "cannot play here ({why}); writing the sound to {} instead",
+            args.output.display()
+        );
+    }
     let interrupted = interrupt_flag();
     let (length, scale) = measured(&plan, &args.sound, false, &interrupted)?;
     let (wav, summary) = render_to_temp_wav(&plan, length, scale, &interrupted)?;
+    let seconds = summary.frames as f64 / plan.sample_rate;
+    if no_way_to_play.is_some() {
+        write_fallback(wav.path(), &args.output, &source.inputs)?;
+        eprintln!(
+            "wrote {} ({seconds:.3} s); play it with any player",
+            args.output.display()
+        );
+        return Ok(());
+    }
     if !plan.quiet {
         eprintln!(
-            "playing {:.3} s ({} channel{}); peak {}",
-            summary.frames as f64 / plan.sample_rate,
+            "playing {seconds:.3} s ({} channel{}); peak {}",
             plan.channels,
             if plan.channels == 1 { "" } else { "s" },
             format_db(summary.peak)
@@ -1300,21 +1318,8 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
         Ok(playback::Played::Whole) => Ok(()),
         Ok(playback::Played::Cancelled) => Err(Failure::Interrupted),
         Err(why) => {
-            if args.output.extension().is_none_or(|e| e != "wav") {
-                return Err(Failure::Message(format!(
-                    "cannot play ({why}), and `{}` is not a .wav file to write instead",
-                    args.output.display()
-                )));
-            }
-            // The WAV already made, copied into place through the one way out.
-            let mut output =
-                output::prepare(&args.output, &source.inputs).map_err(Failure::Message)?;
-            let cannot = |e: &dyn std::fmt::Display| {
-                Failure::Message(format!("cannot write `{}`: {e}", args.output.display()))
-            };
-            let mut made = timbre_ir::open_regular(wav.path()).map_err(|e| cannot(&e))?;
-            std::io::copy(&mut made, output.file()).map_err(|e| cannot(&e))?;
-            output.commit().map_err(Failure::Message)?;
+            check_fallback(&args.output, &why)?;
+            write_fallback(wav.path(), &args.output, &source.inputs)?;
             eprintln!(
                 "cannot play: {why}; wrote {} instead",
                 args.output.display()
@@ -1322,6 +1327,28 @@ fn play(args: PlayArgs) -> Result<(), Failure> {
             Ok(())
         }
     }
+}
+
+/// Refuses a fallback output that is not a WAV file, saying why nothing played.
+fn check_fallback(output: &Path, why: &str) -> Result<(), Failure> {
+    if output.extension().is_none_or(|e| e != "wav") {
+        return Err(Failure::Message(format!(
+            "cannot play ({why}), and `{}` is not a .wav file to write instead",
+            output.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Copies the WAV already made into place at `output`, through the one way out.
+fn write_fallback(wav: &Path, output: &Path, inputs: &[PathBuf]) -> Result<(), Failure> {
+    let mut out = output::prepare(output, inputs).map_err(Failure::Message)?;
+    let cannot = |e: &dyn std::fmt::Display| {
+        Failure::Message(format!("cannot write `{}`: {e}", output.display()))
+    };
+    let mut made = timbre_ir::open_regular(wav).map_err(|e| cannot(&e))?;
+    std::io::copy(&mut made, out.file()).map_err(|e| cannot(&e))?;
+    out.commit().map_err(Failure::Message)
 }
 
 /// Renders `plan` into a temporary 32-bit float WAV file as it is made (for playing).

@@ -39,6 +39,31 @@ pub fn play(
     }
 }
 
+/// Whether this machine has a way to play at all: a sound device (with the
+/// `playback` feature) or a system player; `Err` says why not.
+pub fn way_to_play() -> Result<(), String> {
+    match device_present() {
+        Ok(()) => Ok(()),
+        Err(why) => system_players()
+            .map(|_| ())
+            .map_err(|none| format!("{why}; {none}")),
+    }
+}
+
+#[cfg(feature = "playback")]
+fn device_present() -> Result<(), String> {
+    use cpal::traits::HostTrait;
+    cpal::default_host()
+        .default_output_device()
+        .map(|_| ())
+        .ok_or_else(|| "no sound device".into())
+}
+
+#[cfg(not(feature = "playback"))]
+fn device_present() -> Result<(), String> {
+    play_on_device(&[], 1, 48_000.0, &AtomicBool::new(false)).map(|_| ())
+}
+
 /// Plays the WAV file `wav` and waits until it has played, or until `cancel` is set.
 /// A system player is given the file itself, so a sound of any length streams from
 /// it (a player that needs 16-bit samples gets a copy, converted a chunk at a time);

@@ -408,9 +408,18 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
         .unwrap();
     assert!(out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
+    // Said first, before rendering: there is nothing to play on, and where the
+    // sound goes instead; it is never said to be playing.
+    let first = stderr.lines().next().unwrap_or_default();
     assert!(
-        stderr.contains("no system player (TIMBRE_PLAYER=none)")
-            && stderr.contains("wrote timbre-play.wav instead"),
+        first.starts_with("cannot play here (")
+            && first.contains("no system player (TIMBRE_PLAYER=none)")
+            && first.ends_with("writing the sound to timbre-play.wav instead"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("playing"), "{stderr}");
+    assert!(
+        stderr.contains("wrote timbre-play.wav (0.300 s)"),
         "{stderr}"
     );
     assert_eq!(
