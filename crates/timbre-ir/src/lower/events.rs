@@ -37,6 +37,7 @@ impl Lowerer<'_> {
                 "bind",
                 "gain",
                 "source",
+                "declick",
             ],
             origin,
         )?;
@@ -152,7 +153,7 @@ impl Lowerer<'_> {
                 instance.push(key("stop", span));
                 instance.push(num(number(self, index)?));
             }
-            for option in ["gain", "source"] {
+            for option in ["gain", "source", "declick"] {
                 if let Some(e) = options.get(option) {
                     instance.push(key(option, span));
                     instance.push(e.clone());
