@@ -109,7 +109,7 @@ fn describe(op: &Op, program: &Program) -> (String, &'static str) {
         } => {
             let length = length.map_or("until silent".into(), |l| format!("{l} s"));
             (
-                format!("timer\\n{length}\\nfades {fade_in} / {fade_out} s"),
+                format!("timer\\n{length}\\nfade-in {fade_in}\\nfade-out {fade_out} s"),
                 TIMER,
             )
         }

@@ -1089,11 +1089,11 @@ fn check_ir_prints_the_graph_of_the_sound() {
         %4 = keyframe(3 keys, linear) %3 [1 lane]
         %5 = * %2 %4 [1 lane]
         %6 = sine %5 [1 lane]
-        %7 = timer(length=0.5 s, fade-in=0.001 s, fade-out=0.005 s) %6 %2 [1 lane] ; root
+        %7 = timer(length=0.5 s, fade-in=0.001 s unless it starts at 0, fade-out=0.005 s) %6 %2 [1 lane] ; root
         %8 = const 440.0 [1 lane]
         %9 = * %2 %8 [1 lane]
         %10 = sine %9 [1 lane]
-        %11 = timer(length=none, fade-in=0.001 s, fade-out=0.005 s) %10 %2 [1 lane] ; root
+        %11 = timer(length=none, fade-in=0.001 s unless it starts at 0, fade-out=0.005 s) %10 %2 [1 lane] ; root
     "#]]
     .assert_eq(&scene.stdout);
 

@@ -88,7 +88,7 @@ fn describe(op: &Op) -> String {
                 Some(l) => format!("{l:?} s"),
                 None => "none".into(),
             };
-            format!("timer(length={length}, fade-in={fade_in:?} s, fade-out={fade_out:?} s)")
+            format!("timer(length={length}, fade-in={fade_in}, fade-out={fade_out:?} s)")
         }
         Op::Custom(node) => format!("custom({})", node.name()),
         // The rest are told apart by their names (and argument counts: `-` of one

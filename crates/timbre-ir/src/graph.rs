@@ -268,8 +268,10 @@ impl Graph {
                 fade_out,
             } => (0..width)
                 .map(|l| {
-                    lane(consts[0], l)
-                        * crate::op::timer_gain(lane(consts[1], l), *length, *fade_in, *fade_out)
+                    // A constant sound's first sample is the constant.
+                    let x = lane(consts[0], l);
+                    let fade_in = fade_in.seconds(x);
+                    x * crate::op::timer_gain(lane(consts[1], l), *length, fade_in, *fade_out)
                 })
                 .collect(),
             _ => return None,

@@ -84,6 +84,9 @@ enum State {
     Conv(Vec<Convolver>),
     /// A combine's sum of its odd lanes, beside the even ones in its output.
     OddSum(Vec<f64>),
+    /// A timer's fade-in per lane, in seconds, decided at its first sample (NaN
+    /// before).
+    FadeIn(Vec<f64>),
     /// A stateful kernel's own state, or a host node's.
     Kernel(Box<dyn Any + Send>),
 }
@@ -278,11 +281,14 @@ impl Interpreter {
                         fade_in,
                         fade_out,
                     },
-                    _,
+                    State::FadeIn(decided),
                 ) => {
                     let (x, t) = (self.arg(i, 0, lane, n), self.arg(i, 1, lane, n));
+                    if n > 0 && decided[lane].is_nan() {
+                        decided[lane] = fade_in.seconds(x[0]);
+                    }
                     for k in 0..n {
-                        o[k] = x[k] * timer_gain(t[k], *length, *fade_in, *fade_out);
+                        o[k] = x[k] * timer_gain(t[k], *length, decided[lane], *fade_out);
                     }
                 }
                 (Op::Env, _) => {
@@ -453,6 +459,7 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
     match &step.op {
         Op::Phasor => State::Phase(vec![0.0; w]),
         Op::Combine => State::OddSum(vec![0.0; config.block_size]),
+        Op::Timer { .. } => State::FadeIn(vec![f64::NAN; w]),
         Op::Conv(response) => {
             let ir = match response {
                 ImpulseResponse::Wav { data, .. } => resample(data, sr),
@@ -479,8 +486,7 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
         | Op::Concat
         | Op::White { .. }
         | Op::Variable(_)
-        | Op::Keyframe(_)
-        | Op::Timer { .. } => State::None,
+        | Op::Keyframe(_) => State::None,
     }
 }
 

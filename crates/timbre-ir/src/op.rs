@@ -62,11 +62,12 @@ pub enum Op {
     /// A keyframed variable: the track's value at the argument (scene time).
     Keyframe(Arc<KeyframeTrack>),
     /// An instance's timer: arguments the sound and its local time t; the sound times
-    /// a gain that rises over `fade_in` from t = 0 and, if the instance has a length,
+    /// a gain that rises from t = 0 as `fade_in` says (decided per lane at the timer's
+    /// first sample, see [`FadeIn::seconds`]) and, if the instance has a length,
     /// falls over `fade_out` from t = length (silent after).
     Timer {
         length: Option<f64>,
-        fade_in: f64,
+        fade_in: FadeIn,
         fade_out: f64,
     },
     /// A node implemented in Rust by the host.
@@ -268,9 +269,14 @@ impl Op {
                 fade_in,
                 fade_out,
             } => {
+                let (always, seconds) = match fade_in {
+                    FadeIn::IfNotZero(s) => (0, s),
+                    FadeIn::Always(s) => (1, s),
+                };
                 d.u64(length.is_some() as u64)
                     .f64(length.unwrap_or(0.0))
-                    .f64(*fade_in)
+                    .u64(always)
+                    .f64(*seconds)
                     .f64(*fade_out);
             }
             // A host node by its registered name.
@@ -488,7 +494,46 @@ pub fn sample_time(index: u64, rate: f64) -> f64 {
     index as f64 / rate
 }
 
-/// The gain of a timer at local time `t` (see [`Op::Timer`]).
+/// A first sample below this (in magnitude) counts as zero for the default declick:
+/// −80 dBFS, a step a few 16-bit quantisation steps high and inaudible, and far above
+/// the rounding of a sine that should start at 0 (`sin π` is 1.2e-16).
+pub const DECLICK_THRESHOLD: f64 = 1e-4;
+
+/// How an instance's timer fades its sound in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FadeIn {
+    /// Over these seconds in each lane whose first sample is not zero (at least
+    /// [`DECLICK_THRESHOLD`]): a lane that starts at zero, as a strike does, needs no
+    /// declick and plays from its first sample. The default, with `DECLICK_IN`.
+    IfNotZero(f64),
+    /// Over these seconds whatever the first sample; 0 is no fade at all.
+    Always(f64),
+}
+
+impl FadeIn {
+    /// The fade-in of a lane whose first sample is `first`, in seconds (0: none).
+    /// Decided once, at the timer's first sample, by both engines.
+    #[inline]
+    pub fn seconds(self, first: f64) -> f64 {
+        match self {
+            FadeIn::IfNotZero(s) if first.abs() >= DECLICK_THRESHOLD => s,
+            FadeIn::IfNotZero(_) => 0.0,
+            FadeIn::Always(s) => s,
+        }
+    }
+}
+
+impl fmt::Display for FadeIn {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FadeIn::IfNotZero(s) => write!(f, "{s:?} s unless it starts at 0"),
+            FadeIn::Always(s) if *s == 0.0 => write!(f, "off"),
+            FadeIn::Always(s) => write!(f, "{s:?} s"),
+        }
+    }
+}
+
+/// The gain of a timer at local time `t`, its fade-in decided (see [`Op::Timer`]).
 #[inline]
 pub fn timer_gain(t: f64, length: Option<f64>, fade_in: f64, fade_out: f64) -> f64 {
     if t < 0.0 {

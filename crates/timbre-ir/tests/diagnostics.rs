@@ -323,6 +323,9 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (sine t) (instance a (hit :amp 1 :freq 2))", "timbre::sound-and-instances", "the file has both a top-level sound and instances", "(sine t)"),
     ("(define-sound hit (amp freq) (* amp (sine (* t freq)))) (keyframes k :csv \"m.csv\" :frame-rate 24)", "timbre::bad-keyframes", "a CSV track needs a `:column`", "(keyframes k :csv \"m.csv\" :frame-rate 24)"),
     ("(define-sound a (f) (sine (* t f))) (instance x (a :f 1) :pan 0.5)", "timbre::bad-instance", "`:pan` needs a stereo scene", "0.5"),
+    ("(define-sound a (f) (sine (* t f))) (instance x (a :f 1) :declick -0.01)", "timbre::bad-instance", "`:declick` is -0.01 s, not a length of time", "-0.01"),
+    ("(define-sound a (f) (sine (* t f))) (keyframes k (0 1)) (instance x (a :f 1) :declick k)", "timbre::not-constant", "the declick ramp must be a constant number", "k"),
+    ("(keyframes h (0 0) (2 2)) (define-sound pluck (freq amp gate) (* amp gate (sine (* t freq)))) (score tune :beat 0.5 (part lead pluck h :declick -1))", "timbre::bad-instance", "`:declick` is -1 s, not a length of time", "-1"),
     ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (instance x (a :f 1) :pan 2)", "timbre::bad-instance", "`:pan 2` is not a position from -1 to 1", "2"),
     // Space.
     ("(keyframes p (0 (1 2 3)) (1 (4 5)))", "timbre::bad-keyframes", "this key has 2 values, the first has 3", "(1 (4 5))"),
@@ -564,6 +567,13 @@ const HELPED: &[(&str, &str, &str, &str, &str)] = &[
         "`:pan` needs a stereo scene",
         "0",
         ":channels 2",
+    ),
+    (
+        "(define-sound a (f) (sine (* t f)))\n(instance x (a :f 1) :declick -1)",
+        "timbre::bad-instance",
+        "`:declick` is -1 s, not a length of time",
+        "-1",
+        "write :declick 0.01 for a 10 ms fade-in, or :declick off (or 0) for none",
     ),
     (
         "(scene :channels 2)\n(define-sound a (f) (pan 0 (sine (* t f))))\n(instance x (a :f 1) :pan 0)",

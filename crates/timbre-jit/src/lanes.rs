@@ -17,11 +17,12 @@
 //! state (phase 0, no noise cell) right there. Every lane's samples are therefore
 //! those it would have alone, whatever the block size and whatever else is in the
 //! batch. Each lane's timer is applied afterwards, per lane, with
-//! `timbre_ir::op::timer_gain` as the interpreter applies it.
+//! `timbre_ir::op::timer_gain` as the interpreter applies it, its fade-in decided at
+//! the lane's first sample.
 
 use std::sync::Arc;
 
-use timbre_ir::op::{sample_time, Op};
+use timbre_ir::op::{sample_time, FadeIn, Op};
 use timbre_ir::{Graph, NodeId, RenderConfig, Step};
 
 use crate::codegen::{NOISE_SEED, NOISE_SLOTS};
@@ -41,8 +42,8 @@ pub struct InstanceLanes {
     /// The instance's sound (its tree under the timer), one lane, as steps.
     steps: Vec<Step>,
     shape: Shape,
-    /// The timer's length (if it stops), fade-in and fade-out, in seconds.
-    timer: (Option<f64>, f64, f64),
+    /// The timer's length (if it stops), fade-in and fade-out (in seconds).
+    timer: (Option<f64>, FadeIn, f64),
 }
 
 impl InstanceLanes {
@@ -174,13 +175,15 @@ fn widen(steps: &[Step]) -> Vec<Step> {
         .collect()
 }
 
-/// One lane of a batch: its instance's start and timer, and whether its state is
-/// set yet (it is, at its first sample).
+/// One lane of a batch: its instance's start and timer, whether its state is set
+/// yet (it is, at its first sample), and its fade-in in seconds once decided (at
+/// its first sample, as the timer of its own voice decides it).
 #[derive(Clone, Copy, Debug)]
 struct Lane {
     start: u64,
-    timer: (Option<f64>, f64, f64),
+    timer: (Option<f64>, FadeIn, f64),
     begun: bool,
+    fade_in: Option<f64>,
 }
 
 /// Instances of one shape, each a lane of one kernel call.
@@ -302,6 +305,7 @@ impl LaneBatch {
             start,
             timer: instance.timer,
             begun: false,
+            fade_in: None,
         });
         Some(lane)
     }
@@ -388,16 +392,18 @@ impl LaneBatch {
         let bs = self.block_size;
         let sound = &self.buffers[self.buffers.len() - 1];
         let at = (from - self.position) as usize;
-        for (lane, l) in self.lanes.iter().enumerate() {
-            let Some(l) = l.filter(|l| l.begun) else {
+        for (lane, l) in self.lanes.iter_mut().enumerate() {
+            let Some(l) = l.as_mut().filter(|l| l.begun) else {
                 continue;
             };
             let x = &sound[lane * bs..lane * bs + n];
             let y = &mut self.output[lane * bs + at..lane * bs + at + n];
+            let (length, fade_in, fade_out) = l.timer;
+            let fade_in = *l.fade_in.get_or_insert_with(|| fade_in.seconds(x[0]));
             // The instance's local time, as its own voice has it.
             let first = from - l.start;
             let time = |k: usize| sample_time(first + k as u64, self.sample_rate);
-            timer::apply(l.timer, time, true, x, y);
+            timer::apply((length, fade_in, fade_out), time, true, x, y);
         }
     }
 

@@ -451,7 +451,7 @@ impl Jit {
                     length,
                     fade_in,
                     fade_out,
-                } => timer::state(length, fade_in, fade_out, config.sample_rate),
+                } => timer::state(length, fade_in, fade_out, config.sample_rate, s.width),
                 _ => vec![],
             })
             .collect();

@@ -1,18 +1,42 @@
 //! An instance's timer: its sound times a gain that rises over the fade-in, stays at
 //! 1 and falls over the fade-out after a stop (`timbre_ir::op::timer_gain`, the one
-//! definition, used here as the interpreter uses it). Most blocks of an instance lie
-//! where the gain is exactly 1; there the sound passes through unchanged, without a
-//! gain computed per sample.
+//! definition, used here as the interpreter uses it). Each lane's fade-in is decided
+//! at its first sample (`FadeIn::seconds`), as the interpreter decides it. Most blocks
+//! of an instance lie where the gain is exactly 1; there the sound passes through
+//! unchanged, without a gain computed per sample.
 
 use cranelift_codegen::ir::{types, InstBuilder};
-use timbre_ir::op::{sample_time, timer_gain, Op};
+use timbre_ir::op::{sample_time, timer_gain, FadeIn, Op};
 
 use crate::codegen::KernelBuilder;
 
-/// A timer's state: its length (infinite if it has none), fade-in and fade-out, and
-/// the sample rate.
-pub(crate) fn state(length: Option<f64>, fade_in: f64, fade_out: f64, rate: f64) -> Vec<f64> {
-    vec![length.unwrap_or(f64::INFINITY), fade_in, fade_out, rate]
+/// Entries of a timer's state before its lanes' fade-ins.
+const HEADER: usize = 5;
+
+/// A timer's state: its length (infinite if it has none), its fade-in (seconds, and
+/// 1 if always applied, 0 if only where the first sample is not zero), fade-out, the
+/// sample rate; then each of its `lanes` lanes' fade-in as decided at its first
+/// sample (NaN before).
+pub(crate) fn state(
+    length: Option<f64>,
+    fade_in: FadeIn,
+    fade_out: f64,
+    rate: f64,
+    lanes: usize,
+) -> Vec<f64> {
+    let (seconds, always) = match fade_in {
+        FadeIn::IfNotZero(s) => (s, 0.0),
+        FadeIn::Always(s) => (s, 1.0),
+    };
+    let mut state = vec![
+        length.unwrap_or(f64::INFINITY),
+        seconds,
+        always,
+        fade_out,
+        rate,
+    ];
+    state.resize(HEADER + lanes, f64::NAN);
+    state
 }
 
 /// `timer_block(state, sound, time, out, n, lanes, stride, t0)`: called by kernels.
@@ -21,7 +45,7 @@ pub(crate) fn state(length: Option<f64>, fade_in: f64, fade_out: f64, rate: f64)
 /// interpreter computes it (and the kernel need not compute it).
 #[allow(clippy::too_many_arguments)]
 pub(crate) extern "C" fn timer_block(
-    state: *const f64,
+    state: *mut f64,
     sound: *const f64,
     time: *const f64,
     out: *mut f64,
@@ -34,10 +58,10 @@ pub(crate) extern "C" fn timer_block(
     if n == 0 {
         return;
     }
-    // SAFETY: kernels pass the timer's state (see `state`), its arguments' buffers and
-    // its own, each of `lanes` lanes of `stride ≥ n` samples (the time one lane, or
-    // null).
-    let state = unsafe { std::slice::from_raw_parts(state, 4) };
+    // SAFETY: kernels pass the timer's state (see `state`, made for `lanes` lanes),
+    // its arguments' buffers and its own, each of `lanes` lanes of `stride ≥ n`
+    // samples (the time one lane, or null).
+    let state = unsafe { std::slice::from_raw_parts_mut(state, HEADER + lanes) };
     let time_is_t = time.is_null();
     let time: &[f64] = if time_is_t {
         &[]
@@ -45,7 +69,7 @@ pub(crate) extern "C" fn timer_block(
         // SAFETY: as above.
         unsafe { std::slice::from_raw_parts(time, n) }
     };
-    let rate = state[3];
+    let rate = state[4];
     let t = |k: usize| {
         if time_is_t {
             sample_time(t0 + k as u64, rate)
@@ -53,7 +77,13 @@ pub(crate) extern "C" fn timer_block(
             time[k]
         }
     };
-    let timer = (Some(state[0]).filter(|l| l.is_finite()), state[1], state[2]);
+    let length = Some(state[0]).filter(|l| l.is_finite());
+    let fade_in = if state[2] == 1.0 {
+        FadeIn::Always(state[1])
+    } else {
+        FadeIn::IfNotZero(state[1])
+    };
+    let fade_out = state[3];
     for lane in 0..lanes {
         // SAFETY: as above; `sound` and `out` are different steps' buffers.
         let (x, y) = unsafe {
@@ -62,11 +92,15 @@ pub(crate) extern "C" fn timer_block(
                 std::slice::from_raw_parts_mut(out.add(lane * stride), n),
             )
         };
-        apply(timer, t, time_is_t, x, y);
+        let decided = &mut state[HEADER + lane];
+        if decided.is_nan() {
+            *decided = fade_in.seconds(x[0]);
+        }
+        apply((length, *decided, fade_out), t, time_is_t, x, y);
     }
 }
 
-/// `y = x · gain(t(k))` for the timer of (length, fade-in, fade-out), `t(k)` the time
+/// `y = x · gain(t(k))` for the timer of (length, fade-in as decided, fade-out), `t(k)` the time
 /// of sample k. When that time is `t` itself (`grows`), a block whose first gain is
 /// exactly 1 and which ends before the length has every gain exactly 1: it passes
 /// through unchanged.

@@ -554,9 +554,10 @@ mod random_trees {
     }
 }
 
-/// An instance's timer gives the interpreter's gain bit for bit: its fade-in, the
-/// steady part (passed through), a stop with its fade-out, and silence after; one
-/// lane, and a lane per channel.
+/// An instance's timer gives the interpreter's gain bit for bit: its fade-in (where
+/// the sound does not start at zero, or as `:declick` says), the steady part (passed
+/// through), a stop with its fade-out, and silence after; one lane, and a lane per
+/// channel.
 #[test]
 fn instance_timers_agree_bit_for_bit() {
     let program = compile_text(
@@ -565,7 +566,11 @@ fn instance_timers_agree_bit_for_bit() {
          (define-sound wide (f) (* 0.3 (frac (* t (vector f (* 1.5 f))))))
          (instance a (tone :f 440) :start 0.1 :stop 0.3)
          (instance b (tone :f 300) :start 0)
-         (instance c (wide :f 200) :start 0.05 :stop 0.2)",
+         (instance c (wide :f 200) :start 0.05 :stop 0.2)
+         (define-sound raised (f) (+ 0.2 (* 0.3 (frac (* t f)))))
+         (instance d (raised :f 300) :start 0.01)
+         (instance e (tone :f 300) :start 0.01 :declick 0.01)
+         (instance f (raised :f 300) :start 0.01 :declick off)",
     );
     let mut jit = Jit::new().unwrap();
     for instance in &program.instances {

@@ -60,7 +60,7 @@ fn cubes_onsets_are_on_the_sample() {
         let x = render(&only(&program, name), 2.0, Engine::Jit);
         let onset = first_sound(&x);
         let expected = (start * SR) as usize;
-        // The timer's fade-in makes the start sample itself 0.
+        // A strike's start sample is itself 0 (sin 0).
         assert!(
             onset == expected || onset == expected + 1,
             "{name}: onset at {onset}, expected {expected}"

@@ -109,6 +109,15 @@ pub(crate) fn play(play: &crate::Play, channels: usize) -> Result<(), Error> {
             )));
         }
     }
+    if let Some(seconds) = play.declick {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(Error::Script(refusal(
+                "timbre::bad-declick",
+                format!("a declick of {seconds} s: a fade-in is finite seconds, ≥ 0"),
+                "0 starts the sound at full level, 0.01 fades it in over 10 ms",
+            )));
+        }
+    }
     mix(&play.mix, channels)
 }
 

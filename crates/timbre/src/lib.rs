@@ -909,11 +909,12 @@ impl SoundLibrary {
 }
 
 /// When an instance plays and where it is heard: a start time, an optional stop, a
-/// gain and a placement among the output channels. Checked when the instance is
-/// started ([`Scene::play`]): times are finite seconds ≥ 0 (`timbre::bad-time`), a
-/// stop comes after the start (`timbre::stop-before-start`), a gain is finite
-/// (`timbre::bad-gain`), a pan position is from −1 to 1 (`timbre::bad-pan`) and a
-/// channel is one the scene has (`timbre::bad-channel`).
+/// gain, a placement among the output channels and its fade-in. Checked when the
+/// instance is started ([`Scene::play`]): times are finite seconds ≥ 0
+/// (`timbre::bad-time`), a stop comes after the start (`timbre::stop-before-start`),
+/// a gain is finite (`timbre::bad-gain`), a pan position is from −1 to 1
+/// (`timbre::bad-pan`), a channel is one the scene has (`timbre::bad-channel`) and a
+/// declick is finite seconds ≥ 0 (`timbre::bad-declick`).
 ///
 /// ```
 /// use timbre::Play;
@@ -925,6 +926,8 @@ pub struct Play {
     at: f64,
     stop: Option<f64>,
     mix: Mix,
+    /// The fade-in asked for, in seconds; `None`: the default declick.
+    declick: Option<f64>,
 }
 
 impl Play {
@@ -946,6 +949,7 @@ impl Play {
             at,
             stop: None,
             mix: Mix::default(),
+            declick: None,
         }
     }
 
@@ -1027,6 +1031,38 @@ impl Play {
         self
     }
 
+    /// Faded in over `seconds` from its first sample, whatever that sample; 0 starts
+    /// it at full level. Without it, an instance whose first sample is not zero fades
+    /// in over 1 ms (the declick) and one that starts at zero, a strike, plays from
+    /// its first sample.
+    ///
+    /// ```
+    /// use timbre::{Engine, Play};
+    ///
+    /// let engine = Engine::new(8_000.0);
+    /// let library = engine.load_library("(define-sound hum () 0.5)").unwrap();
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// scene.play("hum", &[], Play::at(0.0).channel(0).declick(0.0)).unwrap();
+    /// let x = scene.render_offline(0.01).unwrap();
+    /// assert_eq!(x[0], 0.5, "at full level from its first sample");
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// scene.play("hum", &[], Play::at(0.0).declick(0.01)).unwrap();
+    /// let x = scene.render_offline(0.02).unwrap();
+    /// assert_eq!(x[0], 0.0);
+    /// assert!((x[40] - 0.25).abs() < 1e-12 && x[80] == 0.5, "10 ms up to full level");
+    /// ```
+    pub fn declick(mut self, seconds: f64) -> Self {
+        self.declick = Some(seconds);
+        self
+    }
+
+    /// The timer's fade-in.
+    fn fade_in(&self) -> timbre_ir::op::FadeIn {
+        use timbre_ir::op::FadeIn;
+        self.declick
+            .map_or(FadeIn::IfNotZero(timbre_ir::DECLICK_IN), FadeIn::Always)
+    }
+
     /// Placed as `placement` says.
     ///
     /// ```
@@ -1067,9 +1103,14 @@ fn prepare(
 ) -> Result<Started, Error> {
     let rate = engine.config.sample_rate;
     let sample = |seconds: f64| (seconds.max(0.0) * rate).round() as u64;
-    let tree = library
-        .0
-        .instantiate(class, params, play.at, play.stop, &engine.options())?;
+    let tree = library.0.instantiate_with_fade_in(
+        class,
+        params,
+        play.at,
+        play.stop,
+        play.fade_in(),
+        &engine.options(),
+    )?;
     check_instance(engine, &tree)?;
     let prepared = Prepared::new(engine.backend, jit, engine.config, &tree.graph, tree.root)?;
     Ok(Started {
@@ -1185,11 +1226,12 @@ impl Scene {
     ) -> Result<InstanceId, Error> {
         arguments::play(&play, self.channels())?;
         arguments::parameters(params)?;
-        let tree = self.library.0.instantiate(
+        let tree = self.library.0.instantiate_with_fade_in(
             class,
             params,
             play.at,
             play.stop,
+            play.fade_in(),
             &self.engine.options(),
         )?;
         check_instance(&self.engine, &tree)?;

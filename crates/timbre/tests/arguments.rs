@@ -164,6 +164,28 @@ fn a_gain_that_is_not_finite_is_refused() {
 }
 
 #[test]
+fn a_declick_that_is_negative_or_not_finite_is_refused() {
+    let engine = Engine::new(SR);
+    let mut scene = scene(&engine);
+    for (seconds, text) in [
+        (-0.001, "-0.001"),
+        (f64::NAN, "NaN"),
+        (f64::INFINITY, "inf"),
+    ] {
+        let error = scene.play("tone", &tone(), Play::at(0.0).declick(seconds));
+        expect(
+            error.unwrap_err(),
+            "timbre::bad-declick",
+            &format!("a declick of {text} s: a fade-in is finite seconds, ≥ 0"),
+        );
+    }
+    assert!(
+        scene.render_offline(0.2).unwrap().iter().all(|x| *x == 0.0),
+        "nothing started"
+    );
+}
+
+#[test]
 fn a_pan_outside_minus_one_to_one_is_refused() {
     let engine = Engine::new(SR).with_channels(2);
     let mut scene = scene(&engine);

@@ -43,6 +43,7 @@ impl Lowerer<'_> {
                 "source",
                 "frame-rate",
                 "first-frame",
+                "declick",
             ],
             origin,
         )?;
@@ -159,7 +160,7 @@ impl Lowerer<'_> {
                 instance.push(key("stop", span));
                 instance.push(num(frames.seconds(number(self, index)?)));
             }
-            for option in ["gain", "source"] {
+            for option in ["gain", "source", "declick"] {
                 if let Some(e) = options.get(option) {
                     instance.push(key(option, span));
                     instance.push(e.clone());

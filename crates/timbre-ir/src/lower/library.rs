@@ -14,7 +14,7 @@ use super::{
 use crate::error::{Diag, Diagnostics, SourceFile};
 use crate::graph::{Graph, NodeId};
 use crate::keyframes::KeyframeTrack;
-use crate::op::Op;
+use crate::op::{FadeIn, Op};
 
 /// A value the host sets while a sound plays, read by its voice at the start of each
 /// block (so it changes on block boundaries, unless smoothed: see
@@ -177,13 +177,28 @@ impl Library {
     }
 
     /// Instantiates `class` with every parameter bound, starting at scene time
-    /// `start` and, if given, stopping at `stop` (with the scene's declick ramps).
+    /// `start` and, if given, stopping at `stop` (with the scene's declick ramps: at
+    /// the start only if the sound does not start at zero).
     pub fn instantiate(
         &self,
         class: &str,
         params: &[(&str, ParamValue)],
         start: f64,
         stop: Option<f64>,
+        options: &CompileOptions<'_>,
+    ) -> Result<Instantiated, Diagnostics> {
+        let fade_in = FadeIn::IfNotZero(DECLICK_IN);
+        self.instantiate_with_fade_in(class, params, start, stop, fade_in, options)
+    }
+
+    /// [`Library::instantiate`] with the fade-in `fade_in` (an instance's `:declick`).
+    pub fn instantiate_with_fade_in(
+        &self,
+        class: &str,
+        params: &[(&str, ParamValue)],
+        start: f64,
+        stop: Option<f64>,
+        fade_in: FadeIn,
         options: &CompileOptions<'_>,
     ) -> Result<Instantiated, Diagnostics> {
         let def = match self.definitions.get(class) {
@@ -280,7 +295,7 @@ impl Library {
         let root = lowerer.graph.add(
             Op::Timer {
                 length: stop.map(|stop| stop - start),
-                fade_in: DECLICK_IN,
+                fade_in,
                 fade_out: DECLICK_OUT,
             },
             vec![sound, t],

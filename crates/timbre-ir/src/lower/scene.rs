@@ -6,9 +6,10 @@
 //!   `(keyframes name :csv "motion.csv" :column "force" :frame-rate 24)` (or
 //!   `:time-column "time"`). The name is then a time-dependent value on the scene's
 //!   timeline, usable in any expression.
-//! - `(instance name (class :param value…) :start s :stop s :gain g)`: the class tree
-//!   with its parameters bound, `t` its local time (0 at `:start`), under a timer node
-//!   that switches it on and off with a short declick ramp.
+//! - `(instance name (class :param value…) :start s :stop s :gain g :declick s)`: the
+//!   class tree with its parameters bound, `t` its local time (0 at `:start`), under a
+//!   timer node that switches it on and off with short declick ramps (at the start only
+//!   where the sound does not start at zero, unless `:declick` says otherwise).
 
 use std::sync::Arc;
 
@@ -18,9 +19,10 @@ use super::{Lowerer, Origin, Scope};
 use crate::error::Diag;
 use crate::graph::{Graph, NodeId};
 use crate::keyframes::{CsvTime, Interpolation, KeyframeError, KeyframeTrack};
-use crate::op::{BinaryOp, Op, TernaryOp, UnaryOp};
+use crate::op::{BinaryOp, FadeIn, Op, TernaryOp, UnaryOp};
 
-/// Fade-in at an instance's start and fade-out at its stop, in seconds.
+/// Fade-in at an instance's start (where its first sample is not zero) and fade-out
+/// at its stop, in seconds.
 pub const DECLICK_IN: f64 = 0.001;
 pub const DECLICK_OUT: f64 = 0.005;
 
@@ -599,9 +601,15 @@ impl Lowerer<'_> {
         let options = self.options(
             &items[3..],
             "instance",
-            &["start", "stop", "gain", "pan", "channel", "source", "at"],
+            &[
+                "start", "stop", "gain", "pan", "channel", "source", "at", "declick",
+            ],
             origin,
         )?;
+        let fade_in = match options.get("declick") {
+            Some(e) => self.declick_option(e, origin)?,
+            None => FadeIn::IfNotZero(DECLICK_IN),
+        };
         let place = self.placement(options.get("source"), options.get("at"), origin)?;
         if let (Some((_, place_span)), Some(route)) =
             (&place, options.get("pan").or(options.get("channel")))
@@ -716,7 +724,7 @@ impl Lowerer<'_> {
         let timed = self.graph.add(
             Op::Timer {
                 length,
-                fade_in: DECLICK_IN,
+                fade_in,
                 fade_out: DECLICK_OUT,
             },
             vec![sound, t],
@@ -740,6 +748,27 @@ impl Lowerer<'_> {
             stop: stop.map(|(s, _)| s),
             tail,
         })
+    }
+
+    /// An instance's `:declick`: `off` or 0 (no fade-in), or a ramp of that many
+    /// seconds, applied whatever the first sample (asked for, it is always applied, as
+    /// a fade time is in Csound or SuperCollider).
+    fn declick_option(&mut self, value: &Expr, origin: &Origin) -> Result<FadeIn, Diag> {
+        if value.as_symbol() == Some("off") {
+            return Ok(FadeIn::Always(0.0));
+        }
+        let seconds = self.constant_option(value, "the declick ramp", origin)?;
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(self
+                .diag(
+                    "timbre::bad-instance",
+                    format!("`:declick` is {seconds} s, not a length of time"),
+                    origin,
+                )
+                .label(value.span, "declick")
+                .help("write :declick 0.01 for a 10 ms fade-in, or :declick off (or 0) for none"));
+        }
+        Ok(FadeIn::Always(seconds))
     }
 
     /// Where an unplaced instance goes in a scene of several channels: `:pan`

@@ -106,6 +106,7 @@ const PART_OPTIONS: &[&str] = &[
     "bend",
     "slur",
     "gain",
+    "declick",
 ];
 
 impl Lowerer<'_> {
@@ -658,8 +659,10 @@ impl Lowerer<'_> {
                 key_word("stop"),
                 num(note.start + note.duration + tail),
             ];
-            if let Some(gain) = options.get("gain") {
-                instance.extend([key_word("gain"), gain.clone()]);
+            for option in ["gain", "declick"] {
+                if let Some(value) = options.get(option) {
+                    instance.extend([key_word(option), value.clone()]);
+                }
             }
             let instance = self.lower_instance(&list(instance), origin)?;
             self.instances.push(instance);
