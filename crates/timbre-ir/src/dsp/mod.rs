@@ -21,7 +21,7 @@
 //! - [`wav`]: WAV decoding to mono `f64`, cubic interpolation and resampling;
 //!   [`sample`]: the sample player.
 //! - [`control`]: sample and hold (`latch`) and smoothing (`lag`).
-//! - [`blep`]: band-limited sawtooth, square and triangle (PolyBLEP / PolyBLAMP).
+//! - [`blep`]: band-limited sawtooth, square and triangle (minBLEP / minBLAMP).
 //! - [`rotator`]: damped sines as complex rotators, and banks of them summed (made by
 //!   `optimise`).
 //! - [`tube`]: the modal frequencies of a hollow tube or a rod with free ends (a wind
