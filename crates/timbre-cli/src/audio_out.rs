@@ -291,14 +291,15 @@ enum Writer<'w, 'f> {
 
 impl Writer<'_, '_> {
     /// Writes `samples` (finite) in `format`, counting those an integer format clips;
-    /// `bytes` is scratch space.
+    /// `bytes` is scratch space. An I/O error keeps its kind (a broken pipe is told
+    /// apart); an encoder's is `Other`.
     fn write(
         &mut self,
         samples: &[f64],
         format: SampleFormat,
         bytes: &mut Vec<u8>,
         clipped: &mut u64,
-    ) -> Result<(), String> {
+    ) -> std::io::Result<()> {
         let bits = if format == SampleFormat::S16 { 16 } else { 24 };
         match self {
             Writer::Stream(out) => {
@@ -323,9 +324,11 @@ impl Writer<'_, '_> {
                         }
                     }
                 }
-                out.write_all(bytes).map_err(|e| e.to_string())
+                out.write_all(bytes)
             }
-            Writer::Flac(flac) => flac.push(samples.iter().map(|&y| quantise(y, bits, clipped))),
+            Writer::Flac(flac) => flac
+                .push(samples.iter().map(|&y| quantise(y, bits, clipped)))
+                .map_err(std::io::Error::other),
         }
     }
 }
@@ -338,9 +341,9 @@ fn pump(
     writer: &mut Writer<'_, '_>,
     exact: bool,
 ) -> Result<Summary, WriteError> {
-    let failed = |message: String| WriteError::Encode {
+    let failed = |source: std::io::Error| WriteError::Io {
         path: path.to_path_buf(),
-        message,
+        source,
     };
     let mut summary = Summary::default();
     let channels = job.channels as usize;

@@ -355,8 +355,9 @@ struct SoundArgs {
     #[arg(long, default_value_t = 1.0, value_parser = parse_finite)]
     gain: f64,
 
-    /// Scale the output so that its peak is DBFS (default −1 dBFS). The sound is
-    /// rendered twice: once to measure it, once to write it.
+    /// Scale the output so that its peak, after any --fade-out, is DBFS (default
+    /// −1 dBFS). The sound is rendered twice: once to measure it, once to write it
+    /// (three times for a faded scene whose end is found by rendering it).
     #[arg(long, value_name = "DBFS", num_args = 0..=1, default_missing_value = "-1",
           allow_negative_numbers = true, value_parser = parse_finite)]
     normalize: Option<f64>,
@@ -469,6 +470,8 @@ fn main() -> ExitCode {
             eprintln!("interrupted: no output written");
             ExitCode::from(130)
         }
+        // 128 + SIGPIPE, quietly, as a tool killed by the broken pipe would end.
+        Err(Failure::ReaderGone) => ExitCode::from(141),
     }
 }
 
@@ -476,6 +479,9 @@ pub(crate) enum Failure {
     Diagnostics(Diagnostics),
     Message(String),
     Interrupted,
+    /// Standard output's reader stopped reading (`| head`): not an error, but the
+    /// output is cut short, so the exit status is the shell's for a broken pipe.
+    ReaderGone,
 }
 
 impl From<Diagnostics> for Failure {
@@ -994,10 +1000,17 @@ fn fade_gain(frame: u64, length: u64, fade: u64) -> f64 {
     0.5 - 0.5 * (std::f64::consts::PI * left.clamp(0.0, 1.0)).cos()
 }
 
-/// Renders without writing: the sound's length in frames and its peak (before any
-/// fade), for normalising and for fading a scene whose end is not known in advance.
-fn measure(plan: &Plan<'_>, interrupted: &AtomicBool) -> Result<(u64, f64), Failure> {
-    let mut pass = Pass::new(plan, plan.frames, 1.0)?;
+/// Renders without writing: the sound's length in frames and its peak, for
+/// normalising and for fading a scene whose end is not known in advance. Given the
+/// `length` (known in advance, or from an earlier pass), the peak is that of the
+/// sound as written, after the fade-out; without it, before any fade.
+fn measure(
+    plan: &Plan<'_>,
+    length: Option<u64>,
+    interrupted: &AtomicBool,
+) -> Result<(u64, f64), Failure> {
+    // The pass fades the last frames of the length it is given.
+    let mut pass = Pass::new(plan, length.unwrap_or(plan.frames), 1.0)?;
     let mut buffer = vec![0.0; 8192 * plan.channels];
     let (mut done, mut peak) = (0u64, 0.0f64);
     while done < plan.frames {
@@ -1125,6 +1138,12 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
     let mut pass = Pass::new(&plan, length, scale)?;
     let summary = write_audio(destination, &job, |out| pass.next(out)).map_err(|e| match e {
         audio_out::WriteError::Interrupted => Failure::Interrupted,
+        // `-o - | head`: the reader took what it wanted.
+        audio_out::WriteError::Io { source, .. }
+            if to_stdout && source.kind() == std::io::ErrorKind::BrokenPipe =>
+        {
+            Failure::ReaderGone
+        }
         other => pass.failure(other.to_string()),
     })?;
     report_faults(&plan, &pass.scene);
@@ -1183,7 +1202,13 @@ fn measured(
     if args.normalize.is_none() && !needs_length {
         return Ok((plan.frames, 1.0));
     }
-    let (length, peak) = measure(plan, interrupted)?;
+    // The peak normalised is the one written, after the fade-out: a scene whose end
+    // is found only by rendering it is measured again once its length is known.
+    let known = (!plan.open_ended).then_some(plan.frames);
+    let (length, mut peak) = measure(plan, known, interrupted)?;
+    if known.is_none() && args.normalize.is_some() && plan.fade_frames > 0 {
+        peak = measure(plan, Some(length), interrupted)?.1;
+    }
     let scale = match args.normalize {
         Some(db) if peak > 0.0 => 10f64.powf(db / 20.0) / peak,
         Some(_) => {

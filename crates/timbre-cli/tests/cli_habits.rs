@@ -40,6 +40,27 @@ fn a_wav_streams_to_standard_output_and_parses_from_the_pipe() {
     assert!((peak(&samples) - 0.5).abs() < 1e-3);
 }
 
+/// `render -o - | head`: the reader stops early; timbre ends quietly with the
+/// shell's status for a broken pipe (141), and says nothing.
+#[test]
+fn a_reader_that_stops_early_ends_the_render_quietly() {
+    use std::io::Read;
+    let mut child = timbre()
+        .args(["render", "--expr", TONE, "-d", "30", "-o", "-"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut head = [0u8; 100];
+    stdout.read_exact(&mut head).unwrap();
+    assert_eq!(&head[..4], b"RIFF");
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(141));
+    assert_eq!(String::from_utf8_lossy(&out.stderr), "");
+}
+
 #[test]
 fn a_scene_without_duration_streams_exactly_its_length() {
     let dir = tempfile::tempdir().unwrap();
@@ -252,6 +273,35 @@ fn channels_copy_a_mono_sound_and_mix_several_down() {
     )
     .assert_code(1)
     .assert_stderr_has("mixed down to 1");
+}
+
+/// The peak that `--normalize` sets is the one written, after `--fade-out`: a sound
+/// loudest at its end, faded, still peaks at the level asked for. Also for a scene
+/// whose end is found only by rendering it.
+#[test]
+fn normalize_measures_the_peak_after_the_fade_out() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("swell.tt"),
+        "(define-sound swell () (* t (sine (* t 440))))
+(instance a (swell) :stop 1)
+",
+    )
+    .unwrap();
+    let sound = ["--expr", "(* t (sine (* t 440)))", "-d", "1"];
+    let scene = ["swell.tt"];
+    for source in [&sound[..], &scene[..]] {
+        let mut all = vec!["render"];
+        all.extend(source);
+        all.extend(["--fade-out", "0.5", "--normalize", "-6", "-o", "n.wav"]);
+        run_in(Some(dir.path()), all).assert_success();
+        let wav = read_wav(&dir.path().join("n.wav"));
+        let measured = 20.0 * peak(&wav.samples).log10();
+        assert!(
+            (measured + 6.0).abs() < 0.01,
+            "{source:?}: peak {measured} dBFS after the fade, wanted -6"
+        );
+    }
 }
 
 #[test]
