@@ -111,25 +111,43 @@ fn rated_generations_are_kept_and_reproducible() {
 
 /// Toward a recording: `--match-params` finds the frequency of a tone an octave
 /// above the seed's, and writes the tuned tree as a scene that renders at it.
-#[test]
-fn match_params_finds_a_target_frequency() {
+/// A directory holding the seed `tone.tt` (`class`) and `target.wav`, the
+/// expression `target` rendered for a second at 16 kHz.
+fn tone_and_target(class: &str, target: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(
-        dir.path().join("tone.tt"),
-        "(define-sound tone (f) (* 0.5 (sine (* t f))))\n(instance a (tone 261.63))\n",
-    )
-    .unwrap();
-    let timbre = || {
-        let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
-        command.current_dir(dir.path());
-        command
-    };
-    let render = timbre()
-        .args(["render", "-q", "--expr", "(* 0.5 (sine (* t 523.25)))"])
+    std::fs::write(dir.path().join("tone.tt"), class).unwrap();
+    let render = timbre_in(dir.path())
+        .args(["render", "-q", "--expr", target])
         .args(["-d", "1", "-r", "16000", "-o", "target.wav"])
         .status()
         .unwrap();
     assert!(render.success());
+    dir
+}
+
+fn timbre_in(dir: &Path) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    command.current_dir(dir);
+    command
+}
+
+/// The value `evolve` printed for parameter `name` (`values: f = 440.000000`).
+fn printed_value(stdout: &str, name: &str) -> f64 {
+    stdout
+        .split(&format!("{name} = "))
+        .nth(1)
+        .and_then(|rest| rest.split(|c: char| c.is_whitespace() || c == ',').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{stdout}"))
+}
+
+#[test]
+fn match_params_finds_a_target_frequency() {
+    let dir = tone_and_target(
+        "(define-sound tone (f) (* 0.5 (sine (* t f))))\n(instance a (tone 261.63))\n",
+        "(* 0.5 (sine (* t 523.25)))",
+    );
+    let timbre = || timbre_in(dir.path());
     let run = timbre()
         .args([
             "evolve",
@@ -147,12 +165,7 @@ fn match_params_finds_a_target_frequency() {
         "{stdout}{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    let f: f64 = stdout
-        .split("f = ")
-        .nth(1)
-        .and_then(|rest| rest.split(|c: char| c.is_whitespace() || c == ',').next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("{stdout}"));
+    let f = printed_value(&stdout, "f");
     assert!((f / 523.25 - 1.0).abs() < 0.005, "{f} Hz");
     assert!(stdout.contains("renders/s"), "{stdout}");
     // The tree written renders at the frequency found.
@@ -170,23 +183,11 @@ fn match_params_finds_a_target_frequency() {
 /// with no instance to take values from is said to start at 1.
 #[test]
 fn the_search_without_match_params_tunes_the_parameter_and_says_where_it_starts() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(
-        dir.path().join("tone.tt"),
+    let dir = tone_and_target(
         "(define-sound tone (f) (* 0.5 (sine (* t f))))\n",
-    )
-    .unwrap();
-    let timbre = || {
-        let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
-        command.current_dir(dir.path());
-        command
-    };
-    let render = timbre()
-        .args(["render", "-q", "--expr", "(* 0.5 (sine (* t 30)))"])
-        .args(["-d", "1", "-r", "16000", "-o", "target.wav"])
-        .status()
-        .unwrap();
-    assert!(render.success());
+        "(* 0.5 (sine (* t 30)))",
+    );
+    let timbre = || timbre_in(dir.path());
     let run = timbre()
         .args(["evolve", "tone.tt", "--target", "target.wav"])
         .args(["--generations", "1", "--population", "4"])
@@ -202,11 +203,6 @@ fn the_search_without_match_params_tunes_the_parameter_and_says_where_it_starts(
         ),
         "{stderr}"
     );
-    let f: f64 = stdout
-        .split("f = ")
-        .nth(1)
-        .and_then(|rest| rest.split(|c: char| c.is_whitespace() || c == ',').next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("{stdout}"));
+    let f = printed_value(&stdout, "f");
     assert!(f != 1.0, "the parameter was never tuned: {stdout}");
 }

@@ -1,31 +1,39 @@
 //! The REPL driven in a real pseudo-terminal, as a person would use it.
 
+use std::path::Path;
 use std::process::Command;
 
 use rexpect::session::spawn_command;
 use timbre_testkit::{read_wav, strongest_peak_in};
 
-#[test]
-fn a_session_in_a_pseudo_terminal() {
-    let dir = tempfile::tempdir().unwrap();
-    let saved = dir.path().join("saved.wav");
+/// `timbre repl` auditioning into `audition`, run in `dir`, whose history goes to
+/// `dir` as its home.
+fn repl_command(dir: &Path, audition: &Path) -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
     command
         .arg("repl")
         .arg("--audition")
-        .arg(dir.path().join("audition.wav"))
-        .current_dir(dir.path())
-        // History goes to this test's own home.
-        .env("HOME", dir.path())
+        .arg(audition)
+        .current_dir(dir)
+        .env("HOME", dir)
         .env("NO_COLOR", "1");
+    command
+}
+
+/// Waits for the prompt: type only there, as a person does (keys typed before it
+/// may be dropped when the line editor takes over the terminal).
+fn prompt(repl: &mut rexpect::session::PtySession) {
+    repl.exp_string("timbre> ").unwrap();
+    // The prompt is drawn just before the editor takes the terminal raw.
+    std::thread::sleep(std::time::Duration::from_millis(150));
+}
+
+#[test]
+fn a_session_in_a_pseudo_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let saved = dir.path().join("saved.wav");
+    let command = repl_command(dir.path(), &dir.path().join("audition.wav"));
     let mut repl = spawn_command(command, Some(20_000)).unwrap();
-    // Type only at a prompt, as a person does (keys typed before it may be dropped
-    // when the line editor takes over the terminal).
-    let prompt = |repl: &mut rexpect::session::PtySession| {
-        repl.exp_string("timbre> ").unwrap();
-        // The prompt is drawn just before the editor takes the terminal raw.
-        std::thread::sleep(std::time::Duration::from_millis(150));
-    };
     prompt(&mut repl);
 
     // A definition typed over two lines: the first leaves a parenthesis open.
@@ -98,20 +106,9 @@ fn a_tweak_loop_in_a_pseudo_terminal() {
          (instance a (ding :f 600) :start 0)\n",
     )
     .unwrap();
-    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
-    command
-        .arg("repl")
-        .arg("--audition")
-        .arg(&audition)
-        .current_dir(dir.path())
-        .env("HOME", dir.path())
-        .env("TIMBRE_PLAYER", "none")
-        .env("NO_COLOR", "1");
+    let mut command = repl_command(dir.path(), &audition);
+    command.env("TIMBRE_PLAYER", "none");
     let mut repl = spawn_command(command, Some(30_000)).unwrap();
-    let prompt = |repl: &mut rexpect::session::PtySession| {
-        repl.exp_string("timbre> ").unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(150));
-    };
     let history = dir.path().join(".timbre_history");
 
     // Define, hear, redefine: the new body is heard.
@@ -230,20 +227,9 @@ fn a_tweak_loop_in_a_pseudo_terminal() {
 fn a_scene_s_channels_hold_for_the_next_input() {
     let dir = tempfile::tempdir().unwrap();
     let saved = dir.path().join("stereo.wav");
-    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
-    command
-        .arg("repl")
-        .arg("--audition")
-        .arg(dir.path().join("audition.wav"))
-        .current_dir(dir.path())
-        .env("HOME", dir.path())
-        .env("TIMBRE_PLAYER", "none")
-        .env("NO_COLOR", "1");
+    let mut command = repl_command(dir.path(), &dir.path().join("audition.wav"));
+    command.env("TIMBRE_PLAYER", "none");
     let mut repl = spawn_command(command, Some(20_000)).unwrap();
-    let prompt = |repl: &mut rexpect::session::PtySession| {
-        repl.exp_string("timbre> ").unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(150));
-    };
     prompt(&mut repl);
     repl.send_line("(scene :channels 2 :duration 0.5)").unwrap();
     repl.exp_string("channels = 2").unwrap();

@@ -285,9 +285,8 @@ impl BandLimited {
         }
     }
 
-    /// The next sample of `lane` at phase `x`.
-    fn next(&self, lane: &mut Lane, x: f64) -> f64 {
-        let table = residuals();
+    /// The next sample of `lane` at phase `x`, corrected from `table`.
+    fn next(&self, table: &Residuals, lane: &mut Lane, x: f64) -> f64 {
         let last = lane.last;
         lane.last = x;
         // The increment wrapped to [−1/2, 1/2): a phase read modulo 1. Unknown (the
@@ -365,10 +364,11 @@ impl StatefulKernel for BandLimited {
     }
 
     fn process(&self, lanes: &mut Vec<Lane>, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let table = residuals();
         for (index, lane) in lanes.iter_mut().enumerate() {
             let x = inputs.lane(0, index);
             for (k, y) in out.lane(index).iter_mut().enumerate() {
-                *y = self.next(lane, x[k]);
+                *y = self.next(table, lane, x[k]);
             }
         }
     }
@@ -437,7 +437,7 @@ mod tests {
             let step = 0.001;
             let mut y = 0.0;
             for k in 0..=100 {
-                y = kernel.next(&mut lane, 0.3 + k as f64 * step);
+                y = kernel.next(residuals(), &mut lane, 0.3 + k as f64 * step);
             }
             let lagged = kernel.naive(0.4 - delay * step);
             assert!((y - lagged).abs() < 1e-9, "{wave:?}: {y} against {lagged}");

@@ -365,17 +365,12 @@ impl<'a> Lowerer<'a> {
         for (form, origin) in std::mem::take(&mut self.space_forms) {
             if let Err(diag) = self.read_space_form(&form, &origin) {
                 // A source that failed is not unknown where instances name it.
-                if let Some(["source", name, ..]) = form
-                    .as_list()
-                    .map(|items| {
-                        items
-                            .iter()
-                            .map(|e| e.as_symbol().unwrap_or(""))
-                            .collect::<Vec<_>>()
-                    })
-                    .as_deref()
-                {
-                    self.failed_sources.insert((*name).to_owned());
+                let items = form.as_list().unwrap_or_default();
+                if let (Some("source"), Some(name)) = (
+                    items.first().and_then(Expr::as_symbol),
+                    items.get(1).and_then(Expr::as_symbol),
+                ) {
+                    self.failed_sources.insert(name.to_owned());
                 }
                 self.errors.push(diag);
             }
