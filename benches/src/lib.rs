@@ -4,9 +4,8 @@
 
 use std::fmt::Write as _;
 
-use timbre_ir::{
-    compile_str, CompileOptions, Interpreter, NoFiles, Program, Registry, RenderConfig,
-};
+use timbre_ir::{Interpreter, Program, RenderConfig};
+use timbre_lang::{compile_str, CompileOptions, NoFiles, Registry};
 
 /// A named workload: a tree and the bindings that instantiate it.
 pub struct Workload {
@@ -175,7 +174,9 @@ pub fn synthetic(nodes: usize) -> Workload {
 pub fn compile(workload: &Workload) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &NoFiles);
-    compile_str(&workload.source, &options).expect("benchmark trees compile")
+    compile_str(&workload.source, &options)
+        .expect("benchmark trees compile")
+        .program
 }
 
 /// 48 kHz in blocks of 64.

@@ -7,7 +7,7 @@ use std::cell::RefCell;
 
 use libfuzzer_sys::fuzz_target;
 use rand::SeedableRng;
-use timbre_ir::generate::{random_tree, GenConfig};
+use timbre_gen::generate::{random_tree, GenConfig};
 use timbre_jit::Jit;
 
 #[path = "../../crates/timbre-jit/tests/support/fuzz.rs"]
@@ -27,7 +27,7 @@ fuzz_target!(|data: &[u8]| {
                 &config,
             );
             let mut rng = rand::rngs::StdRng::seed_from_u64(seed(&data[9..17]));
-            timbre_ir::mutate::near_valid(&mut rng, &tree, 3)
+            timbre_gen::mutate::near_valid(&mut rng, &tree, 3)
         }
         Some(_) => match std::str::from_utf8(&data[1..]) {
             Ok(text) => text.to_owned(),

@@ -9,9 +9,9 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 use libfuzzer_sys::fuzz_target;
-use timbre_ir::frames::{analyse, Image, Numbered, MAX_FRAME_PIXELS};
+use timbre_lang::frames::{analyse, Image, Numbered, MAX_FRAME_PIXELS};
 use timbre_ir::limits::Limits;
-use timbre_ir::{CompileOptions, Loader, Registry};
+use timbre_lang::{CompileOptions, Loader, Registry};
 
 /// The same file for the first `frames` names asked for, then none.
 struct Frames {
@@ -68,6 +68,6 @@ fuzz_target!(|data: &[u8]| {
             memory: 256 << 20,
             ..Limits::default()
         };
-        let _ = timbre_ir::compile_str(&form, &options);
+        let _ = timbre_lang::compile_str(&form, &options);
     }
 });

@@ -5,7 +5,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use timbre_ir::limits::{check_render, Limits, Playing};
-use timbre_ir::{print_tree, same_tree, CompileOptions, NoFiles, Registry, RenderConfig};
+use timbre_ir::RenderConfig;
+use timbre_lang::{print_tree, same_tree, CompileOptions, NoFiles, Registry};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
@@ -19,7 +20,7 @@ fuzz_target!(|data: &[u8]| {
         total_lanes: 500_000,
         ..Limits::default()
     };
-    let Ok(program) = timbre_ir::compile_str(text, &options) else {
+    let Ok(program) = timbre_lang::compile_str(text, &options) else {
         return;
     };
     let playing: Vec<Playing> = program
@@ -40,7 +41,7 @@ fuzz_target!(|data: &[u8]| {
             continue;
         };
         options.limits = Limits::default();
-        let again = match timbre_ir::compile_str(&printed, &options) {
+        let again = match timbre_lang::compile_str(&printed, &options) {
             Ok(again) => again,
             Err(e) => panic!("the printed tree does not lower: {e:?}\n{printed}"),
         };

@@ -7,7 +7,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use timbre_ir::limits::Limits;
-use timbre_ir::{CompileOptions, NoFiles, Registry};
+use timbre_lang::{CompileOptions, NoFiles, Registry};
 
 /// Numbers a byte picks: the edges of every range the score checks, and beyond.
 const NUMBERS: &[&str] = &[
@@ -128,7 +128,7 @@ fuzz_target!(|data: &[u8]| {
         instances: 2_000,
         ..Limits::default()
     };
-    if let Ok(program) = timbre_ir::compile_str(&text, &options) {
+    if let Ok(program) = timbre_lang::compile_str(&text, &options) {
         for part in program.scores.iter().flat_map(|s| &s.parts) {
             assert!(part.notes.len() <= 2_000, "{text}");
             for note in &part.notes {

@@ -30,10 +30,9 @@ use std::fmt;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
-use timbre_ir::{
-    compile, CompileOptions, Diag, Diagnostics, FsLoader, Program, Registry, RenderConfig,
-    SourceFile,
-};
+use timbre_ir::{Diag, Diagnostics, Program, RenderConfig, SourceFile};
+use timbre_lang::Compiled;
+use timbre_lang::{compile, CompileOptions, FsLoader, Registry};
 use timbre_scene::{Engine, SceneRenderer};
 use timbre_syntax::{Expr, ExprKind};
 
@@ -500,7 +499,7 @@ pub fn check_text(path: &Path, text: &str) -> Vec<Failure> {
 }
 
 /// The case compiled as a file (its directory resolves includes and samples).
-pub fn compile_case(case: &Case) -> Result<Program, Diagnostics> {
+pub fn compile_case(case: &Case) -> Result<Compiled, Diagnostics> {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
     compile(
@@ -774,7 +773,7 @@ fn check_snapshot(case: &Case, program: &Program) -> Result<(), String> {
 /// The names `text` calls: the head of every list that is a call, including forms
 /// (`define`, `let`, `scene`, `instance` …), built-in nodes and defined trees.
 /// Parameter lists of `define`/`define-sound` and the binding pairs of `let` are not
-/// calls. Intersect with [`timbre_ir::BUILTIN_NAMES`] for the built-in nodes, as
+/// calls. Intersect with `timbre_lang::catalogue::NODES` for the built-in nodes, as
 /// [`builtins_called`] does.
 pub fn called_names(text: &str) -> BTreeSet<String> {
     let parsed = timbre_syntax::parse(text);
@@ -830,7 +829,7 @@ pub fn builtins_called() -> BTreeMap<PathBuf, BTreeSet<String>> {
         .map(|(path, names)| {
             let builtins = names
                 .into_iter()
-                .filter(|n| timbre_ir::catalogue::lookup(n).is_some())
+                .filter(|n| timbre_lang::catalogue::lookup(n).is_some())
                 .collect();
             (path, builtins)
         })
@@ -840,7 +839,7 @@ pub fn builtins_called() -> BTreeMap<PathBuf, BTreeSet<String>> {
 /// The built-in nodes that no case calls.
 pub fn uncovered_builtins() -> Vec<&'static str> {
     let called: BTreeSet<String> = builtins_called().into_values().flatten().collect();
-    timbre_ir::catalogue::names()
+    timbre_lang::catalogue::names()
         .filter(|n| !called.contains(*n))
         .collect()
 }

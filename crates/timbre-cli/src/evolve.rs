@@ -75,7 +75,7 @@ pub fn evolve(args: EvolveArgs) -> Result<(), Failure> {
         Failure::Message(format!("cannot read `{}`: {e}", args.seed_file.display()))
     };
     let limit = timbre::Limits::default().script_bytes();
-    let bytes = timbre_ir::read_bounded(&args.seed_file, limit).map_err(|e| cannot(&e))?;
+    let bytes = timbre_lang::read_bounded(&args.seed_file, limit).map_err(|e| cannot(&e))?;
     let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
     let seed = Genome::from_source(&text, args.class.as_deref())
         .map_err(|e| Failure::Message(format!("`{}`: {e}", args.seed_file.display())))?;

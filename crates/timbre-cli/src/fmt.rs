@@ -41,9 +41,7 @@ pub fn fmt(args: FmtArgs) -> Result<(), Failure> {
         };
         let formatted = timbre_syntax::format_source(&text).map_err(|errors| {
             let source = timbre_ir::SourceFile::new(name.clone(), text.as_str());
-            let diags: Vec<_> = (errors.iter())
-                .map(|e| timbre_ir::Diag::from_syntax(e, &source))
-                .collect();
+            let diags: Vec<_> = (errors.iter()).map(|e| e.diag(&source)).collect();
             print_diagnostics(diags);
             Failure::Message(format!("`{name}` has syntax errors: it is left as it is"))
         })?;
@@ -82,7 +80,7 @@ fn read(path: &std::path::Path, stdin: bool) -> Result<String, Failure> {
     let bytes = if stdin {
         crate::input::read_stdin(limit).map_err(|e| cannot(&e))?
     } else {
-        timbre_ir::read_bounded(path, limit).map_err(|e| cannot(&e))?
+        timbre_lang::read_bounded(path, limit).map_err(|e| cannot(&e))?
     };
     String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))
 }

@@ -7,10 +7,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use timbre_ir::op::Op;
-use timbre_ir::{NodeId, Program};
+use timbre_ir::NodeId;
+use timbre_lang::Compiled;
 
 /// The DOT text of every tree in `program`: its sound, or each instance of a scene.
-pub fn dot(program: &Program, title: &str) -> String {
+pub fn dot(program: &Compiled, title: &str) -> String {
     let graph = &program.graph;
     let mut roots: Vec<(NodeId, String)> = vec![];
     if let Some(root) = program.root {
@@ -73,7 +74,7 @@ pub fn dot(program: &Program, title: &str) -> String {
 }
 
 /// A node's label and extra DOT attributes.
-fn describe(op: &Op, program: &Program) -> (String, &'static str) {
+fn describe(op: &Op, program: &Compiled) -> (String, &'static str) {
     const KEYFRAME: &str = ", shape=cds, style=filled, fillcolor=\"#ffe9a8\"";
     const TIMER: &str = ", shape=octagon, style=filled, fillcolor=\"#c8e6ff\"";
     const CONSTANT: &str = ", shape=plaintext";

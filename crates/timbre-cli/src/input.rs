@@ -1,5 +1,5 @@
 //! Reading what the user gives on standard input: bounded, like every file read
-//! (files go through `timbre_ir::read_bounded`, which refuses what is not a regular
+//! (files go through `timbre_lang::read_bounded`, which refuses what is not a regular
 //! file before it can block).
 
 use std::io::Read;

@@ -548,7 +548,7 @@ fn compile_source(args: &SourceArgs, channels: Option<u16>) -> Result<Source, Fa
                 let more = if e.kind() == std::io::ErrorKind::InvalidInput {
                     format!(
                         " (--no-limits allows {} MiB)",
-                        timbre_ir::MAX_FILE_BYTES >> 20
+                        timbre_lang::MAX_FILE_BYTES >> 20
                     )
                 } else {
                     String::new()
@@ -564,7 +564,7 @@ fn compile_source(args: &SourceArgs, channels: Option<u16>) -> Result<Source, Fa
             let cannot = |e: &dyn std::fmt::Display| {
                 Failure::Message(format!("cannot read `{}`: {e}", path.display()))
             };
-            let bytes = timbre_ir::read_bounded(path, limit).map_err(|e| cannot(&e))?;
+            let bytes = timbre_lang::read_bounded(path, limit).map_err(|e| cannot(&e))?;
             let text = String::from_utf8(bytes).map_err(|_| cannot(&"it is not UTF-8 text"))?;
             if let Ok(canonical) = std::fs::canonicalize(path) {
                 loader.record(canonical);
@@ -577,7 +577,7 @@ fn compile_source(args: &SourceArgs, channels: Option<u16>) -> Result<Source, Fa
     let file = engine.read_scene_source(source, dir.as_deref())?;
     print_diagnostics(file.warnings().iter().cloned());
     for name in file.unused_bindings() {
-        let close = timbre_ir::did_you_mean(name, file.definitions().iter().map(String::as_str))
+        let close = timbre_lang::did_you_mean(name, file.definitions().iter().map(String::as_str))
             .map(|n| format!("; did you mean `--set {n}=…`?"))
             .unwrap_or_default();
         eprintln!("warning: `--set {name}=…` is not used by any expression{close}");
@@ -663,7 +663,7 @@ struct Scores {
 
 impl Scores {
     fn prepare(
-        program: &timbre_ir::Program,
+        program: &timbre_lang::Compiled,
         midi: Option<&Path>,
         notes: Option<&Path>,
     ) -> Result<Scores, Failure> {
@@ -762,10 +762,10 @@ impl RenderOutputs {
 
 /// `timbre check --lowered`: the file's sound, or each instance's sound under its
 /// timer (with its parameters bound, keyframes read at its own scene time).
-fn print_lowered(program: &timbre_ir::Program) -> Result<(), Failure> {
+fn print_lowered(program: &timbre_lang::Compiled) -> Result<(), Failure> {
     let graph = &program.graph;
     let print = |root| {
-        timbre_ir::print_tree(graph, root, &program.variables).map_err(|e| {
+        timbre_lang::print_tree(graph, root, &program.variables).map_err(|e| {
             Failure::Message(format!(
                 "{e}\nhint: `timbre check --ir` shows every node of the graph"
             ))
@@ -1371,7 +1371,7 @@ fn write_fallback(wav: &Path, output: &Path, inputs: &[PathBuf]) -> Result<(), F
     let cannot = |e: &dyn std::fmt::Display| {
         Failure::Message(format!("cannot write `{}`: {e}", output.display()))
     };
-    let mut made = timbre_ir::open_regular(wav).map_err(|e| cannot(&e))?;
+    let mut made = timbre_lang::open_regular(wav).map_err(|e| cannot(&e))?;
     std::io::copy(&mut made, out.file()).map_err(|e| cannot(&e))?;
     out.commit().map_err(Failure::Message)
 }
@@ -1409,7 +1409,7 @@ pub(crate) fn read_wav(
     let cannot = |e: &dyn std::fmt::Display| {
         Failure::Message(format!("cannot read `{}`: {e}", path.display()))
     };
-    let file = timbre_ir::open_regular(path).map_err(|e| cannot(&e))?;
+    let file = timbre_lang::open_regular(path).map_err(|e| cannot(&e))?;
     let mut reader =
         hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| cannot(&e))?;
     let spec = reader.spec();

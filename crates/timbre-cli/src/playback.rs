@@ -317,7 +317,7 @@ impl TempWav {
     /// A copy of the WAV file `wav` in `format`, converted a chunk at a time.
     fn convert(wav: &Path, format: SampleFormat) -> Result<Self, String> {
         let cannot = |e: &dyn std::fmt::Display| format!("cannot read `{}`: {e}", wav.display());
-        let file = timbre_ir::open_regular(wav).map_err(|e| cannot(&e))?;
+        let file = timbre_lang::open_regular(wav).map_err(|e| cannot(&e))?;
         let mut reader =
             hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| cannot(&e))?;
         let spec = reader.spec();

@@ -383,7 +383,7 @@ pub fn draw_pictures(
     if !outputs.any() {
         return Ok(());
     }
-    let file = timbre_ir::open_regular(wav)
+    let file = timbre_lang::open_regular(wav)
         .map_err(|e| format!("cannot read `{}`: {e}", wav.display()))?;
     let mut reader = hound::WavReader::new(std::io::BufReader::new(file)).map_err(|e| match e {
         hound::Error::IoError(io) => format!("cannot read `{}`: {io}", wav.display()),

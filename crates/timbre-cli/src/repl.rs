@@ -21,10 +21,9 @@ use rustyline::history::DefaultHistory;
 use rustyline::validate::Validator;
 use rustyline::{Context, Editor, Helper};
 use timbre_ir::dsp::analysis;
-use timbre_ir::{
-    compile, compile_after, CompileOptions, FsLoader, Loader, Program, Registry, RenderConfig,
-    SourceFile,
-};
+use timbre_ir::{RenderConfig, SourceFile};
+use timbre_lang::Compiled;
+use timbre_lang::{compile, compile_after, CompileOptions, FsLoader, Loader, Registry};
 use timbre_syntax::{Expr, ExprKind};
 
 const PROMPT: &str = "timbre> ";
@@ -177,7 +176,7 @@ impl Loader for SessionLoader<'_> {
         let Some(Entry::File { path, hidden, .. }) = index.and_then(|i| self.entries.get(i)) else {
             return FsLoader.load(path, base);
         };
-        let bytes = timbre_ir::read_bounded(path, timbre::Limits::default().script_bytes())?;
+        let bytes = timbre_lang::read_bounded(path, timbre::Limits::default().script_bytes())?;
         let text = String::from_utf8(bytes)
             .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "not UTF-8 text"))?;
         let left_out = |name: &str| hidden.contains(name) || self.exclude.contains(name);
@@ -296,7 +295,7 @@ impl Session {
         input: &str,
         exclude: &BTreeSet<String>,
         own_seed: bool,
-    ) -> Result<Program, timbre_ir::Diagnostics> {
+    ) -> Result<Compiled, timbre_ir::Diagnostics> {
         let registry = Registry::new();
         let loader = SessionLoader {
             entries: &self.entries,
@@ -379,7 +378,7 @@ const MAX_KEPT_SAMPLES: usize = 1 << 28;
 /// Renders `take` of `program`, a chunk at a time so that Ctrl-C can stop it; `None`
 /// when cancelled. A progress line appears when it takes over a second.
 fn render(
-    program: &Program,
+    program: &Compiled,
     take: &Take,
     engine: timbre_scene::Engine,
 ) -> Result<Option<Vec<f64>>, String> {
@@ -503,8 +502,8 @@ impl Completer for ReplHelper {
         } else if word.starts_with(':') {
             keywords().map(|k| format!(":{k}")).collect()
         } else {
-            timbre_ir::catalogue::names()
-                .chain(timbre_ir::catalogue::FORMS.iter().copied())
+            timbre_lang::catalogue::names()
+                .chain(timbre_lang::catalogue::FORMS.iter().copied())
                 .map(str::to_owned)
                 .chain(self.names.iter().cloned())
                 .collect()
@@ -525,8 +524,8 @@ impl Completer for ReplHelper {
 
 /// Every keyword: the nodes' parameter names and the forms' options.
 fn keywords() -> impl Iterator<Item = &'static str> {
-    timbre_ir::catalogue::names()
-        .filter_map(timbre_ir::catalogue::lookup)
+    timbre_lang::catalogue::names()
+        .filter_map(timbre_lang::catalogue::lookup)
         .flat_map(|spec| spec.params.iter().map(|p| p.name))
         .chain(FORM_KEYWORDS.iter().copied())
 }
@@ -695,7 +694,7 @@ fn evaluate(session: &mut Session, input: &str) {
 }
 
 /// Renders with the JIT, reporting errors and cancellation.
-fn render_or_report(program: &Program, take: &Take) -> Option<Vec<f64>> {
+fn render_or_report(program: &Compiled, take: &Take) -> Option<Vec<f64>> {
     match render(program, take, timbre_scene::Engine::Jit) {
         Ok(Some(samples)) => Some(samples),
         Ok(None) => {
@@ -858,7 +857,7 @@ fn command(session: &mut Session, input: &str) -> bool {
                 println!("forgot {name}");
             } else {
                 let names = session.names();
-                let hint = timbre_ir::did_you_mean(name, names.iter().map(String::as_str))
+                let hint = timbre_lang::did_you_mean(name, names.iter().map(String::as_str))
                     .map(|n| format!("; did you mean `{n}`?"))
                     .unwrap_or_default();
                 eprintln!("error: `{name}` is not defined in this session{hint}");
@@ -930,7 +929,7 @@ fn defs(session: &Session) {
     }
 }
 
-fn last_program(session: &Session) -> Option<Program> {
+fn last_program(session: &Session) -> Option<Compiled> {
     let source = session.last_source.as_deref()?;
     let reading = read_input(source);
     let exclude = reading.defines.iter().map(|(n, _)| n.clone()).collect();
@@ -949,7 +948,7 @@ fn load(session: &mut Session, path: &str) {
     };
     // Bounded, and refused at once if it is not a regular file (a named pipe would
     // block the session, where Ctrl-C does not reach).
-    let text = match timbre_ir::read_bounded(&absolute, timbre::Limits::default().script_bytes())
+    let text = match timbre_lang::read_bounded(&absolute, timbre::Limits::default().script_bytes())
         .and_then(|bytes| {
             String::from_utf8(bytes)
                 .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "it is not UTF-8 text"))
@@ -1137,7 +1136,7 @@ fn time(session: &Session) {
 
 /// The tree of a program as indented text; a subtree used again is shown once and
 /// then referred to by its number.
-fn tree_text(program: &Program) -> String {
+fn tree_text(program: &Compiled) -> String {
     let graph = &program.graph;
     let mut out = String::new();
     let mut seen = vec![false; graph.len()];

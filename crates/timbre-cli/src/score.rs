@@ -3,9 +3,9 @@
 
 use midly::num::{u15, u24, u28, u4, u7};
 use midly::{Format, Header, MetaMessage, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
-use timbre_ir::music::scale::note_name;
-use timbre_ir::music::tempo::TempoMap;
-use timbre_ir::music::Score;
+use timbre_lang::music::scale::note_name;
+use timbre_lang::music::tempo::TempoMap;
+use timbre_lang::music::Score;
 
 /// Ticks to a quarter note in the files written.
 pub const TICKS_PER_QUARTER: u16 = 960;
@@ -148,7 +148,7 @@ pub fn listing(scores: &[Score]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use timbre_ir::music::Part;
+    use timbre_lang::music::Part;
 
     fn score(parts: usize) -> Score {
         Score {

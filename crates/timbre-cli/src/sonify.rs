@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
-use timbre_ir::frames::Numbered;
+use timbre_lang::frames::Numbered;
 use timbre_syntax::quote;
 
 /// The two waveforms of the paper's section 3.

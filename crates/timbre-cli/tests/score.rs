@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use midly::{MetaMessage, MidiMessage, Smf, Timing, TrackEventKind};
-use timbre_ir::music::tempo::TempoMap;
+use timbre_lang::music::tempo::TempoMap;
 use timbre_testkit::{rms, strongest_peak_in};
 
 /// A steady rise over 8 s, played every half second in C blues, octaves 3 to 5.

@@ -2,9 +2,8 @@
 //! audition renders to something worth hearing: finite, not silent, not a constant,
 //! not clipping. Clipping is repaired by scaling; the rest is refused.
 
-use timbre_ir::{
-    CompileOptions, Interpreter, Library, NoFiles, ParamValue, Registry, RenderConfig,
-};
+use timbre_ir::{Interpreter, RenderConfig};
+use timbre_lang::{CompileOptions, Library, NoFiles, ParamValue, Registry};
 
 use crate::genome::{list, number, significant, symbol, Genome};
 

@@ -3,8 +3,8 @@
 //! offspring that pass [`check`](crate::check::check) within the size and depth limits.
 
 use rand::{Rng, RngExt};
-use timbre_ir::catalogue::{self, Kind, NodeSpec};
-use timbre_ir::generate::{random_tree, GenConfig};
+use timbre_gen::generate::{random_tree, GenConfig};
+use timbre_lang::catalogue::{self, Kind, NodeSpec};
 use timbre_syntax::{parse, Expr, ExprKind};
 
 use crate::check::{check, Audition, Checked, Refusal};

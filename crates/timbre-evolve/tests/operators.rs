@@ -161,7 +161,7 @@ fn hoist_replaces_a_function_by_one_of_its_arguments() {
 fn wrap_makes_an_expression_the_argument_of_a_new_function() {
     exercise(Operator::Wrap, |old, new, _| {
         let items = new.as_list().unwrap();
-        assert!(timbre_ir::catalogue::lookup(head(new).unwrap()).is_some());
+        assert!(timbre_lang::catalogue::lookup(head(new).unwrap()).is_some());
         assert_eq!(&items[1], old);
     });
 }

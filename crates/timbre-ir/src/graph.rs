@@ -13,9 +13,9 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::error::SourceFile;
 use crate::op::{BinaryOp, ImpulseResponse, Op, TernaryOp, UnaryOp};
-use timbre_syntax::Span;
+use timbre_diag::SourceFile;
+use timbre_diag::Span;
 
 /// Index of a node in its [`Graph`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -364,7 +364,7 @@ impl Graph {
     }
 
     /// Which nodes `roots` depend on, through arguments and impulse-response trees.
-    pub(crate) fn reachable(&self, roots: &[NodeId]) -> Vec<bool> {
+    pub fn reachable(&self, roots: &[NodeId]) -> Vec<bool> {
         let mut needed = vec![false; self.nodes.len()];
         for root in roots {
             needed[root.index()] = true;

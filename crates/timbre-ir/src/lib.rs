@@ -1,74 +1,45 @@
-//! Timbre trees: lowering from the syntax tree to a hash-consed DAG, the node
-//! catalogue, width checks, constant folding, and the reference interpreter.
+//! What a timbre tree computes: the hash-consed DAG ([`Graph`]), each node's
+//! operation ([`op`]), the stateful kernels (`dsp/`, `space/`), keyframe tracks, the
+//! limits on what a program may ask for, and the reference interpreter.
 //!
 //! The interpreter is the semantics in runnable form: every other engine must agree
-//! with it. This crate reads files only through the [`Loader`] its host supplies and
-//! keeps no global state. It is *not* a scene renderer or a command-line tool.
+//! with it. This crate knows no language and reads no files: programs are made by
+//! `timbre-lang` (text to [`Program`]) or by a host building a [`Graph`] itself, and a
+//! kernel gets the bytes of its files from whoever made it. It keeps no global state.
 //!
 //! ```
-//! use timbre_ir::{compile_str, CompileOptions, FsLoader, Interpreter, Registry, RenderConfig};
+//! use std::sync::Arc;
+//! use timbre_ir::op::{BinaryOp, Op, UnaryOp};
+//! use timbre_ir::{Graph, Interpreter, RenderConfig};
 //!
-//! let registry = Registry::new();
-//! let options = CompileOptions::new(&registry, &FsLoader);
-//! let program = compile_str("(sine (* t 440))", &options).unwrap();
-//! let mut voice = Interpreter::new(&program.graph, program.root.unwrap(), RenderConfig::default());
+//! // (sine (* t 440)), built by hand.
+//! let mut graph = Graph::new();
+//! let t = graph.add(Op::Time, vec![]);
+//! let f = graph.add(Op::Const(Arc::from([440.0])), vec![]);
+//! let phase = graph.add(Op::Binary(BinaryOp::Mul), vec![t, f]);
+//! let root = graph.add(Op::Unary(UnaryOp::Sine), vec![phase]);
+//! let mut voice = Interpreter::new(&graph, root, RenderConfig::default());
 //! let mut out = vec![0.0; 480];
 //! voice.render(&mut out);
 //! assert!((out[12] - (std::f64::consts::TAU * 440.0 * 12.0 / 48000.0).sin()).abs() < 1e-12);
 //! ```
 
-pub mod catalogue;
 pub mod custom;
 pub mod dsp;
 mod dump;
-mod error;
-pub mod frames;
-#[cfg(feature = "generate")]
-pub mod generate;
 mod graph;
 mod interp;
 pub mod kernel;
 pub mod keyframes;
 pub mod limits;
-mod loader;
-mod lower;
-pub mod music;
-#[cfg(feature = "generate")]
-pub mod mutate;
 pub mod op;
 pub mod optimise;
-mod print;
+mod program;
 pub mod space;
 
 pub use custom::{BlockContext, CustomNode, Lanes};
 pub use dump::dump;
-pub use error::{Diag, Diagnostics, SourceFile};
 pub use graph::{Graph, Node, NodeId, NodeOrigin, StableHasher};
 pub use interp::{steps, trace_non_finite, Interpreter, NonFiniteOrigin, RenderConfig, Step};
-pub use loader::{
-    open_regular, read_bounded, FsLoader, Loader, NoFiles, SandboxLoader, MAX_FILE_BYTES,
-};
-pub use lower::{
-    compile, compile_after, did_you_mean, CompileOptions, Instance, Instantiated, Library,
-    ParamValue, Program, Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
-};
-pub use print::{print_tree, same_tree, Unprintable, MAX_INLINE_DEPTH};
-
-impl<'a> CompileOptions<'a> {
-    /// Options with no bindings and the file's own seed.
-    pub fn new(registry: &'a Registry, loader: &'a dyn Loader) -> Self {
-        CompileOptions {
-            bindings: Default::default(),
-            seed: None,
-            registry,
-            loader,
-            limits: Default::default(),
-            channels: None,
-        }
-    }
-}
-
-/// Compiles source text that did not come from a file (reported as `<expr>`).
-pub fn compile_str(text: &str, options: &CompileOptions<'_>) -> Result<Program, Diagnostics> {
-    compile(SourceFile::new("<expr>", text), None, options)
-}
+pub use program::{Instance, Program, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES};
+pub use timbre_diag::{Diag, Diagnostics, SourceFile, Span};

@@ -9,11 +9,16 @@
 
 use std::time::Duration;
 
-use crate::error::{Diag, Diagnostics};
 use crate::graph::{Graph, NodeId};
 use crate::interp::RenderConfig;
 use crate::kernel::StateContext;
 use crate::op::{ImpulseResponse, Op};
+use timbre_diag::{Diag, Diagnostics};
+
+/// The most bytes a script may have read from one file (256 MiB): a 23-minute stereo
+/// 48 kHz 32-bit sound. Checked before reading, so `(include "/dev/zero")` or a huge
+/// file is an error, not a render that runs out of memory.
+pub const MAX_FILE_BYTES: u64 = 256 << 20;
 
 /// What a script may ask for. [`Limits::default`] suits a host running untrusted
 /// scripts and the command line; [`Limits::none`] lifts them all.
@@ -21,7 +26,7 @@ use crate::op::{ImpulseResponse, Op};
 pub struct Limits {
     /// Bytes of one script file (a scene, a library, an include): parsing takes about
     /// 200 bytes of memory per byte of a file of numbers. Never more than
-    /// [`crate::MAX_FILE_BYTES`].
+    /// [`MAX_FILE_BYTES`].
     pub source_bytes: u64,
     /// Nodes of the lowered graph, after named trees are expanded.
     pub nodes: usize,
@@ -60,7 +65,7 @@ impl Default for Limits {
             source_bytes: 8 << 20,
             nodes: 1 << 22,
             expansions: 1 << 18,
-            lanes: crate::lower::MAX_LANES,
+            lanes: crate::program::MAX_LANES,
             total_lanes: 1 << 24,
             include_depth: 64,
             memory: 2 << 30,
@@ -76,18 +81,18 @@ impl Default for Limits {
 
 impl Limits {
     /// Bytes a script file may have: [`Limits::source_bytes`], at most
-    /// [`crate::MAX_FILE_BYTES`].
+    /// [`MAX_FILE_BYTES`].
     pub fn script_bytes(&self) -> u64 {
-        self.source_bytes.min(crate::MAX_FILE_BYTES)
+        self.source_bytes.min(MAX_FILE_BYTES)
     }
 
     /// No limit but the hard ones (2¹⁶ lanes per node, the parser's nesting depth).
     pub fn none() -> Self {
         Limits {
-            source_bytes: crate::MAX_FILE_BYTES,
+            source_bytes: MAX_FILE_BYTES,
             nodes: usize::MAX,
             expansions: usize::MAX,
-            lanes: crate::lower::MAX_LANES,
+            lanes: crate::program::MAX_LANES,
             total_lanes: usize::MAX,
             include_depth: usize::MAX,
             memory: u64::MAX,

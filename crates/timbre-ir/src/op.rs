@@ -1,5 +1,5 @@
 //! What each kind of timbre-tree node computes (the names that call them are in
-//! [`crate::catalogue`]).
+//! `timbre-lang`'s catalogue).
 //!
 //! Pure element-wise operations are evaluated by [`UnaryOp::apply`],
 //! [`BinaryOp::apply`] and [`TernaryOp::apply`]; constant folding and the interpreter
@@ -19,7 +19,7 @@ use crate::keyframes::KeyframeTrack;
 
 /// One node's operation. Arguments are the node's children, in order.
 ///
-/// The callable nodes are listed once, in [`crate::catalogue`]; this enum is what
+/// The callable nodes are listed once, in `timbre-lang`'s catalogue; this enum is what
 /// they lower to. Pure element-wise functions are [`UnaryOp`], [`BinaryOp`] and
 /// [`TernaryOp`]; stateful nodes are [`Op::Stateful`] kernels, each in its own file
 /// under `dsp/`. The other variants are the nodes engines treat specially.
@@ -58,7 +58,7 @@ pub enum Op {
     /// A stateful node: its kernel, and the configuration it was made with.
     Stateful(Arc<dyn DynKernel>),
     /// A value the host sets while rendering, read at the start of each block.
-    Variable(crate::lower::Variable),
+    Variable(crate::program::Variable),
     /// A keyframed variable: the track's value at the argument (scene time).
     Keyframe(Arc<KeyframeTrack>),
     /// An instance's timer: arguments the sound and its local time t; the sound times
@@ -314,7 +314,7 @@ impl Op {
     }
 
     /// Structural equality of the op itself (children are compared separately).
-    pub(crate) fn same_as(&self, other: &Op) -> bool {
+    pub fn same_as(&self, other: &Op) -> bool {
         self.description() == other.description()
     }
 }

@@ -4,8 +4,9 @@
 //! the same, bit for bit, in the interpreter, a compiled voice and a batch of lanes.
 
 use timbre_ir::op::{FadeIn, Op};
-use timbre_ir::{CompileOptions, FsLoader, Interpreter, NodeId, Program, Registry, RenderConfig};
+use timbre_ir::{Interpreter, NodeId, Program, RenderConfig};
 use timbre_jit::{InstanceLanes, Jit, LaneBatch};
+use timbre_lang::{CompileOptions, FsLoader, Registry};
 
 const SR: f64 = 48_000.0;
 /// Samples of the default 1 ms ramp at 48 kHz.
@@ -21,7 +22,9 @@ fn config() -> RenderConfig {
 fn compile_text(text: &str) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    timbre_ir::compile_str(text, &options).unwrap_or_else(|e| panic!("{text}: {e:?}"))
+    timbre_lang::compile_str(text, &options)
+        .unwrap_or_else(|e| panic!("{text}: {e:?}"))
+        .program
 }
 
 fn interpret(program: &Program, root: NodeId, samples: usize) -> Vec<f64> {

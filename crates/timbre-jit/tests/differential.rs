@@ -3,10 +3,9 @@
 
 use std::path::Path;
 
-use timbre_ir::{
-    compile, CompileOptions, FsLoader, Interpreter, Program, Registry, RenderConfig, SourceFile,
-};
+use timbre_ir::{Interpreter, Program, RenderConfig, SourceFile};
 use timbre_jit::Jit;
+use timbre_lang::{compile, CompileOptions, FsLoader, Registry};
 use timbre_testkit::{assert_close, compare_close};
 
 const TOLERANCE: f64 = 1e-5;
@@ -28,12 +27,15 @@ fn compile_file(path: &Path) -> Program {
         &options,
     )
     .unwrap()
+    .program
 }
 
 fn compile_text(text: &str) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    timbre_ir::compile_str(text, &options).unwrap_or_else(|e| panic!("{text}: {e:?}"))
+    timbre_lang::compile_str(text, &options)
+        .unwrap_or_else(|e| panic!("{text}: {e:?}"))
+        .program
 }
 
 /// Renders with both engines; `Err` (from `timbre_testkit::compare_close`) names the
@@ -64,7 +66,7 @@ fn compare_root(
 #[test]
 fn every_catalogue_example_renders_the_same_under_both_engines() {
     let mut jit = Jit::new().unwrap();
-    for node in timbre_ir::catalogue::NODES {
+    for node in timbre_lang::catalogue::NODES {
         if node.example.is_empty() {
             continue; // a named exemption (see tests/catalogue.rs in timbre-ir)
         }
@@ -478,7 +480,7 @@ fn instances_of_one_shape_share_one_kernel() {
         let mut options = CompileOptions::new(&registry, &FsLoader);
         options.seed = Some(seed);
         let text = format!("(* {amp} 0.02 (combine (* (sine (* t (rvector 50 200 2000))) (damp (* t 0.002 (rvector 50 200 2000))))))");
-        timbre_ir::compile_str(&text, &options).unwrap()
+        timbre_lang::compile_str(&text, &options).unwrap()
     };
     let (a, b) = (bell(1, 0.5), bell(2, 0.9));
     let mut out_a = vec![0.0; 4800];
@@ -530,7 +532,7 @@ fn trees_too_large_to_compile_are_refused_not_compiled() {
 mod random_trees {
     use super::*;
     use proptest::prelude::*;
-    use timbre_ir::generate::{tree_strategy, GenConfig};
+    use timbre_gen::generate::{tree_strategy, GenConfig};
 
     fn smooth() -> GenConfig {
         GenConfig {

@@ -2,13 +2,16 @@
 //! new. (Their samples are tested in `timbre-scene`, against the interpreter and
 //! against each instance rendered as its own voice.)
 
-use timbre_ir::{CompileOptions, FsLoader, Program, Registry, RenderConfig};
+use timbre_ir::{Program, RenderConfig};
 use timbre_jit::{InstanceLanes, Jit, LaneBatch, BATCH_LANES};
+use timbre_lang::{CompileOptions, FsLoader, Registry};
 
 fn compile_text(text: &str) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    timbre_ir::compile_str(text, &options).unwrap_or_else(|e| panic!("{text}: {e:?}"))
+    timbre_lang::compile_str(text, &options)
+        .unwrap_or_else(|e| panic!("{text}: {e:?}"))
+        .program
 }
 
 const CONFIG: RenderConfig = RenderConfig {

@@ -1,4 +1,4 @@
-//! Near-valid programs (generated trees with a few mistakes, `timbre_ir::mutate`):
+//! Near-valid programs (generated trees with a few mistakes, `timbre_gen::mutate`):
 //! whatever they are, lowering answers with a program or diagnostics, and a program
 //! within modest limits renders in both engines, never panicking.
 
@@ -7,7 +7,7 @@ mod support;
 use proptest::prelude::*;
 use rand::SeedableRng;
 use support::fuzz::try_program;
-use timbre_ir::generate::{random_tree, GenConfig};
+use timbre_gen::generate::{random_tree, GenConfig};
 use timbre_jit::Jit;
 
 proptest! {
@@ -18,7 +18,7 @@ proptest! {
         let config = GenConfig { max_nodes: 30, ..GenConfig::default() };
         let tree = random_tree(&mut rand::rngs::StdRng::seed_from_u64(tree_seed), &config);
         let mut rng = rand::rngs::StdRng::seed_from_u64(mistake_seed);
-        let text = timbre_ir::mutate::near_valid(&mut rng, &tree, 3);
+        let text = timbre_gen::mutate::near_valid(&mut rng, &tree, 3);
         let mut jit = Jit::new().unwrap();
         try_program(&mut jit, &text);
     }
@@ -37,7 +37,7 @@ fn near_valid_programs_reach_both_outcomes() {
     for seed in 0..200u64 {
         let tree = random_tree(&mut rand::rngs::StdRng::seed_from_u64(seed), &config);
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x5eed);
-        let text = timbre_ir::mutate::near_valid(&mut rng, &tree, 2);
+        let text = timbre_gen::mutate::near_valid(&mut rng, &tree, 2);
         rendered += usize::from(try_program(&mut jit, &text));
     }
     assert!((20..180).contains(&rendered), "{rendered} of 200 rendered");

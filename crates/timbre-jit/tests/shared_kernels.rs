@@ -4,11 +4,9 @@
 use std::collections::HashSet;
 
 use timbre_ir::op::Op;
-use timbre_ir::{
-    CompileOptions, FsLoader, Graph, Interpreter, Library, NodeId, Program, Registry, RenderConfig,
-    SourceFile,
-};
+use timbre_ir::{Graph, Interpreter, NodeId, Program, RenderConfig, SourceFile};
 use timbre_jit::{Jit, KERNELS_PER_GENERATION};
+use timbre_lang::{CompileOptions, FsLoader, Library, Registry};
 
 const TOLERANCE: f64 = 1e-5;
 
@@ -22,7 +20,9 @@ fn config() -> RenderConfig {
 fn compile_text(text: &str) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    timbre_ir::compile_str(text, &options).unwrap_or_else(|e| panic!("{text}: {e:?}"))
+    timbre_lang::compile_str(text, &options)
+        .unwrap_or_else(|e| panic!("{text}: {e:?}"))
+        .program
 }
 
 /// The largest difference between the interpreter and a JIT voice over `samples`.

@@ -4,7 +4,7 @@
 //!
 //! Instances come from a compiled program (`timbre render scene.tt`) or from a host
 //! that adds them while rendering (the `timbre` embedding API). This crate does not
-//! parse or lower: `timbre-ir` turns `define-sound`, `keyframes` and `instance` forms
+//! parse or lower: `timbre-lang` turns `define-sound`, `keyframes` and `instance` forms
 //! into trees with a timer at the root.
 
 mod denormals;

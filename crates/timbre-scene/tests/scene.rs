@@ -4,9 +4,8 @@
 use std::path::Path;
 
 use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
-use timbre_ir::{
-    compile, compile_str, CompileOptions, FsLoader, Program, Registry, RenderConfig, SourceFile,
-};
+use timbre_ir::{Program, RenderConfig, SourceFile};
+use timbre_lang::{compile, compile_str, CompileOptions, FsLoader, Registry};
 use timbre_scene::{Engine, SceneRenderer};
 use timbre_testkit::{assert_close, onset, zero_crossing_frequency};
 
@@ -24,13 +23,17 @@ fn cubes() -> Program {
     let text = std::fs::read_to_string(&path).unwrap();
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    compile(SourceFile::new("cubes.tt", text), path.parent(), &options).unwrap()
+    compile(SourceFile::new("cubes.tt", text), path.parent(), &options)
+        .unwrap()
+        .program
 }
 
 fn scene(text: &str) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    compile_str(text, &options).unwrap_or_else(|e| panic!("{e:?}"))
+    compile_str(text, &options)
+        .unwrap_or_else(|e| panic!("{e:?}"))
+        .program
 }
 
 fn render(program: &Program, seconds: f64, engine: Engine) -> Vec<f64> {

@@ -2,7 +2,8 @@
 //! time, arrival times and distance laws, stereo time and level differences, and
 //! both engines agreeing.
 
-use timbre_ir::{compile_str, CompileOptions, FsLoader, Program, Registry, RenderConfig};
+use timbre_ir::{Program, RenderConfig};
+use timbre_lang::{compile_str, CompileOptions, FsLoader, Registry};
 use timbre_scene::{Engine, SceneRenderer};
 use timbre_testkit::{assert_close, zero_crossing_frequency};
 
@@ -12,7 +13,9 @@ const C: f64 = 343.0;
 fn scene(text: &str) -> Program {
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    compile_str(text, &options).unwrap_or_else(|e| panic!("{e:?}"))
+    compile_str(text, &options)
+        .unwrap_or_else(|e| panic!("{e:?}"))
+        .program
 }
 
 fn render_with(program: &Program, seconds: f64, engine: Engine, block_size: usize) -> Vec<f64> {
@@ -591,7 +594,7 @@ fn a_room_reverberates_by_a_recorded_impulse_response() {
     );
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &FsLoader);
-    let program = timbre_ir::compile(
+    let program = timbre_lang::compile(
         timbre_ir::SourceFile::new("room.tt", text),
         Some(&dir),
         &options,
@@ -625,7 +628,7 @@ fn positions_from_a_csv_file_and_at_a_track_are_those_of_a_source() {
         );
         let registry = Registry::new();
         let options = CompileOptions::new(&registry, &FsLoader);
-        timbre_ir::compile(
+        timbre_lang::compile(
             timbre_ir::SourceFile::new("s.tt", text),
             Some(&dir),
             &options,

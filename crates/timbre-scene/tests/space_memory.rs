@@ -4,7 +4,8 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicIsize, Ordering};
 
-use timbre_ir::{compile_str, CompileOptions, FsLoader, Registry, RenderConfig};
+use timbre_ir::RenderConfig;
+use timbre_lang::{compile_str, CompileOptions, FsLoader, Registry};
 use timbre_scene::{Engine, SceneRenderer};
 
 /// Tracks the bytes live on the heap (this file holds one test, so nothing else runs).

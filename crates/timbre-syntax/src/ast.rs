@@ -1,41 +1,11 @@
 //! The syntax tree: s-expressions, each carrying the byte span it came from.
 //!
 //! The tree is deliberately generic (atoms and lists): the meaning of a form such as
-//! `define` or `let` is decided by lowering in `timbre-ir`, not by the parser.
+//! `define` or `let` is decided by lowering in `timbre-lang`, not by the parser.
 
 use std::fmt;
 
-/// A half-open byte range `start..end` into the source text.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
-pub struct Span {
-    pub start: usize,
-    pub end: usize,
-}
-
-impl Span {
-    pub fn new(start: usize, end: usize) -> Self {
-        Span { start, end }
-    }
-
-    pub fn len(&self) -> usize {
-        self.end - self.start
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.start == self.end
-    }
-
-    /// The smallest span covering both.
-    pub fn to(self, other: Span) -> Span {
-        Span::new(self.start.min(other.start), self.end.max(other.end))
-    }
-}
-
-impl From<Span> for miette::SourceSpan {
-    fn from(span: Span) -> Self {
-        (span.start, span.len()).into()
-    }
-}
+pub use timbre_diag::Span;
 
 /// One expression of the language with its source span.
 #[derive(Clone, Debug, PartialEq)]

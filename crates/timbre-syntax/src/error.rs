@@ -6,7 +6,11 @@
 //! input with zero width (miette would not draw them): an unclosed list points at its
 //! opening `(`, an unterminated string at its opening `"`.
 
-use crate::ast::Span;
+use std::borrow::Cow;
+use std::sync::Arc;
+
+use timbre_diag::{Diag, SourceFile, Span};
+
 use crate::parser::MAX_DEPTH;
 
 /// One problem found while reading source text.
@@ -153,5 +157,24 @@ impl SyntaxError {
             | SyntaxError::UnexpectedChar { span, .. }
             | SyntaxError::TooDeep { span } => *span,
         }
+    }
+}
+
+impl SyntaxError {
+    /// The error as a diagnostic in `source`, with its code, labels and help.
+    pub fn diag(&self, source: &Arc<SourceFile>) -> Diag {
+        use miette::Diagnostic;
+        let mut diag = Diag::new("timbre::syntax", self.to_string()).in_source(source);
+        if let Some(code) = self.code() {
+            diag.code = Cow::Owned(code.to_string());
+        }
+        for label in self.labels().into_iter().flatten() {
+            let span = Span::new(label.offset(), label.offset() + label.len());
+            diag = diag.label(span, label.label().unwrap_or_default().to_owned());
+        }
+        if let Some(help) = self.help() {
+            diag = diag.help(help.to_string());
+        }
+        diag
     }
 }

@@ -3,7 +3,7 @@
 //!
 //! Parsing never fails: [`parse`] returns the expressions it could read *and* the
 //! errors it met, so one bad form does not hide the next. This crate knows nothing of
-//! what the forms mean (that is `timbre-ir`'s lowering) and does no I/O.
+//! what the forms mean (that is `timbre-lang`'s lowering) and does no I/O.
 
 mod ast;
 mod error;

@@ -288,6 +288,21 @@ pub fn write_wav_f32(path: &Path, rate: u32, samples: &[f64]) {
     w.finalize().unwrap();
 }
 
+/// The `.tt` files under `dir`, recursively, in name order.
+pub fn tt_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut found = vec![];
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            found.extend(tt_files(&path));
+        } else if path.extension().is_some_and(|e| e == "tt") {
+            found.push(path);
+        }
+    }
+    found.sort();
+    found
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,7 +2,8 @@
 //! makes no sense is refused with a diagnostic of its own code, never a panic, a
 //! silent clamp or a render of garbage.
 
-use timbre_ir::{Diag, Diagnostics, ParamValue};
+use timbre_ir::{Diag, Diagnostics};
+use timbre_lang::ParamValue;
 use timbre_scene::{Mix, Placement};
 
 use crate::Error;

@@ -28,19 +28,20 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex, PoisonError};
 
-use timbre_ir::{CompileOptions, Library, Program, RenderConfig};
+use timbre_ir::{Program, RenderConfig};
+use timbre_lang::Compiled;
+use timbre_lang::{CompileOptions, Library};
 use timbre_scene::{Prepared, SceneRenderer, SharedJit};
 
 mod arguments;
 
 pub use arguments::{MAX_BLOCK_SIZE, MAX_CHANNELS, MAX_SAMPLE_RATE, MAX_THREADS, MIN_SAMPLE_RATE};
 
-pub use timbre_ir::keyframes::{CsvTime, Interpolation, KeyframeError, KeyframeTrack};
+pub use timbre_ir::keyframes::{Interpolation, KeyframeError, KeyframeTrack};
 pub use timbre_ir::limits::Limits;
-pub use timbre_ir::{
-    BlockContext, CustomNode, Diag, Diagnostics, FsLoader, Lanes, Loader, NoFiles, ParamValue,
-    Registry, SandboxLoader, SourceFile, Variable,
-};
+pub use timbre_ir::{BlockContext, CustomNode, Diag, Diagnostics, Lanes, SourceFile, Variable};
+pub use timbre_lang::csv_table::CsvTime;
+pub use timbre_lang::{FsLoader, Loader, NoFiles, ParamValue, Registry, SandboxLoader};
 pub use timbre_scene::{Fault, InstanceId, Mix, Placement};
 
 /// How long a scene file without a `:duration` may play, for the cost checked before
@@ -236,7 +237,7 @@ impl Engine {
         mut self,
         dirs: impl IntoIterator<Item = P>,
     ) -> std::io::Result<Self> {
-        self.loader = Arc::new(timbre_ir::SandboxLoader::new(dirs)?);
+        self.loader = Arc::new(timbre_lang::SandboxLoader::new(dirs)?);
         Ok(self)
     }
 
@@ -684,7 +685,7 @@ impl Engine {
     ) -> Result<SceneFile, Diagnostics> {
         self.check_bindings()?;
         self.check_size(&source)?;
-        let program = timbre_ir::compile(source, dir, &self.options())?;
+        let program = timbre_lang::compile(source, dir, &self.options())?;
         Ok(SceneFile {
             program: Arc::new(program),
         })
@@ -732,7 +733,7 @@ impl Engine {
 /// [`Engine::scene_from`] makes scenes of it.
 #[derive(Clone, Debug)]
 pub struct SceneFile {
-    program: Arc<Program>,
+    program: Arc<Compiled>,
 }
 
 impl SceneFile {
@@ -856,7 +857,7 @@ impl SceneFile {
     /// assert_eq!((a.name.as_str(), a.class.as_str(), a.stop), ("a", "s", Some(1.0)));
     /// assert!(program.root.is_none() && program.graph.len() >= 4, "t, 440, t × 440, the sine …");
     /// ```
-    pub fn program(&self) -> &Program {
+    pub fn program(&self) -> &Compiled {
         &self.program
     }
 }
@@ -1122,7 +1123,7 @@ fn prepare(
 
 /// Checks an instance against the engine's limits before its voice is made: the
 /// memory its state needs, and that the system can give it.
-fn check_instance(engine: &Engine, tree: &timbre_ir::Instantiated) -> Result<(), Error> {
+fn check_instance(engine: &Engine, tree: &timbre_lang::Instantiated) -> Result<(), Error> {
     let playing = [timbre_ir::limits::Playing {
         root: tree.root,
         start: 0,

@@ -8,9 +8,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The library crates: what a host links, and what reads scripts and files.
-const CRATES: [&str; 6] = [
+const CRATES: [&str; 9] = [
     "timbre",
+    "timbre-diag",
     "timbre-ir",
+    "timbre-lang",
+    "timbre-gen",
     "timbre-jit",
     "timbre-scene",
     "timbre-syntax",

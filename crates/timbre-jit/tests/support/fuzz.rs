@@ -3,8 +3,9 @@
 //! (`fuzz/`, which include this file by path).
 
 use timbre_ir::limits::{check_render, Limits, Playing};
-use timbre_ir::{CompileOptions, Interpreter, NoFiles, Registry, RenderConfig};
+use timbre_ir::{Interpreter, RenderConfig};
 use timbre_jit::Jit;
+use timbre_lang::{CompileOptions, NoFiles, Registry};
 
 const SAMPLES: usize = 300;
 
@@ -33,7 +34,7 @@ pub fn try_program(jit: &mut Jit, text: &str) -> bool {
     let registry = Registry::new();
     let mut options = CompileOptions::new(&registry, &NoFiles);
     options.limits = limits();
-    let Ok(program) = timbre_ir::compile_str(text, &options) else {
+    let Ok(program) = timbre_lang::compile_str(text, &options) else {
         return false;
     };
     let playing: Vec<Playing> = program

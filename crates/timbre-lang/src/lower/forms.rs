@@ -1,0 +1,382 @@
+//! Top-level forms: `define`, `define-sound`, `include` (the scene forms are in
+//! `scene.rs`). [`FORMS`] is the one list of form names.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use timbre_syntax::{Expr, ExprKind, Span, SyntaxError};
+
+use super::{Definition, Lowerer, Origin};
+use timbre_diag::{Diag, SourceFile};
+
+/// The forms that are not nodes: `let` inside expressions, the rest only at the
+/// top level of a file. Their names, `t` and `pi` are reserved.
+pub const FORMS: &[&str] = &[
+    "let",
+    "morph",
+    "define",
+    "define-sound",
+    "include",
+    "scene",
+    "keyframes",
+    "frames",
+    "instance",
+    "instances",
+    "score",
+    "listener",
+    "microphone",
+    "source",
+    "room",
+    "box",
+    "wall",
+];
+
+impl Lowerer<'_> {
+    /// Reads the top-level forms of one file. `included_at` is the `include` form that
+    /// named it, if any: included files may hold only definitions.
+    pub(crate) fn read_file(
+        &mut self,
+        source: Arc<SourceFile>,
+        dir: Option<PathBuf>,
+        included_at: Option<&str>,
+    ) {
+        let parse = timbre_syntax::parse(&source.text);
+        // A form lost to a syntax error (a list never closed, or nested too deep) may
+        // have defined names used elsewhere.
+        self.names_incomplete |= parse.errors.iter().any(|e| {
+            matches!(
+                e,
+                SyntaxError::UnclosedList { .. } | SyntaxError::TooDeep { .. }
+            )
+        });
+        for error in &parse.errors {
+            self.errors.push(error.diag(&source));
+        }
+        let origin = Origin { source, dir };
+        for form in parse.exprs {
+            self.read_top_level(form, &origin, included_at);
+        }
+    }
+
+    pub(crate) fn read_top_level(
+        &mut self,
+        form: Expr,
+        origin: &Origin,
+        included_at: Option<&str>,
+    ) {
+        let head: Option<String> = form
+            .as_list()
+            .and_then(|items| items.first())
+            .and_then(Expr::as_symbol)
+            .map(str::to_owned);
+        let defined = defined_name(&form).map(str::to_owned);
+        let head = head.as_deref();
+        if let Err(diag) = self.check_load_time(form.span, origin) {
+            self.errors.push(diag);
+            return;
+        }
+        let result = match head {
+            Some("define") => self.read_define(&form, origin, false),
+            Some("define-sound") => self.read_define(&form, origin, true),
+            Some("keyframes") => self.read_keyframes(&form, origin),
+            Some("frames") => self.read_frames(&form, origin),
+            Some("instance" | "instances" | "score") if included_at.is_none() => {
+                self.instance_forms.push((form, origin.clone()));
+                Ok(())
+            }
+            Some("include") => self.read_include(&form, origin),
+            Some("scene") if included_at.is_none() => self.read_scene(&form, origin),
+            Some("listener" | "microphone" | "source" | "room" | "box" | "wall")
+                if included_at.is_none() =>
+            {
+                self.space_forms.push((form, origin.clone()));
+                Ok(())
+            }
+            _ => {
+                if let Some(file) = included_at {
+                    Err(Diag::new(
+                        "timbre::include-not-library",
+                        format!("included file `{file}` may hold only definitions"),
+                    )
+                    .label(form.span, "this is not a `define` or `include`")
+                    .help("move the sound into the file that includes this one")
+                    .in_source(&origin.source))
+                } else {
+                    self.sounds.push((form, origin.clone()));
+                    Ok(())
+                }
+            }
+        };
+        if let Err(diag) = result {
+            match head {
+                Some("include" | "frames") => self.names_incomplete = true,
+                Some("define" | "define-sound" | "keyframes") => {
+                    self.failed_names.extend(defined);
+                }
+                _ => {}
+            }
+            self.errors.push(diag);
+        }
+    }
+
+    pub(crate) fn read_define(
+        &mut self,
+        form: &Expr,
+        origin: &Origin,
+        class: bool,
+    ) -> Result<(), Diag> {
+        let err = |code, msg: String| Diag::new(code, msg).in_source(&origin.source);
+        let items = form.as_list().unwrap_or_default();
+        let shape_help = "write `(define name (param …) body)` or `(define name body)`";
+        let Some(name_expr) = items.get(1) else {
+            return Err(err(
+                "timbre::bad-define",
+                "`define` needs a name and a body".into(),
+            )
+            .label(form.span, "incomplete definition")
+            .help(shape_help));
+        };
+        // Scheme's `(define (f x) body)`: say how timbre writes it.
+        if let Some([head, params @ ..]) = name_expr.as_list() {
+            let names: Option<Vec<&str>> = std::iter::once(head)
+                .chain(params)
+                .map(Expr::as_symbol)
+                .collect();
+            if let Some(names) = names {
+                let keyword = if class { "define-sound" } else { "define" };
+                let fixed = format!("({keyword} {} ({}) …)", names[0], names[1..].join(" "));
+                return Err(err(
+                    "timbre::bad-define",
+                    format!("timbre writes a definition as `({keyword} name (param …) body)`"),
+                )
+                .label(
+                    name_expr.span,
+                    "Scheme's way: the name and parameters in one list",
+                )
+                .help(format!(
+                    "write `{fixed}`: the name, then the list of parameters"
+                )));
+            }
+        }
+        let Some(name) = name_expr.as_symbol() else {
+            return Err(err(
+                "timbre::bad-define",
+                format!(
+                    "a definition's name must be a name, not {}",
+                    name_expr.describe()
+                ),
+            )
+            .label(name_expr.span, "expected a name here")
+            .help(shape_help));
+        };
+        let (params, body) = match &items[2..] {
+            [body] => (vec![], body),
+            [params, body] if params.as_list().is_some() => {
+                let mut names = vec![];
+                for p in params.as_list().unwrap_or_default() {
+                    match p.as_symbol() {
+                        Some(n) if names.iter().any(|(m, _): &(String, Span)| m == n) => {
+                            return Err(err(
+                                "timbre::bad-define",
+                                format!("parameter `{n}` is listed twice"),
+                            )
+                            .label(p.span, "repeated here")
+                            .help("give each parameter its own name"));
+                        }
+                        Some(n) if is_reserved(n) => {
+                            return Err(err(
+                                "timbre::reserved-name",
+                                format!("`{n}` is reserved and cannot name a parameter"),
+                            )
+                            .label(p.span, "reserved name")
+                            .help("choose another parameter name"));
+                        }
+                        Some(n) => names.push((n.to_owned(), p.span)),
+                        None => {
+                            return Err(err(
+                                "timbre::bad-define",
+                                format!("a parameter must be a name, not {}", p.describe()),
+                            )
+                            .label(p.span, "expected a parameter name")
+                            .help(shape_help));
+                        }
+                    }
+                }
+                (names, body)
+            }
+            [] => {
+                return Err(err(
+                    "timbre::bad-define",
+                    format!("definition of `{name}` has no body"),
+                )
+                .label(form.span, "missing body")
+                .help(shape_help))
+            }
+            _ => {
+                return Err(err(
+                    "timbre::bad-define",
+                    format!("malformed definition of `{name}`"),
+                )
+                .label(form.span, "too many parts")
+                .help(shape_help))
+            }
+        };
+        if crate::catalogue::lookup(name).is_some()
+            || is_reserved(name)
+            || self.options.registry.get(name).is_some()
+        {
+            return Err(err(
+                "timbre::redefine-builtin",
+                format!("`{name}` is a built-in name"),
+            )
+            .label(name_expr.span, "cannot be redefined")
+            .help("choose another name for your tree"));
+        }
+        if self.keyframes.contains_key(name) || self.vector_keyframes.contains_key(name) {
+            return Err(err(
+                "timbre::duplicate-define",
+                format!("`{name}` is already a keyframed variable"),
+            )
+            .label(name_expr.span, "defined again here")
+            .help("rename one of them"));
+        }
+        if let Some(previous) = self.definitions.get(name) {
+            let mut diag = err(
+                "timbre::duplicate-define",
+                format!("`{name}` is defined twice"),
+            )
+            .label(name_expr.span, "defined again here");
+            if Arc::ptr_eq(&previous.source, &origin.source) {
+                diag = diag.label(previous.name_span, "first defined here");
+            }
+            return Err(diag.help("rename one of the definitions"));
+        }
+        self.definitions.insert(
+            name.to_owned(),
+            Definition {
+                params,
+                body: body.clone(),
+                name_span: name_expr.span,
+                source: origin.source.clone(),
+                dir: origin.dir.clone(),
+                class,
+            },
+        );
+        self.definition_order.push(name.to_owned());
+        Ok(())
+    }
+
+    pub(crate) fn read_include(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+        let items = form.as_list().unwrap_or_default();
+        let path_expr = match items {
+            [_, path] => path,
+            _ => {
+                return Err(
+                    Diag::new("timbre::bad-include", "`include` takes one file name")
+                        .label(form.span, "write `(include \"library.tt\")`")
+                        .help("name exactly one file, as a string")
+                        .in_source(&origin.source),
+                )
+            }
+        };
+        let ExprKind::Str(path) = &path_expr.kind else {
+            return Err(Diag::new(
+                "timbre::bad-include",
+                format!(
+                    "`include` takes a file name string, not {}",
+                    path_expr.describe()
+                ),
+            )
+            .label(path_expr.span, "expected a string")
+            .help("write the path in double quotes: (include \"library.tt\")")
+            .in_source(&origin.source));
+        };
+        let (resolved, bytes) = self
+            .options
+            .loader
+            .load(path, origin.dir.as_deref())
+            .map_err(|e| {
+                Diag::new(
+                    "timbre::include-unreadable",
+                    format!("cannot read included file `{path}`: {e}"),
+                )
+                .label(path_expr.span, "this file")
+                .help("paths are relative to the file that includes them")
+                .in_source(&origin.source)
+            })?;
+        if let Some(first) = self.include_stack.iter().position(|p| *p == resolved) {
+            let chain: Vec<String> = self.include_stack[first..]
+                .iter()
+                .chain([&resolved])
+                .map(|p| {
+                    p.file_name().map_or_else(
+                        || p.display().to_string(),
+                        |n| n.to_string_lossy().into_owned(),
+                    )
+                })
+                .collect();
+            return Err(Diag::new(
+                "timbre::include-cycle",
+                format!("includes form a cycle: {}", chain.join(" → ")),
+            )
+            .label(path_expr.span, "this include closes a cycle")
+            .help("remove one of the includes in the cycle")
+            .in_source(&origin.source));
+        }
+        if bytes.len() as u64 > self.options.limits.script_bytes() {
+            let limit = self.options.limits.script_bytes();
+            return Err(Diag::new(
+                "timbre::include-unreadable",
+                format!(
+                    "included file `{path}` has more than {} MiB, the most a script may have",
+                    limit >> 20
+                ),
+            )
+            .label(path_expr.span, "this file")
+            .help("split the file, or relax the limit (--no-limits)")
+            .in_source(&origin.source));
+        }
+        if self.include_stack.len() >= self.options.limits.include_depth {
+            let limit = self.options.limits.include_depth;
+            return Err(Diag::new(
+                "timbre::include-too-deep",
+                format!("includes nest more than {limit} files deep"),
+            )
+            .label(path_expr.span, "this include passes the limit")
+            .help("include the files from one library file instead of a chain")
+            .in_source(&origin.source));
+        }
+        if !self.included.insert(resolved.clone()) {
+            return Ok(()); // already read through another include
+        }
+        let text = String::from_utf8(bytes).map_err(|_| {
+            Diag::new(
+                "timbre::include-unreadable",
+                format!("included file `{path}` is not UTF-8 text"),
+            )
+            .label(path_expr.span, "this file")
+            .help("save the file as UTF-8")
+            .in_source(&origin.source)
+        })?;
+        let source = SourceFile::new(resolved.display().to_string(), text);
+        let dir = resolved.parent().map(Path::to_path_buf);
+        self.include_stack.push(resolved);
+        self.read_file(source, dir, Some(path));
+        self.include_stack.pop();
+        Ok(())
+    }
+}
+
+/// The name a `define`, `define-sound` or `keyframes` form gives, also when written
+/// Scheme's way, `(define (name param …) …)`.
+fn defined_name(form: &Expr) -> Option<&str> {
+    let second = form.as_list()?.get(1)?;
+    second
+        .as_symbol()
+        .or_else(|| second.as_list()?.first()?.as_symbol())
+}
+
+/// Whether `name` may not name a parameter, a binding or a tree.
+pub(crate) fn is_reserved(name: &str) -> bool {
+    name == "t" || name == "pi" || FORMS.contains(&name)
+}
