@@ -38,7 +38,7 @@ use timbre_ir::{Graph, Interpreter, NodeId, RenderConfig, Step};
 
 use crate::codegen::{kernel_signature, Helpers, KernelBuilder, NOISE_SEED, NOISE_SLOTS};
 use crate::plan::PlanStep;
-use crate::shape::Shape;
+use crate::shape::{is_modal_bank, Shape};
 
 pub use crate::lanes::{InstanceLanes, LaneBatch, BATCH_LANES};
 
@@ -469,7 +469,7 @@ impl Jit {
             .steps()
             .iter()
             .enumerate()
-            .filter(|(_, step)| modal::is_modal_bank(interp.steps(), step))
+            .filter(|(_, step)| is_modal_bank(interp.steps(), step))
             .map(|(i, step)| {
                 let state =
                     modal::ModalState::new(interp.steps(), step, config, &mut self.modal_tables);

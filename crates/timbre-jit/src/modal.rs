@@ -32,7 +32,7 @@ use cranelift_codegen::Context;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 use cranelift_jit::JITModule;
 use cranelift_module::{FuncId, Linkage, Module};
-use timbre_ir::dsp::rotator::{self, ModalBank};
+use timbre_ir::dsp::rotator;
 use timbre_ir::op::Op;
 use timbre_ir::{RenderConfig, Step};
 
@@ -49,17 +49,6 @@ const ANCHOR_INTERVAL: u64 = 8192;
 
 const F32X4: types::Type = types::F32X4;
 const I64: types::Type = types::I64;
-
-/// Whether a step is a modal bank this module compiles: its frequencies, dampings
-/// and amplitudes are constants (as the optimiser makes them).
-pub(crate) fn is_modal_bank(steps: &[Step], step: &Step) -> bool {
-    let Op::Stateful(kernel) = &step.op else {
-        return false;
-    };
-    kernel.as_any().is::<ModalBank>()
-        && step.args.len() == 4
-        && step.args[1..].iter().all(|a| steps[*a].constant)
-}
 
 /// p^k for k < [`TILE`] as `f32`, imaginary parts first; 64-byte aligned.
 #[derive(Clone, Copy)]

@@ -7,7 +7,11 @@
 //! data of called-back ops (the interpreter reads its own op when called back). The
 //! cache compares whole shapes, so two schedules share a kernel only if their shapes
 //! are equal, never because two hashes collide.
+//!
+//! [`is_modal_bank`] is here because a step's kind depends on it (the voice asks it
+//! too, to give each compiled bank its state).
 
+use timbre_ir::dsp::rotator::ModalBank;
 use timbre_ir::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 use timbre_ir::Step;
 
@@ -68,7 +72,7 @@ impl Kind {
     /// The kind of a step: that of its op, except for the modal banks `modal`
     /// compiles.
     pub(crate) fn of_step(steps: &[Step], step: &Step) -> Kind {
-        if crate::modal::is_modal_bank(steps, step) {
+        if is_modal_bank(steps, step) {
             Kind::ModalBank
         } else {
             Kind::of(&step.op)
@@ -92,6 +96,17 @@ impl Kind {
             }
         }
     }
+}
+
+/// Whether a step is a modal bank `modal` compiles: its frequencies, dampings
+/// and amplitudes are constants (as the optimiser makes them).
+pub(crate) fn is_modal_bank(steps: &[Step], step: &Step) -> bool {
+    let Op::Stateful(kernel) = &step.op else {
+        return false;
+    };
+    kernel.as_any().is::<ModalBank>()
+        && step.args.len() == 4
+        && step.args[1..].iter().all(|a| steps[*a].constant)
 }
 
 /// A schedule's shape (see the module documentation).

@@ -979,12 +979,41 @@ impl SceneRenderer {
         self.inbox = Some(inbox);
     }
 
+    /// One block: admits the instances that start in it, renders the batches of
+    /// lanes and the voices, mixes them into `out` and retires the instances that
+    /// have ended.
     fn render_block(&mut self, out: &mut [f64]) -> Result<(), JitError> {
         let _flush = denormals::FlushDenormals::new();
         self.take_commands();
         out.fill(0.0);
-        let channels = self.channels;
-        let end = self.position + (out.len() / channels) as u64;
+        let end = self.position + (out.len() / self.channels) as u64;
+        self.admit_pending(end)?;
+        // The voices (and the batches of lanes) share the threads out when there are
+        // several and the last block took long enough to be worth waking a thread for
+        // (tens of microseconds). A lone voice renders on this thread (its own large
+        // modal banks may still use the threads). Which way a block goes changes its
+        // speed, never its samples.
+        let worth_it = self.last_block_work >= self.threads_min_work;
+        // Timed only when there are threads to decide for.
+        let started = self.pool.is_some().then(Instant::now);
+        self.render_batches(end, worth_it);
+        let threads = self.render_voices_on_threads(end, worth_it);
+        self.mix_active(out, end, threads.is_some());
+        if let Some(started) = started {
+            // What the block would have taken on one thread, roughly.
+            self.last_block_work = started.elapsed() * threads.unwrap_or(1) as u32;
+        }
+        self.retire_ended();
+        self.position = end;
+        if let Some(published) = &self.published {
+            published.store(end, Ordering::Release);
+        }
+        Ok(())
+    }
+
+    /// Starts the pending instances whose start is before `end`: each takes a lane of
+    /// a batch if it qualifies, else a voice of its own.
+    fn admit_pending(&mut self, end: u64) -> Result<(), JitError> {
         while self.pending.last().is_some_and(|p| p.start < end) {
             let Some(p) = self.pending.pop() else { break };
             let mut voice = match p.source {
@@ -1012,18 +1041,14 @@ impl SceneRenderer {
                 mix: p.mix,
             });
         }
-        let fade = self.fade_samples;
+        Ok(())
+    }
+
+    /// Renders the batches with lanes in use up to `end`, before the voices: their
+    /// lanes are then mixed like voices. Each batch is independent of the others, so
+    /// they may render on several threads.
+    fn render_batches(&mut self, end: u64, worth_it: bool) {
         let position = self.position;
-        // The voices (and the batches of lanes) share the threads out when there are
-        // several and the last block took long enough to be worth waking a thread for
-        // (tens of microseconds). A lone voice renders on this thread (its own large
-        // modal banks may still use the threads). Which way a block goes changes its
-        // speed, never its samples.
-        let worth_it = self.last_block_work >= self.threads_min_work;
-        // Timed only when there are threads to decide for.
-        let started = self.pool.is_some().then(Instant::now);
-        // Batches first: their lanes are then mixed like voices. Each batch is
-        // independent of the others, so they may render on several threads.
         let frames = (end - position) as usize;
         let playing = self.batches.iter().filter(|b| b.lanes_in_use() > 0).count();
         let mut batches = self.batches.iter_mut().filter(|b| b.lanes_in_use() > 0);
@@ -1039,78 +1064,77 @@ impl SceneRenderer {
             }),
             None => batches.for_each(|batch| batch.render(position, frames)),
         }
-        let batches = &self.batches;
+    }
+
+    /// With threads, and more than one voice of its own playing, renders each such
+    /// voice's part of the block (up to `end`) into its own buffer on some thread and
+    /// returns the number of threads; else renders nothing (the voices are rendered
+    /// one by one as they are mixed) and returns `None`.
+    fn render_voices_on_threads(&mut self, end: u64, worth_it: bool) -> Option<usize> {
+        let position = self.position;
         let voices = (self.active.iter())
             .filter(|a| !matches!(a.voice, Voice::Lane { .. }))
             .count();
-        let pool = self.pool.as_ref().filter(|_| voices > 1 && worth_it);
-        let threads = pool.map_or(1, |p| p.current_num_threads());
-        match pool {
-            // Each voice renders into its own buffer on some thread; then they are
-            // mixed here in instance order, so the sums (and the bytes) are the same
-            // whatever the number of threads.
-            Some(pool) => {
-                // One run of consecutive voices per thread: a voice's block is too
-                // little work to share out one by one. This thread renders the first
-                // run itself rather than wait for the pool to.
-                let per_thread = self.active.len().div_ceil(pool.current_num_threads());
-                let render_run = |run: &mut [Active]| {
-                    for active in run {
-                        if matches!(active.voice, Voice::Lane { .. }) {
-                            continue;
-                        }
-                        if let Some((from, until)) = active.window(position, end) {
-                            let n = ((until - from) as usize) * active.voice.width();
-                            let mut buffer = std::mem::take(&mut active.buffer);
-                            buffer.resize(n, 0.0);
-                            active.voice.render(&mut buffer);
-                            active.buffer = buffer;
-                        }
-                    }
-                };
-                let (first, rest) = self.active.split_at_mut(per_thread);
-                pool.in_place_scope(|scope| {
-                    for run in rest.chunks_mut(per_thread) {
-                        scope.spawn(move |_| render_run(run));
-                    }
-                    render_run(first);
-                });
-                for active in &mut self.active {
-                    if let Some((from, until)) = active.window(position, end) {
-                        if let Some(rendered) =
-                            lane_samples(batches, &active.voice, position, from, until)
-                        {
-                            active.mix(rendered, from, until, out, position, channels, fade);
-                            continue;
-                        }
-                        let rendered = std::mem::take(&mut active.buffer);
-                        active.mix(&rendered, from, until, out, position, channels, fade);
-                        active.buffer = rendered;
-                    }
+        let pool = self.pool.as_ref().filter(|_| voices > 1 && worth_it)?;
+        // One run of consecutive voices per thread: a voice's block is too little
+        // work to share out one by one. This thread renders the first run itself
+        // rather than wait for the pool to.
+        let per_thread = self.active.len().div_ceil(pool.current_num_threads());
+        let render_run = |run: &mut [Active]| {
+            for active in run {
+                if matches!(active.voice, Voice::Lane { .. }) {
+                    continue;
+                }
+                if let Some((from, until)) = active.window(position, end) {
+                    let n = ((until - from) as usize) * active.voice.width();
+                    let mut buffer = std::mem::take(&mut active.buffer);
+                    buffer.resize(n, 0.0);
+                    active.voice.render(&mut buffer);
+                    active.buffer = buffer;
                 }
             }
-            None => {
-                for active in &mut self.active {
-                    if let Some((from, until)) = active.window(position, end) {
-                        if let Some(rendered) =
-                            lane_samples(batches, &active.voice, position, from, until)
-                        {
-                            active.mix(rendered, from, until, out, position, channels, fade);
-                            continue;
-                        }
-                        let n = ((until - from) as usize) * active.voice.width();
-                        let rendered = &mut self.scratch[..n];
-                        active.voice.render(rendered);
-                        active.mix(rendered, from, until, out, position, channels, fade);
-                    }
-                }
+        };
+        let (first, rest) = self.active.split_at_mut(per_thread);
+        pool.in_place_scope(|scope| {
+            for run in rest.chunks_mut(per_thread) {
+                scope.spawn(move |_| render_run(run));
+            }
+            render_run(first);
+        });
+        Some(pool.current_num_threads())
+    }
+
+    /// Mixes each instance's part of the block (up to `end`) into `out`, in instance
+    /// order, so the sums (and the bytes) are the same whatever the number of
+    /// threads: a lane from its batch, a voice from its own buffer when the threads
+    /// rendered it (`on_threads`), else rendered here, now, into the scratch buffer.
+    fn mix_active(&mut self, out: &mut [f64], end: u64, on_threads: bool) {
+        let (position, channels, fade) = (self.position, self.channels, self.fade_samples);
+        for active in &mut self.active {
+            let Some((from, until)) = active.window(position, end) else {
+                continue;
+            };
+            if let Some(rendered) =
+                lane_samples(&self.batches, &active.voice, position, from, until)
+            {
+                active.mix(rendered, from, until, out, position, channels, fade);
+            } else if on_threads {
+                let rendered = std::mem::take(&mut active.buffer);
+                active.mix(&rendered, from, until, out, position, channels, fade);
+                active.buffer = rendered;
+            } else {
+                let n = ((until - from) as usize) * active.voice.width();
+                let rendered = &mut self.scratch[..n];
+                active.voice.render(rendered);
+                active.mix(rendered, from, until, out, position, channels, fade);
             }
         }
-        if let Some(started) = started {
-            // What the block would have taken on one thread, roughly.
-            self.last_block_work = started.elapsed() * threads as u32;
-        }
-        // Ended instances leave in place (keeping the others' order, and so the sums).
+    }
+
+    /// Removes the instances that have ended, in place (keeping the others' order, and
+    /// so the sums): a lane goes back to its batch, a voice of its own to the control
+    /// side to be freed there (when split), and a fault is kept.
+    fn retire_ended(&mut self) {
         let mut k = 0;
         while k < self.active.len() {
             let a = &self.active[k];
@@ -1144,11 +1168,6 @@ impl SceneRenderer {
                 None => self.faults.extend(fault),
             }
         }
-        self.position = end;
-        if let Some(published) = &self.published {
-            published.store(end, Ordering::Release);
-        }
-        Ok(())
     }
 }
 
