@@ -691,7 +691,9 @@ impl<'a, R: Rng> Gen<'a, R> {
         }
     }
 
-    fn audio_node(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+    /// The productions a node of width `w` may be, with their weights; only exact ones
+    /// if `ex`, stateful ones only with [`GenConfig::stateful`].
+    fn productions(&self, w: usize, ex: bool) -> Vec<(f64, Production)> {
         use Production as P;
         let (st, wide) = (self.stateful, w > 1);
         let mut choices: Vec<(f64, Production)> = vec![
@@ -763,411 +765,53 @@ impl<'a, R: Rng> Gen<'a, R> {
             choices.push((1.5, P::Combine));
             choices.push((1.0, P::Index));
         }
+        choices
+    }
+
+    /// A node of width `w`: a production drawn by weight, then generated.
+    fn audio_node(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        use Production as P;
+        let choices = self.productions(w, ex);
         let production = self.weighted(&choices);
         if !matches!(production, P::Leaf) {
             self.spend(1);
         }
         let d = depth - 1;
-        let sm = self.smooth_only;
         match production {
             P::Leaf => self.audio_leaf(w, ex),
-            P::Sum => {
-                let n = if self.p(0.75) { 2 } else { 3 };
-                let args = self.args(w, n, d, ex);
-                let s = format!("(+ {})", joined(&args));
-                let (b, x) = (sum_bound(&args), all_exact(&args));
-                if self.p(0.3) {
-                    Ex::new(format!("(* 0.5 {s})"), b * 0.5, x)
-                } else {
-                    Ex::new(s, b, x)
-                }
-            }
-            P::Diff => {
-                if self.p(0.3) {
-                    let a = self.audio(w, d, ex);
-                    Ex::new(format!("(- {})", a.s), a.b, a.x)
-                } else {
-                    let args = self.args(w, 2, d, ex);
-                    let s = format!("(- {})", joined(&args));
-                    Ex::new(s, sum_bound(&args), all_exact(&args))
-                }
-            }
-            P::Product => {
-                if self.p(0.25) {
-                    let a = self.audio(w, d, ex);
-                    let c = self.uni(-2.0, 2.0);
-                    Ex::new(format!("(* {} {})", num(c), a.s), a.b * c.abs(), a.x)
-                } else {
-                    let n = if self.p(0.85) { 2 } else { 3 };
-                    let args = self.args(w, n, d, ex);
-                    let b = args.iter().map(|a| a.b).product();
-                    Ex::new(format!("(* {})", joined(&args)), b, all_exact(&args))
-                }
-            }
-            P::Div => match self.int(0, 3) {
-                0 => {
-                    let args = self.args(w, 2, d, false);
-                    let s = format!("(/ {} (+ 1 (abs {})))", args[0].s, args[1].s);
-                    Ex::new(s, args[0].b, false)
-                }
-                1 => {
-                    let a = self.audio(w, d, false);
-                    let c = self.uni(1.0, 4.0) * if self.p(0.2) { -1.0 } else { 1.0 };
-                    Ex::new(format!("(/ {} {})", a.s, num(c)), a.b / c.abs(), false)
-                }
-                2 => {
-                    let a = self.audio(w, d, false);
-                    let c = self.uni(1.0, 2.0);
-                    Ex::new(format!("(/ (+ {} (abs {})))", num(c), a.s), 1.0 / c, false)
-                }
-                _ => {
-                    let args = self.args(w, 2, d, false);
-                    let s = format!("(/ {} 2 (+ 1 (abs {})))", args[0].s, args[1].s);
-                    Ex::new(s, args[0].b / 2.0, false)
-                }
-            },
-            P::MinMax => {
-                let head = self.pick(&["min", "max"]);
-                let n = if self.p(0.8) { 2 } else { 3 };
-                let args = self.args(w, n, d, ex);
-                let s = format!("({head} {})", joined(&args));
-                Ex::new(s, max_bound(&args), all_exact(&args))
-            }
-            P::Clamp => {
-                if self.p(0.7) {
-                    let a = self.audio(w, d, ex);
-                    let lo = -self.uni(0.1, 1.0);
-                    let hi = self.uni(0.1, 1.0);
-                    let s = self.call(
-                        "clamp",
-                        &[
-                            ("x", Some(a.s)),
-                            ("lo", Some(num(lo))),
-                            ("hi", Some(num(hi))),
-                        ],
-                        "",
-                    );
-                    Ex::new(s, a.b.min(lo.abs().max(hi)), a.x)
-                } else {
-                    let args = self.args(w, 3, d, ex);
-                    let [x, lo, hi] = [&args[0], &args[1], &args[2]].map(|a| a.s.clone());
-                    let s = self.call(
-                        "clamp",
-                        &[("x", Some(x)), ("lo", Some(lo)), ("hi", Some(hi))],
-                        "",
-                    );
-                    Ex::new(s, args[1].b.max(args[2].b), all_exact(&args))
-                }
-            }
-            P::Abs => {
-                let a = self.audio(w, d, ex);
-                Ex::new(format!("(abs {})", a.s), a.b, a.x)
-            }
-            P::Tanh => {
-                let a = self.audio(w, d, false);
-                let s = if self.p(0.5) {
-                    format!("(tanh {})", a.s)
-                } else {
-                    format!("(tanh (* {} {}))", num(self.logu(0.5, 8.0)), a.s)
-                };
-                Ex::new(s, 1.0, false)
-            }
-            P::Trig => {
-                let a = self.audio(w, d, false);
-                let s = match self.int(0, 2) {
-                    0 => format!("(sin (* pi {}))", a.s),
-                    1 => format!("(cos (* {} {}))", num(self.uni(0.5, 4.0)), a.s),
-                    _ => format!("(sin {})", a.s),
-                };
-                Ex::new(s, 1.0, false)
-            }
-            P::Tan => {
-                let a = self.audio(w, d, false);
-                let s = if self.p(0.5) {
-                    format!("(tan (clamp {} -1.2 1.2))", a.s)
-                } else {
-                    format!("(tan (* 1.2 (tanh {})))", a.s)
-                };
-                Ex::new(s, 1.2f64.tan(), false)
-            }
-            P::Exp => {
-                let a = self.audio(w, d, false);
-                let lo = self.uni(-4.0, -0.5);
-                let hi = self.uni(0.0, 1.5);
-                let inner = format!("(exp (clamp {} {} {}))", a.s, num(lo), num(hi));
-                if self.p(0.5) {
-                    Ex::new(inner, hi.exp(), false)
-                } else {
-                    Ex::new(format!("(- {inner} 1)"), hi.exp(), false)
-                }
-            }
-            P::Log => {
-                let a = self.audio(w, d, false);
-                let small: f64 = self.pick(&[0.001, 0.01, 0.1, 1.0]);
-                let b = (-small.ln()).max((small + a.b).ln().abs());
-                let s = format!("(log (+ {} (abs {})))", num(small), a.s);
-                if self.p(0.5) {
-                    Ex::new(format!("(* 0.25 {s})"), b * 0.25, false)
-                } else {
-                    Ex::new(s, b, false)
-                }
-            }
-            P::Sqrt => {
-                let a = self.audio(w, d, false);
-                if self.p(0.5) {
-                    Ex::new(format!("(sqrt (abs {}))", a.s), a.b.sqrt(), false)
-                } else {
-                    let small = self.pick(&[0.001, 0.1, 1.0]);
-                    let s = format!("(sqrt (+ {} (abs {})))", num(small), a.s);
-                    Ex::new(s, (a.b + small).sqrt(), false)
-                }
-            }
-            P::Pow => {
-                let ws = self.widths(w, 2);
-                let a = self.audio(ws[0], d, false);
-                let small: f64 = self.pick(&[0.1, 0.5, 1.0]);
-                let base = format!("(+ {} (abs {}))", num(small), a.s);
-                let (exponent, lo, hi) = if self.p(0.6) {
-                    let e = self.uni(-1.0, 2.5);
-                    if ws[0] == w {
-                        (num(e), e, e)
-                    } else {
-                        let (v, _) = self.const_vec(ws[1], e, e + 0.5);
-                        (v, e, e + 0.5)
-                    }
-                } else {
-                    let m = self.slow_audio(ws[1], d, false);
-                    let lo = self.uni(-1.0, 0.0);
-                    let hi = self.uni(1.0, 2.0);
-                    (format!("(clamp {} {} {})", m.s, num(lo), num(hi)), lo, hi)
-                };
-                let b = [small, small + a.b]
-                    .iter()
-                    .flat_map(|base| [base.powf(lo), base.powf(hi)])
-                    .fold(0.0, f64::max);
-                let s = self.call(
-                    "pow",
-                    &[("base", Some(base)), ("exponent", Some(exponent))],
-                    "",
-                );
-                Ex::new(s, b, false)
-            }
-            P::Floor => {
-                let a = self.audio(w, d, sm || ex);
-                if self.p(0.3) {
-                    Ex::new(format!("(floor {})", a.s), a.b + 1.0, a.x)
-                } else {
-                    let k = self.pick(&[2.0, 3.0, 4.0, 8.0, 16.0]);
-                    let s = format!("(* {} (floor (* {} {})))", num(1.0 / k), num(k), a.s);
-                    Ex::new(s, a.b + 1.0 / k, a.x)
-                }
-            }
-            P::Frac => {
-                let a = self.audio(w, d, sm || ex);
-                if self.p(0.5) {
-                    let k = self.uni(0.5, 4.0);
-                    Ex::new(format!("(frac (* {} {}))", num(k), a.s), 1.0, a.x)
-                } else {
-                    Ex::new(format!("(- (* 2 (frac {})) 1)", a.s), 1.0, a.x)
-                }
-            }
-            P::Mod => {
-                let ws = self.widths(w, 2);
-                let a = self.audio(ws[0], d, sm || ex);
-                let divisor = if ws[1] == 1 && self.p(0.6) {
-                    let c = self.uni(0.2, 2.0) * if self.p(0.15) { -1.0 } else { 1.0 };
-                    Ex::new(num(c), c.abs(), true)
-                } else {
-                    let b = self.audio(ws[1], d, sm || ex);
-                    let c = self.uni(0.1, 1.0);
-                    Ex::new(format!("(+ {} (abs {}))", num(c), b.s), c + b.b, b.x)
-                };
-                let x = a.x && divisor.x;
-                let bound = divisor.b;
-                let s = self.call("mod", &[("x", Some(a.s)), ("divisor", Some(divisor.s))], "");
-                Ex::new(s, bound, x)
-            }
+            P::Sum => self.sum(w, d, ex),
+            P::Diff => self.difference(w, d, ex),
+            P::Product => self.product(w, d, ex),
+            P::Div => self.division(w, d),
+            P::MinMax => self.min_max(w, d, ex),
+            P::Clamp => self.clamp(w, d, ex),
+            P::Abs => self.abs(w, d, ex),
+            P::Tanh => self.tanh(w, d),
+            P::Trig => self.trig(w, d),
+            P::Tan => self.tan(w, d),
+            P::Exp => self.exp(w, d),
+            P::Log => self.log(w, d),
+            P::Sqrt => self.sqrt(w, d),
+            P::Pow => self.pow(w, d),
+            P::Floor => self.floor(w, d, ex),
+            P::Frac => self.frac(w, d, ex),
+            P::Mod => self.modulo(w, d, ex),
             P::Cmp => self.compare(w, d),
-            P::Gate => {
-                let ws = self.widths(w, 2);
-                let c = self.cond(ws[0], d);
-                let a = self.audio(ws[1], d, ex);
-                // A condition is 0 or 1, or any signal (non-zero is true).
-                let b = a.b * c.b.max(1.0);
-                Ex::new(format!("(* {} {})", c.s, a.s), b, c.x && a.x)
-            }
+            P::Gate => self.gate(w, d, ex),
             P::Logic => self.logic(w, d),
-            P::If => {
-                let ws = self.widths(w, 3);
-                let c = self.cond(ws[0], d);
-                let a = self.audio(ws[1], d, ex);
-                let b = self.audio(ws[2], d, ex);
-                let (bound, x) = (a.b.max(b.b), c.x && a.x && b.x);
-                let s = self.call(
-                    "if",
-                    &[
-                        ("condition", Some(c.s)),
-                        ("then", Some(a.s)),
-                        ("else", Some(b.s)),
-                    ],
-                    "",
-                );
-                Ex::new(s, bound, x)
-            }
+            P::If => self.if_else(w, d, ex),
             P::Wave => self.wave(w, d, ex),
-            P::Decay => {
-                let ws = self.widths(w, 2);
-                let arg = match self.int(0, 2) {
-                    0 => format!("(* t {})", self.const_freq(ws[0], 2.0, 80.0)),
-                    1 => {
-                        let rate = self.const_freq(ws[0], 5.0, 100.0);
-                        format!("(* {rate} (mod t {}))", num(self.uni(0.01, 0.2)))
-                    }
-                    _ => {
-                        let a = self.audio(ws[0], d, false);
-                        format!("(* {} (abs {}))", num(self.uni(0.5, 5.0)), a.s)
-                    }
-                };
-                if ws[0] == w && self.p(0.25) {
-                    Ex::new(format!("(damp {arg})"), 1.0, false)
-                } else {
-                    let a = self.audio(ws[1], d, false);
-                    Ex::new(format!("(* (damp {arg}) {})", a.s), a.b, false)
-                }
-            }
-            P::Noise => {
-                let x = match self.int(0, 2) {
-                    0 => {
-                        let (lo, hi) = if self.slow { (0.2, 8.0) } else { (2.0, 4000.0) };
-                        format!("(* t {})", self.const_freq(w, lo, hi))
-                    }
-                    1 => {
-                        let a = self.audio(w, d, false);
-                        format!("(* {} {})", num(self.uni(0.5, 10.0)), a.s)
-                    }
-                    _ => self.phase(w, d, false).s,
-                };
-                let seed = self.seed();
-                Ex::new(self.call("noise", &[("x", Some(x))], &seed), 1.0, false)
-            }
-            P::Markov => {
-                let rate = self.freq(w, d, false, 0.5, 200.0);
-                let seed = self.seed();
-                Ex::new(
-                    self.call("markov", &[("rate", Some(rate.s))], &seed),
-                    1.0,
-                    false,
-                )
-            }
-            P::Combine => {
-                let v = self.lanes();
-                let a = self.audio(v, d, ex);
-                let sum = format!("(combine {})", a.s);
-                let scale = 1.0 / v as f64;
-                // Division is not exact: with `ex`, scale by a literal or not at all.
-                let choice = if ex {
-                    3 * self.int(0, 1)
-                } else {
-                    self.int(0, 3)
-                };
-                match choice {
-                    0 => Ex::new(format!("(* {} {sum})", num(scale)), a.b, a.x),
-                    1 => Ex::new(format!("(/ {sum} {v})"), a.b, false),
-                    2 if a.s.len() < 80 => {
-                        let s = format!("(* (/ 1 (lanes {})) {sum})", a.s);
-                        Ex::new(s, a.b, false)
-                    }
-                    2 => {
-                        let s = format!("(* (/ 1 (lanes (iota {v}))) {sum})");
-                        Ex::new(s, a.b, false)
-                    }
-                    _ => Ex::new(sum, a.b * v as f64, a.x),
-                }
-            }
-            P::Index => {
-                let v = self.lanes();
-                let a = self.audio(v, d, ex);
-                let i = self.lane_index(v, d);
-                let x = a.x && i.x;
-                let s = self.call("index", &[("x", Some(a.s)), ("i", Some(i.s))], "");
-                Ex::new(s, a.b, x)
-            }
-            P::Vector => {
-                let k = self.int(2, w.min(4));
-                let mut sizes = vec![1; k];
-                for _ in k..w {
-                    let j = self.rng.random_range(0..k);
-                    sizes[j] += 1;
-                }
-                let parts: Vec<Ex> = sizes.iter().map(|&n| self.audio(n, d, ex)).collect();
-                let s = format!("(vector {})", joined(&parts));
-                Ex::new(s, max_bound(&parts), all_exact(&parts))
-            }
-            P::Rvector => {
-                let lo_w = if self.p(0.5) { w } else { 1 };
-                let hi_w = if self.p(0.5) { w } else { 1 };
-                let lo = self.audio(lo_w, d, ex);
-                let hi = self.audio(hi_w, d, ex);
-                let (b, x) = (lo.b.max(hi.b), lo.x && hi.x);
-                let seed = self.seed();
-                let s = self.call(
-                    "rvector",
-                    &[
-                        ("n", Some(w.to_string())),
-                        ("lo", Some(lo.s)),
-                        ("hi", Some(hi.s)),
-                    ],
-                    &seed,
-                );
-                Ex::new(s, b, x)
-            }
+            P::Decay => self.decay(w, d),
+            P::Noise => self.noise(w, d),
+            P::Markov => self.markov(w, d),
+            P::Combine => self.combine(d, ex),
+            P::Index => self.index(d, ex),
+            P::Vector => self.vector(w, d, ex),
+            P::Rvector => self.rvector(w, d, ex),
             P::Filter => self.filter(w, d),
-            P::Delay => {
-                let ws = self.widths(w, 2);
-                let a = self.audio(ws[0], d, false);
-                let (time, max) = self.delay_time(ws[1], d);
-                let s = self.call(
-                    "delay",
-                    &[("x", Some(a.s)), ("time", Some(time)), ("max", max)],
-                    "",
-                );
-                // Cubic interpolation overshoots a little between samples.
-                Ex::new(s, a.b * 1.25, false)
-            }
-            P::Feedforward => {
-                let a = self.audio(w, d, false);
-                let name = self.name();
-                let (time, max) = self.delay_time(1, 0);
-                let g = self.uni(-0.9, 0.9);
-                let delayed = self.call(
-                    "delay",
-                    &[
-                        ("x", Some(name.clone())),
-                        ("time", Some(time)),
-                        ("max", max),
-                    ],
-                    "",
-                );
-                let s = format!(
-                    "(let (({name} {})) (+ {name} (* {} {delayed})))",
-                    a.s,
-                    num(g)
-                );
-                // Cubic interpolation overshoots a little between samples.
-                Ex::new(s, a.b * (1.0 + 1.25 * g.abs()), false)
-            }
-            P::Conv => {
-                let a = self.audio(w, d, false);
-                let length = self.uni(0.001, 0.01);
-                let (ir, gain) = self.impulse(d);
-                let length = if self.p(0.5) {
-                    format!(":length {}", num(length))
-                } else {
-                    num(length)
-                };
-                let s = format!("(conv {} {ir} {length})", a.s);
-                Ex::new(s, a.b * gain, false)
-            }
+            P::Delay => self.delay(w, d),
+            P::Feedforward => self.feedforward(w, d),
+            P::Conv => self.conv(w, d),
             P::Level => self.level(w, d),
             P::Pan => self.pan(w, d),
             P::Importance => self.importance(d, false),
@@ -1180,28 +824,487 @@ impl<'a, R: Rng> Gen<'a, R> {
             P::Lag => self.lag(w, d),
             P::Env => self.env(w, d),
             P::Adsr => self.adsr(w, d),
-            P::Let => {
-                let mut bindings = Vec::new();
-                for _ in 0..if self.p(0.75) { 1 } else { 2 } {
-                    let width = if self.p(0.5) { w } else { 1 };
-                    let value = self.audio(width, d, false);
-                    let name = self.name();
-                    bindings.push(format!("({name} {})", value.s));
-                    self.scope.push(Binding {
-                        name,
-                        width,
-                        b: value.b,
-                        x: value.x,
-                    });
-                }
-                let body = self.audio(w, d, ex);
-                for _ in &bindings {
-                    self.scope.pop();
-                }
-                let s = format!("(let ({}) {})", bindings.join(" "), body.s);
-                Ex::new(s, body.b, body.x)
+            P::Let => self.let_form(w, d, ex),
+        }
+    }
+
+    /// `(+ a b …)` of two or three signals, sometimes halved.
+    fn sum(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let n = if self.p(0.75) { 2 } else { 3 };
+        let args = self.args(w, n, depth, ex);
+        let s = format!("(+ {})", joined(&args));
+        let (b, x) = (sum_bound(&args), all_exact(&args));
+        if self.p(0.3) {
+            Ex::new(format!("(* 0.5 {s})"), b * 0.5, x)
+        } else {
+            Ex::new(s, b, x)
+        }
+    }
+
+    /// `(- a)` or `(- a b)`.
+    fn difference(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        if self.p(0.3) {
+            let a = self.audio(w, depth, ex);
+            Ex::new(format!("(- {})", a.s), a.b, a.x)
+        } else {
+            let args = self.args(w, 2, depth, ex);
+            let s = format!("(- {})", joined(&args));
+            Ex::new(s, sum_bound(&args), all_exact(&args))
+        }
+    }
+
+    /// A signal scaled by a constant, or the product of two or three.
+    fn product(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        if self.p(0.25) {
+            let a = self.audio(w, depth, ex);
+            let c = self.uni(-2.0, 2.0);
+            Ex::new(format!("(* {} {})", num(c), a.s), a.b * c.abs(), a.x)
+        } else {
+            let n = if self.p(0.85) { 2 } else { 3 };
+            let args = self.args(w, n, depth, ex);
+            let b = args.iter().map(|a| a.b).product();
+            Ex::new(format!("(* {})", joined(&args)), b, all_exact(&args))
+        }
+    }
+
+    /// A division by a constant or by `(+ 1 (abs x))`: never by zero.
+    fn division(&mut self, w: usize, depth: usize) -> Ex {
+        match self.int(0, 3) {
+            0 => {
+                let args = self.args(w, 2, depth, false);
+                let s = format!("(/ {} (+ 1 (abs {})))", args[0].s, args[1].s);
+                Ex::new(s, args[0].b, false)
+            }
+            1 => {
+                let a = self.audio(w, depth, false);
+                let c = self.uni(1.0, 4.0) * if self.p(0.2) { -1.0 } else { 1.0 };
+                Ex::new(format!("(/ {} {})", a.s, num(c)), a.b / c.abs(), false)
+            }
+            2 => {
+                let a = self.audio(w, depth, false);
+                let c = self.uni(1.0, 2.0);
+                Ex::new(format!("(/ (+ {} (abs {})))", num(c), a.s), 1.0 / c, false)
+            }
+            _ => {
+                let args = self.args(w, 2, depth, false);
+                let s = format!("(/ {} 2 (+ 1 (abs {})))", args[0].s, args[1].s);
+                Ex::new(s, args[0].b / 2.0, false)
             }
         }
+    }
+
+    /// `min` or `max` of two or three signals.
+    fn min_max(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let head = self.pick(&["min", "max"]);
+        let n = if self.p(0.8) { 2 } else { 3 };
+        let args = self.args(w, n, depth, ex);
+        let s = format!("({head} {})", joined(&args));
+        Ex::new(s, max_bound(&args), all_exact(&args))
+    }
+
+    /// A signal clamped to constant or signal bounds.
+    fn clamp(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        if self.p(0.7) {
+            let a = self.audio(w, depth, ex);
+            let lo = -self.uni(0.1, 1.0);
+            let hi = self.uni(0.1, 1.0);
+            let s = self.call(
+                "clamp",
+                &[
+                    ("x", Some(a.s)),
+                    ("lo", Some(num(lo))),
+                    ("hi", Some(num(hi))),
+                ],
+                "",
+            );
+            Ex::new(s, a.b.min(lo.abs().max(hi)), a.x)
+        } else {
+            let args = self.args(w, 3, depth, ex);
+            let [x, lo, hi] = [&args[0], &args[1], &args[2]].map(|a| a.s.clone());
+            let s = self.call(
+                "clamp",
+                &[("x", Some(x)), ("lo", Some(lo)), ("hi", Some(hi))],
+                "",
+            );
+            Ex::new(s, args[1].b.max(args[2].b), all_exact(&args))
+        }
+    }
+
+    /// `abs` of a signal.
+    fn abs(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let a = self.audio(w, depth, ex);
+        Ex::new(format!("(abs {})", a.s), a.b, a.x)
+    }
+
+    /// `tanh` of a signal, sometimes driven by a constant gain.
+    fn tanh(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let s = if self.p(0.5) {
+            format!("(tanh {})", a.s)
+        } else {
+            format!("(tanh (* {} {}))", num(self.logu(0.5, 8.0)), a.s)
+        };
+        Ex::new(s, 1.0, false)
+    }
+
+    /// `sin` or `cos` of a signal.
+    fn trig(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let s = match self.int(0, 2) {
+            0 => format!("(sin (* pi {}))", a.s),
+            1 => format!("(cos (* {} {}))", num(self.uni(0.5, 4.0)), a.s),
+            _ => format!("(sin {})", a.s),
+        };
+        Ex::new(s, 1.0, false)
+    }
+
+    /// `tan` of a signal kept inside ±1.2.
+    fn tan(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let s = if self.p(0.5) {
+            format!("(tan (clamp {} -1.2 1.2))", a.s)
+        } else {
+            format!("(tan (* 1.2 (tanh {})))", a.s)
+        };
+        Ex::new(s, 1.2f64.tan(), false)
+    }
+
+    /// `exp` of a clamped signal, sometimes less 1.
+    fn exp(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let lo = self.uni(-4.0, -0.5);
+        let hi = self.uni(0.0, 1.5);
+        let inner = format!("(exp (clamp {} {} {}))", a.s, num(lo), num(hi));
+        if self.p(0.5) {
+            Ex::new(inner, hi.exp(), false)
+        } else {
+            Ex::new(format!("(- {inner} 1)"), hi.exp(), false)
+        }
+    }
+
+    /// `log` of `(+ small (abs x))`, sometimes scaled down.
+    fn log(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let small: f64 = self.pick(&[0.001, 0.01, 0.1, 1.0]);
+        let b = (-small.ln()).max((small + a.b).ln().abs());
+        let s = format!("(log (+ {} (abs {})))", num(small), a.s);
+        if self.p(0.5) {
+            Ex::new(format!("(* 0.25 {s})"), b * 0.25, false)
+        } else {
+            Ex::new(s, b, false)
+        }
+    }
+
+    /// `sqrt` of `(abs x)` or `(+ small (abs x))`.
+    fn sqrt(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        if self.p(0.5) {
+            Ex::new(format!("(sqrt (abs {}))", a.s), a.b.sqrt(), false)
+        } else {
+            let small = self.pick(&[0.001, 0.1, 1.0]);
+            let s = format!("(sqrt (+ {} (abs {})))", num(small), a.s);
+            Ex::new(s, (a.b + small).sqrt(), false)
+        }
+    }
+
+    /// `pow` of a positive base, with a constant or clamped exponent.
+    fn pow(&mut self, w: usize, depth: usize) -> Ex {
+        let ws = self.widths(w, 2);
+        let a = self.audio(ws[0], depth, false);
+        let small: f64 = self.pick(&[0.1, 0.5, 1.0]);
+        let base = format!("(+ {} (abs {}))", num(small), a.s);
+        let (exponent, lo, hi) = if self.p(0.6) {
+            let e = self.uni(-1.0, 2.5);
+            if ws[0] == w {
+                (num(e), e, e)
+            } else {
+                let (v, _) = self.const_vec(ws[1], e, e + 0.5);
+                (v, e, e + 0.5)
+            }
+        } else {
+            let m = self.slow_audio(ws[1], depth, false);
+            let lo = self.uni(-1.0, 0.0);
+            let hi = self.uni(1.0, 2.0);
+            (format!("(clamp {} {} {})", m.s, num(lo), num(hi)), lo, hi)
+        };
+        let b = [small, small + a.b]
+            .iter()
+            .flat_map(|base| [base.powf(lo), base.powf(hi)])
+            .fold(0.0, f64::max);
+        let s = self.call(
+            "pow",
+            &[("base", Some(base)), ("exponent", Some(exponent))],
+            "",
+        );
+        Ex::new(s, b, false)
+    }
+
+    /// `floor` of a signal, sometimes in steps of 1/k.
+    fn floor(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let sm = self.smooth_only;
+        let a = self.audio(w, depth, sm || ex);
+        if self.p(0.3) {
+            Ex::new(format!("(floor {})", a.s), a.b + 1.0, a.x)
+        } else {
+            let k = self.pick(&[2.0, 3.0, 4.0, 8.0, 16.0]);
+            let s = format!("(* {} (floor (* {} {})))", num(1.0 / k), num(k), a.s);
+            Ex::new(s, a.b + 1.0 / k, a.x)
+        }
+    }
+
+    /// `frac` of a signal, scaled or centred.
+    fn frac(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let sm = self.smooth_only;
+        let a = self.audio(w, depth, sm || ex);
+        if self.p(0.5) {
+            let k = self.uni(0.5, 4.0);
+            Ex::new(format!("(frac (* {} {}))", num(k), a.s), 1.0, a.x)
+        } else {
+            Ex::new(format!("(- (* 2 (frac {})) 1)", a.s), 1.0, a.x)
+        }
+    }
+
+    /// `mod` by a non-zero constant or `(+ c (abs x))`.
+    fn modulo(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let sm = self.smooth_only;
+        let ws = self.widths(w, 2);
+        let a = self.audio(ws[0], depth, sm || ex);
+        let divisor = if ws[1] == 1 && self.p(0.6) {
+            let c = self.uni(0.2, 2.0) * if self.p(0.15) { -1.0 } else { 1.0 };
+            Ex::new(num(c), c.abs(), true)
+        } else {
+            let b = self.audio(ws[1], depth, sm || ex);
+            let c = self.uni(0.1, 1.0);
+            Ex::new(format!("(+ {} (abs {}))", num(c), b.s), c + b.b, b.x)
+        };
+        let x = a.x && divisor.x;
+        let bound = divisor.b;
+        let s = self.call("mod", &[("x", Some(a.s)), ("divisor", Some(divisor.s))], "");
+        Ex::new(s, bound, x)
+    }
+
+    /// A signal times a condition.
+    fn gate(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let ws = self.widths(w, 2);
+        let c = self.cond(ws[0], depth);
+        let a = self.audio(ws[1], depth, ex);
+        // A condition is 0 or 1, or any signal (non-zero is true).
+        let b = a.b * c.b.max(1.0);
+        Ex::new(format!("(* {} {})", c.s, a.s), b, c.x && a.x)
+    }
+
+    /// `if` of a condition and two signals.
+    fn if_else(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let ws = self.widths(w, 3);
+        let c = self.cond(ws[0], depth);
+        let a = self.audio(ws[1], depth, ex);
+        let b = self.audio(ws[2], depth, ex);
+        let (bound, x) = (a.b.max(b.b), c.x && a.x && b.x);
+        let s = self.call(
+            "if",
+            &[
+                ("condition", Some(c.s)),
+                ("then", Some(a.s)),
+                ("else", Some(b.s)),
+            ],
+            "",
+        );
+        Ex::new(s, bound, x)
+    }
+
+    /// `damp` of a growing argument, alone or shaping a signal.
+    fn decay(&mut self, w: usize, depth: usize) -> Ex {
+        let ws = self.widths(w, 2);
+        let arg = match self.int(0, 2) {
+            0 => format!("(* t {})", self.const_freq(ws[0], 2.0, 80.0)),
+            1 => {
+                let rate = self.const_freq(ws[0], 5.0, 100.0);
+                format!("(* {rate} (mod t {}))", num(self.uni(0.01, 0.2)))
+            }
+            _ => {
+                let a = self.audio(ws[0], depth, false);
+                format!("(* {} (abs {}))", num(self.uni(0.5, 5.0)), a.s)
+            }
+        };
+        if ws[0] == w && self.p(0.25) {
+            Ex::new(format!("(damp {arg})"), 1.0, false)
+        } else {
+            let a = self.audio(ws[1], depth, false);
+            Ex::new(format!("(* (damp {arg}) {})", a.s), a.b, false)
+        }
+    }
+
+    /// `noise` of a ramp, a scaled signal or a phase.
+    fn noise(&mut self, w: usize, depth: usize) -> Ex {
+        let x = match self.int(0, 2) {
+            0 => {
+                let (lo, hi) = if self.slow { (0.2, 8.0) } else { (2.0, 4000.0) };
+                format!("(* t {})", self.const_freq(w, lo, hi))
+            }
+            1 => {
+                let a = self.audio(w, depth, false);
+                format!("(* {} {})", num(self.uni(0.5, 10.0)), a.s)
+            }
+            _ => self.phase(w, depth, false).s,
+        };
+        let seed = self.seed();
+        Ex::new(self.call("noise", &[("x", Some(x))], &seed), 1.0, false)
+    }
+
+    /// `markov` at a rate of 0.5 to 200 Hz.
+    fn markov(&mut self, w: usize, depth: usize) -> Ex {
+        let rate = self.freq(w, depth, false, 0.5, 200.0);
+        let seed = self.seed();
+        Ex::new(
+            self.call("markov", &[("rate", Some(rate.s))], &seed),
+            1.0,
+            false,
+        )
+    }
+
+    /// The lanes of a wider signal summed to one, scaled or not.
+    fn combine(&mut self, depth: usize, ex: bool) -> Ex {
+        let v = self.lanes();
+        let a = self.audio(v, depth, ex);
+        let sum = format!("(combine {})", a.s);
+        let scale = 1.0 / v as f64;
+        // Division is not exact: with `ex`, scale by a literal or not at all.
+        let choice = if ex {
+            3 * self.int(0, 1)
+        } else {
+            self.int(0, 3)
+        };
+        match choice {
+            0 => Ex::new(format!("(* {} {sum})", num(scale)), a.b, a.x),
+            1 => Ex::new(format!("(/ {sum} {v})"), a.b, false),
+            2 if a.s.len() < 80 => {
+                let s = format!("(* (/ 1 (lanes {})) {sum})", a.s);
+                Ex::new(s, a.b, false)
+            }
+            2 => {
+                let s = format!("(* (/ 1 (lanes (iota {v}))) {sum})");
+                Ex::new(s, a.b, false)
+            }
+            _ => Ex::new(sum, a.b * v as f64, a.x),
+        }
+    }
+
+    /// One lane of a wider signal.
+    fn index(&mut self, depth: usize, ex: bool) -> Ex {
+        let v = self.lanes();
+        let a = self.audio(v, depth, ex);
+        let i = self.lane_index(v, depth);
+        let x = a.x && i.x;
+        let s = self.call("index", &[("x", Some(a.s)), ("i", Some(i.s))], "");
+        Ex::new(s, a.b, x)
+    }
+
+    /// A vector of width `w` built from two to four parts.
+    fn vector(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let k = self.int(2, w.min(4));
+        let mut sizes = vec![1; k];
+        for _ in k..w {
+            let j = self.rng.random_range(0..k);
+            sizes[j] += 1;
+        }
+        let parts: Vec<Ex> = sizes.iter().map(|&n| self.audio(n, depth, ex)).collect();
+        let s = format!("(vector {})", joined(&parts));
+        Ex::new(s, max_bound(&parts), all_exact(&parts))
+    }
+
+    /// `rvector` of width `w` between two signals.
+    fn rvector(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let lo_w = if self.p(0.5) { w } else { 1 };
+        let hi_w = if self.p(0.5) { w } else { 1 };
+        let lo = self.audio(lo_w, depth, ex);
+        let hi = self.audio(hi_w, depth, ex);
+        let (b, x) = (lo.b.max(hi.b), lo.x && hi.x);
+        let seed = self.seed();
+        let s = self.call(
+            "rvector",
+            &[
+                ("n", Some(w.to_string())),
+                ("lo", Some(lo.s)),
+                ("hi", Some(hi.s)),
+            ],
+            &seed,
+        );
+        Ex::new(s, b, x)
+    }
+
+    /// `delay` of a signal, by a constant time or a varying one with a maximum.
+    fn delay(&mut self, w: usize, depth: usize) -> Ex {
+        let ws = self.widths(w, 2);
+        let a = self.audio(ws[0], depth, false);
+        let (time, max) = self.delay_time(ws[1], depth);
+        let s = self.call(
+            "delay",
+            &[("x", Some(a.s)), ("time", Some(time)), ("max", max)],
+            "",
+        );
+        // Cubic interpolation overshoots a little between samples.
+        Ex::new(s, a.b * 1.25, false)
+    }
+
+    /// A signal plus a delayed copy of itself, through a `let`.
+    fn feedforward(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let name = self.name();
+        let (time, max) = self.delay_time(1, 0);
+        let g = self.uni(-0.9, 0.9);
+        let delayed = self.call(
+            "delay",
+            &[
+                ("x", Some(name.clone())),
+                ("time", Some(time)),
+                ("max", max),
+            ],
+            "",
+        );
+        let s = format!(
+            "(let (({name} {})) (+ {name} (* {} {delayed})))",
+            a.s,
+            num(g)
+        );
+        // Cubic interpolation overshoots a little between samples.
+        Ex::new(s, a.b * (1.0 + 1.25 * g.abs()), false)
+    }
+
+    /// `conv` of a signal with a small impulse-response tree.
+    fn conv(&mut self, w: usize, depth: usize) -> Ex {
+        let a = self.audio(w, depth, false);
+        let length = self.uni(0.001, 0.01);
+        let (ir, gain) = self.impulse(depth);
+        let length = if self.p(0.5) {
+            format!(":length {}", num(length))
+        } else {
+            num(length)
+        };
+        let s = format!("(conv {} {ir} {length})", a.s);
+        Ex::new(s, a.b * gain, false)
+    }
+
+    /// `let` with one or two bindings in scope of its body.
+    fn let_form(&mut self, w: usize, depth: usize, ex: bool) -> Ex {
+        let mut bindings = Vec::new();
+        for _ in 0..if self.p(0.75) { 1 } else { 2 } {
+            let width = if self.p(0.5) { w } else { 1 };
+            let value = self.audio(width, depth, false);
+            let name = self.name();
+            bindings.push(format!("({name} {})", value.s));
+            self.scope.push(Binding {
+                name,
+                width,
+                b: value.b,
+                x: value.x,
+            });
+        }
+        let body = self.audio(w, depth, ex);
+        for _ in &bindings {
+            self.scope.pop();
+        }
+        let s = format!("(let ({}) {})", bindings.join(" "), body.s);
+        Ex::new(s, body.b, body.x)
     }
 
     /// `n` broadcast arguments for a node of width `w`.

@@ -353,6 +353,16 @@ const CASES: &[(&str, &str, &str, &str)] = &[
     ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (listener) (instance x (a :f 1) :at (0 1 0) :pan 0)", "timbre::bad-instance", "an instance placed in space is panned by its place", "0"),
     ("(scene :channels 2) (define-sound a (f) (sine (* t f))) (instance x (a :f 1) :channel 2)", "timbre::bad-instance", "channel 2 is not one of the scene's 2", "2"),
     ("(scene :channels 0)", "timbre::bad-scene", "0 is not a number of channels", "0"),
+    // A scene's settings are read in order, each checked before the next is looked at.
+    ("(scene 48000)", "timbre::bad-scene", "expected a setting keyword, found", "48000"),
+    ("(scene :duration)", "timbre::bad-scene", "setting `:duration` has no value", ":duration"),
+    ("(scene :samplerate 44100)", "timbre::bad-scene", "unknown scene setting `:samplerate`", ":samplerate"),
+    ("(scene :bogus \"x\")", "timbre::bad-scene", "setting `:bogus` must be a number", "\"x\""),
+    ("(scene :duration -1 :bogus 2)", "timbre::bad-scene", "duration -1 is not positive", "-1"),
+    // The other forms' options: an unknown option before a missing value.
+    ("(listener 3)", "timbre::bad-scene-form", "unexpected", "3"),
+    ("(listener :bogus)", "timbre::unknown-keyword", "`listener` has no option `:bogus`", ":bogus"),
+    ("(listener :position)", "timbre::keyword-without-value", "option `:position` has no value", ":position"),
     // Habits from other languages.
     ("(sine (* t 440))\n  # it's \"loud\"", "timbre::syntax::wrong-comment", "comments start with `;`", "#"),
     ("(define f (x)\n  (* x 2)\n(f 1)", "timbre::syntax::unclosed-list", "unclosed list", "("),

@@ -565,6 +565,12 @@ fn scene_form_sets_render_settings() {
     assert_eq!(p.settings.seed, 0);
 }
 
+#[test]
+fn a_scene_setting_given_twice_is_the_last_one() {
+    let p = compile_with("(scene :duration 1 :duration 2) (sine t)", &[], 0).unwrap();
+    assert_eq!(p.settings.duration, Some(2.0));
+}
+
 // ------------------------------------------------------------------ custom nodes
 
 /// A node written in Rust: a running sum of its input (state), times a gain.

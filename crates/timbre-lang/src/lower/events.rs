@@ -171,7 +171,7 @@ impl Lowerer<'_> {
                 span,
             };
             let instance = self.lower_instance(&instance, origin)?;
-            self.instances.push(instance);
+            self.scene.instances.push(instance);
         }
         Ok(())
     }

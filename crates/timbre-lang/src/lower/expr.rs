@@ -24,8 +24,8 @@ impl Lowerer<'_> {
         scope: &mut Scope,
     ) -> Result<NodeId, Diag> {
         self.check_load_time(expr.span, origin)?;
-        self.depth += 1;
-        let result = if self.depth > MAX_LOWER_DEPTH {
+        self.expansion.depth += 1;
+        let result = if self.expansion.depth > MAX_LOWER_DEPTH {
             Err(self
                 .diag("timbre::too-deep", "expression nests too deeply", origin)
                 .label(expr.span, "nested too deeply")
@@ -35,7 +35,7 @@ impl Lowerer<'_> {
         } else {
             self.lower_inner(expr, origin, scope)
         };
-        self.depth -= 1;
+        self.expansion.depth -= 1;
         match result {
             Ok(_) => match self.beyond_graph_limits(expr.span, origin) {
                 Some(diag) => Err(diag),
@@ -132,11 +132,11 @@ impl Lowerer<'_> {
             self.used_bindings.insert(name.to_owned());
             return Ok(self.graph.constant(*value));
         }
-        if let Some(track) = self.keyframes.get(name) {
+        if let Some(track) = self.names.keyframes.get(name) {
             let track = track.clone();
             return Ok(self.keyframe_node(track));
         }
-        if let Some(tracks) = self.vector_keyframes.get(name) {
+        if let Some(tracks) = self.names.vector_keyframes.get(name) {
             // A vector: one lane per coordinate.
             let tracks = tracks.clone();
             let lanes = tracks
@@ -145,7 +145,7 @@ impl Lowerer<'_> {
                 .collect();
             return Ok(self.graph.add(Op::Concat, lanes));
         }
-        if let Some(def) = self.definitions.get(name) {
+        if let Some(def) = self.names.definitions.get(name) {
             if def.params.is_empty() {
                 let def = def.clone();
                 return self.expand(name, &def, &[], span, origin, scope);
@@ -180,7 +180,7 @@ impl Lowerer<'_> {
                 .label(span, "used without parentheses")
                 .help(format!("call it: ({name} …)")));
         }
-        if self.names_incomplete || self.failed_names.contains(name) {
+        if self.names.incomplete || self.names.failed.contains(name) {
             return Err(self.follow_on(name, span, origin));
         }
         if self.checking_unused {
@@ -188,7 +188,7 @@ impl Lowerer<'_> {
             return Ok(self.graph.constant(1.0));
         }
         let mut candidates: Vec<&str> = scope.iter().map(|(n, _)| n.as_str()).collect();
-        candidates.extend(self.definitions.keys().map(String::as_str));
+        candidates.extend(self.names.definitions.keys().map(String::as_str));
         candidates.extend(self.options.bindings.keys().map(String::as_str));
         candidates.extend(["t", "pi"]);
         let misspelt_binding =
@@ -215,6 +215,7 @@ impl Lowerer<'_> {
         origin: &Origin,
         scope: &mut Scope,
     ) -> Result<NodeId, Diag> {
+        use super::forms::Form;
         let Some(head) = items.first() else {
             return Err(self
                 .diag("timbre::empty-call", "empty list", origin)
@@ -236,10 +237,10 @@ impl Lowerer<'_> {
             span: expr.span,
             args: &items[1..],
         };
-        match name {
-            "let" => return self.lower_let(&call, origin, scope),
-            "morph" => return self.lower_morph(&call, origin, scope),
-            _ if super::FORMS.contains(&name) => {
+        match Form::from_name(name) {
+            Some(Form::Let) => return self.lower_let(&call, origin, scope),
+            Some(Form::Morph) => return self.lower_morph(&call, origin, scope),
+            Some(_) => {
                 return Err(self
                     .diag(
                         "timbre::misplaced-form",
@@ -251,15 +252,16 @@ impl Lowerer<'_> {
                         "move the `{name}` form out to the top level of the file"
                     )))
             }
-            _ => {}
+            None => {}
         }
-        if let Some(def) = self.definitions.get(name) {
+        if let Some(def) = self.names.definitions.get(name) {
             let def = def.clone();
             return self.expand(name, &def, call.args, expr.span, origin, scope);
         }
         let bound_by_let = scope.iter().any(|(n, _)| n == name);
         if !bound_by_let
-            && (self.keyframes.contains_key(name) || self.vector_keyframes.contains_key(name))
+            && (self.names.keyframes.contains_key(name)
+                || self.names.vector_keyframes.contains_key(name))
         {
             return self.lower_track_at(&call, origin, scope);
         }
@@ -269,11 +271,11 @@ impl Lowerer<'_> {
         if let Some(node) = self.options.registry.get(name).cloned() {
             return self.lower_custom(&call, node, origin, scope);
         }
-        if self.names_incomplete || self.failed_names.contains(name) {
+        if self.names.incomplete || self.names.failed.contains(name) {
             return Err(self.follow_on(name, head.span, origin));
         }
         let mut candidates: Vec<&str> = catalogue::names().collect();
-        candidates.extend(self.definitions.keys().map(String::as_str));
+        candidates.extend(self.names.definitions.keys().map(String::as_str));
         candidates.extend(self.options.registry.names());
         candidates.extend(super::FORMS);
         let help = match (catalogue::alias(name), super::did_you_mean(name, candidates)) {
@@ -306,11 +308,11 @@ impl Lowerer<'_> {
             .as_ref()
             .expect("a required parameter is bound");
         self.check_one_lane(time, "the time a keyframed variable is read at", origin)?;
-        if let Some(track) = self.keyframes.get(call.name) {
+        if let Some(track) = self.names.keyframes.get(call.name) {
             let track = Op::Keyframe(track.clone());
             return Ok(self.graph.add(track, vec![time.node]));
         }
-        let tracks = self.vector_keyframes[call.name].clone();
+        let tracks = self.names.vector_keyframes[call.name].clone();
         let lanes = tracks
             .iter()
             .map(|track| self.graph.add(Op::Keyframe(track.clone()), vec![time.node]))
@@ -432,7 +434,7 @@ impl Lowerer<'_> {
         span: Span,
         origin: &Origin,
     ) -> Result<NodeId, Diag> {
-        if self.expanding.iter().any(|n| n == name) {
+        if self.expansion.expanding.iter().any(|n| n == name) {
             return Err(self
                 .diag(
                     "timbre::recursive-define",
@@ -442,15 +444,15 @@ impl Lowerer<'_> {
                 .label(span, "recursive use")
                 .help("timbre trees are finite: a named tree cannot contain itself"));
         }
-        self.expanded.insert(name.to_owned());
+        self.expansion.expanded.insert(name.to_owned());
         // The body depends only on the arguments (and, through keyframes, on the
         // instance's start): the same call again is the same node.
         let key = (name.to_owned(), arg_nodes, self.time_offset.to_bits());
-        if let Some(node) = self.expansions.get(&key) {
+        if let Some(node) = self.expansion.memo.get(&key) {
             return Ok(*node);
         }
-        self.expansions_made += 1;
-        if self.expansions_made > self.options.limits.expansions {
+        self.expansion.made += 1;
+        if self.expansion.made > self.options.limits.expansions {
             let limit = self.options.limits.expansions;
             let diag = self
                 .diag(
@@ -472,11 +474,11 @@ impl Lowerer<'_> {
             source: def.source.clone(),
             dir: def.dir.clone(),
         };
-        self.expanding.push(name.to_owned());
+        self.expansion.expanding.push(name.to_owned());
         let result = self.lower(&def.body, &def_origin, &mut scope);
-        self.expanding.pop();
+        self.expansion.expanding.pop();
         if let Ok(node) = result {
-            self.expansions.insert(key, node);
+            self.expansion.memo.insert(key, node);
         }
         result
     }

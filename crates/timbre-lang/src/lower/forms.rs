@@ -1,5 +1,6 @@
 //! Top-level forms: `define`, `define-sound`, `include` (the scene forms are in
-//! `scene.rs`). [`FORMS`] is the one list of form names.
+//! `scene.rs`). [`Form`] names every form that is not a node, and [`FORMS`] lists
+//! their names.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -9,27 +10,107 @@ use timbre_syntax::{Expr, ExprKind, Span, SyntaxError};
 use super::{Definition, Lowerer, Origin};
 use timbre_diag::{Diag, SourceFile};
 
-/// The forms that are not nodes: `let` inside expressions, the rest only at the
-/// top level of a file. Their names, `t` and `pi` are reserved.
-pub const FORMS: &[&str] = &[
-    "let",
-    "morph",
-    "define",
-    "define-sound",
-    "include",
-    "scene",
-    "keyframes",
-    "frames",
-    "instance",
-    "instances",
-    "score",
-    "listener",
-    "microphone",
-    "source",
-    "room",
-    "box",
-    "wall",
-];
+/// The forms that are not nodes: `let` and `morph` inside expressions, the rest only
+/// at the top level of a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Form {
+    Let,
+    Morph,
+    Define,
+    DefineSound,
+    Include,
+    Scene,
+    Keyframes,
+    Frames,
+    Instance,
+    Instances,
+    Score,
+    Listener,
+    Microphone,
+    Source,
+    Room,
+    Box,
+    Wall,
+}
+
+impl Form {
+    /// Every form, in the order of [`FORMS`].
+    const ALL: [Form; 17] = [
+        Form::Let,
+        Form::Morph,
+        Form::Define,
+        Form::DefineSound,
+        Form::Include,
+        Form::Scene,
+        Form::Keyframes,
+        Form::Frames,
+        Form::Instance,
+        Form::Instances,
+        Form::Score,
+        Form::Listener,
+        Form::Microphone,
+        Form::Source,
+        Form::Room,
+        Form::Box,
+        Form::Wall,
+    ];
+
+    /// The form's name, as written.
+    pub(crate) const fn name(self) -> &'static str {
+        match self {
+            Form::Let => "let",
+            Form::Morph => "morph",
+            Form::Define => "define",
+            Form::DefineSound => "define-sound",
+            Form::Include => "include",
+            Form::Scene => "scene",
+            Form::Keyframes => "keyframes",
+            Form::Frames => "frames",
+            Form::Instance => "instance",
+            Form::Instances => "instances",
+            Form::Score => "score",
+            Form::Listener => "listener",
+            Form::Microphone => "microphone",
+            Form::Source => "source",
+            Form::Room => "room",
+            Form::Box => "box",
+            Form::Wall => "wall",
+        }
+    }
+
+    pub(crate) fn from_name(name: &str) -> Option<Form> {
+        Form::ALL.into_iter().find(|form| form.name() == name)
+    }
+
+    /// The form a list is, by the name at its head.
+    pub(crate) fn of(expr: &Expr) -> Option<Form> {
+        Form::from_name(expr.as_list()?.first()?.as_symbol()?)
+    }
+
+    /// An instance form: lowered once all forms are read.
+    pub(crate) fn is_instance(self) -> bool {
+        matches!(self, Form::Instance | Form::Instances | Form::Score)
+    }
+
+    /// A form of the scene in space: read once all other forms are.
+    pub(crate) fn is_space(self) -> bool {
+        matches!(
+            self,
+            Form::Listener | Form::Microphone | Form::Source | Form::Room | Form::Box | Form::Wall
+        )
+    }
+}
+
+/// The names of the [`Form`]s. They, `t` and `pi` are reserved.
+pub const FORMS: &[&str] = &{
+    let mut names = [""; Form::ALL.len()];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = Form::ALL[i].name();
+        i += 1;
+    }
+    names
+};
 
 impl Lowerer<'_> {
     /// Reads the top-level forms of one file. `included_at` is the `include` form that
@@ -43,7 +124,7 @@ impl Lowerer<'_> {
         let parse = timbre_syntax::parse(&source.text);
         // A form lost to a syntax error (a list never closed, or nested too deep) may
         // have defined names used elsewhere.
-        self.names_incomplete |= parse.errors.iter().any(|e| {
+        self.names.incomplete |= parse.errors.iter().any(|e| {
             matches!(
                 e,
                 SyntaxError::UnclosedList { .. } | SyntaxError::TooDeep { .. }
@@ -64,32 +145,25 @@ impl Lowerer<'_> {
         origin: &Origin,
         included_at: Option<&str>,
     ) {
-        let head: Option<String> = form
-            .as_list()
-            .and_then(|items| items.first())
-            .and_then(Expr::as_symbol)
-            .map(str::to_owned);
+        let head = Form::of(&form);
         let defined = defined_name(&form).map(str::to_owned);
-        let head = head.as_deref();
         if let Err(diag) = self.check_load_time(form.span, origin) {
             self.errors.push(diag);
             return;
         }
         let result = match head {
-            Some("define") => self.read_define(&form, origin, false),
-            Some("define-sound") => self.read_define(&form, origin, true),
-            Some("keyframes") => self.read_keyframes(&form, origin),
-            Some("frames") => self.read_frames(&form, origin),
-            Some("instance" | "instances" | "score") if included_at.is_none() => {
-                self.instance_forms.push((form, origin.clone()));
+            Some(Form::Define) => self.read_define(&form, origin, false),
+            Some(Form::DefineSound) => self.read_define(&form, origin, true),
+            Some(Form::Keyframes) => self.read_keyframes(&form, origin),
+            Some(Form::Frames) => self.read_frames(&form, origin),
+            Some(form_kind) if form_kind.is_instance() && included_at.is_none() => {
+                self.scene.instance_forms.push((form, origin.clone()));
                 Ok(())
             }
-            Some("include") => self.read_include(&form, origin),
-            Some("scene") if included_at.is_none() => self.read_scene(&form, origin),
-            Some("listener" | "microphone" | "source" | "room" | "box" | "wall")
-                if included_at.is_none() =>
-            {
-                self.space_forms.push((form, origin.clone()));
+            Some(Form::Include) => self.read_include(&form, origin),
+            Some(Form::Scene) if included_at.is_none() => self.read_scene(&form, origin),
+            Some(form_kind) if form_kind.is_space() && included_at.is_none() => {
+                self.scene.space_forms.push((form, origin.clone()));
                 Ok(())
             }
             _ => {
@@ -109,9 +183,9 @@ impl Lowerer<'_> {
         };
         if let Err(diag) = result {
             match head {
-                Some("include" | "frames") => self.names_incomplete = true,
-                Some("define" | "define-sound" | "keyframes") => {
-                    self.failed_names.extend(defined);
+                Some(Form::Include | Form::Frames) => self.names.incomplete = true,
+                Some(Form::Define | Form::DefineSound | Form::Keyframes) => {
+                    self.names.failed.extend(defined);
                 }
                 _ => {}
             }
@@ -232,7 +306,8 @@ impl Lowerer<'_> {
             .label(name_expr.span, "cannot be redefined")
             .help("choose another name for your tree"));
         }
-        if self.keyframes.contains_key(name) || self.vector_keyframes.contains_key(name) {
+        if self.names.keyframes.contains_key(name) || self.names.vector_keyframes.contains_key(name)
+        {
             return Err(err(
                 "timbre::duplicate-define",
                 format!("`{name}` is already a keyframed variable"),
@@ -240,7 +315,7 @@ impl Lowerer<'_> {
             .label(name_expr.span, "defined again here")
             .help("rename one of them"));
         }
-        if let Some(previous) = self.definitions.get(name) {
+        if let Some(previous) = self.names.definitions.get(name) {
             let mut diag = err(
                 "timbre::duplicate-define",
                 format!("`{name}` is defined twice"),
@@ -251,7 +326,7 @@ impl Lowerer<'_> {
             }
             return Err(diag.help("rename one of the definitions"));
         }
-        self.definitions.insert(
+        self.names.definitions.insert(
             name.to_owned(),
             Definition {
                 params,
@@ -262,7 +337,7 @@ impl Lowerer<'_> {
                 class,
             },
         );
-        self.definition_order.push(name.to_owned());
+        self.names.order.push(name.to_owned());
         Ok(())
     }
 
@@ -304,8 +379,8 @@ impl Lowerer<'_> {
                 .help("paths are relative to the file that includes them")
                 .in_source(&origin.source)
             })?;
-        if let Some(first) = self.include_stack.iter().position(|p| *p == resolved) {
-            let chain: Vec<String> = self.include_stack[first..]
+        if let Some(first) = self.includes.stack.iter().position(|p| *p == resolved) {
+            let chain: Vec<String> = self.includes.stack[first..]
                 .iter()
                 .chain([&resolved])
                 .map(|p| {
@@ -336,7 +411,7 @@ impl Lowerer<'_> {
             .help("split the file, or relax the limit (--no-limits)")
             .in_source(&origin.source));
         }
-        if self.include_stack.len() >= self.options.limits.include_depth {
+        if self.includes.stack.len() >= self.options.limits.include_depth {
             let limit = self.options.limits.include_depth;
             return Err(Diag::new(
                 "timbre::include-too-deep",
@@ -346,7 +421,7 @@ impl Lowerer<'_> {
             .help("include the files from one library file instead of a chain")
             .in_source(&origin.source));
         }
-        if !self.included.insert(resolved.clone()) {
+        if !self.includes.read.insert(resolved.clone()) {
             return Ok(()); // already read through another include
         }
         let text = String::from_utf8(bytes).map_err(|_| {
@@ -360,9 +435,9 @@ impl Lowerer<'_> {
         })?;
         let source = SourceFile::new(resolved.display().to_string(), text);
         let dir = resolved.parent().map(Path::to_path_buf);
-        self.include_stack.push(resolved);
+        self.includes.stack.push(resolved);
         self.read_file(source, dir, Some(path));
-        self.include_stack.pop();
+        self.includes.stack.pop();
         Ok(())
     }
 }

@@ -228,7 +228,7 @@ impl Lowerer<'_> {
                 let values = features.iter().map(|frame| value(&frame[r])).collect();
                 let variable = format!("{prefix}-{feature}");
                 self.check_new_name(&variable, name_span, origin)?;
-                self.keyframes.insert(variable, track(values));
+                self.names.keyframes.insert(variable, track(values));
             }
             let lanes = |of: &dyn Fn(&Features) -> &[f64]| -> Arc<[Arc<KeyframeTrack>]> {
                 let n = of(&features[0][r]).len();
@@ -239,7 +239,7 @@ impl Lowerer<'_> {
             for (vector, tracks) in [("rows", lanes(&|f| &f.rows)), ("scan", lanes(&|f| &f.scan))] {
                 let variable = format!("{prefix}-{vector}");
                 self.check_new_name(&variable, name_span, origin)?;
-                self.vector_keyframes.insert(variable, tracks);
+                self.names.vector_keyframes.insert(variable, tracks);
             }
         }
         Ok(())

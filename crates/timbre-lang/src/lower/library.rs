@@ -60,8 +60,8 @@ impl Library {
         for (form, origin) in lowerer
             .sounds
             .iter()
-            .chain(&lowerer.instance_forms)
-            .chain(&lowerer.space_forms)
+            .chain(&lowerer.scene.instance_forms)
+            .chain(&lowerer.scene.space_forms)
         {
             let diag = Diag::new(
                 "timbre::library-not-definitions",
@@ -78,14 +78,15 @@ impl Library {
             return Err(errors);
         }
         let classes = lowerer
-            .definition_order
+            .names
+            .order
             .iter()
-            .filter(|n| lowerer.definitions.get(*n).is_some_and(|d| d.class))
+            .filter(|n| lowerer.names.definitions.get(*n).is_some_and(|d| d.class))
             .cloned()
             .collect();
         Ok(Library {
-            definitions: lowerer.definitions,
-            keyframes: lowerer.keyframes,
+            definitions: lowerer.names.definitions,
+            keyframes: lowerer.names.keyframes,
             settings: lowerer.settings,
             classes,
         })
@@ -190,8 +191,8 @@ impl Library {
             ));
         }
         let mut lowerer = Lowerer::new(options);
-        lowerer.definitions = self.definitions.clone();
-        lowerer.keyframes = self.keyframes.clone();
+        lowerer.names.definitions = self.definitions.clone();
+        lowerer.names.keyframes = self.keyframes.clone();
         lowerer.settings = self.settings.clone();
         if let Some(seed) = options.seed {
             lowerer.settings.seed = seed;
@@ -223,7 +224,7 @@ impl Library {
             source: def.source.clone(),
             dir: def.dir.clone(),
         };
-        lowerer.expanding.push(class.to_owned());
+        lowerer.expansion.expanding.push(class.to_owned());
         let sound = lowerer
             .lower(&def.body, &origin, &mut scope)
             .map_err(Diagnostics::one)?;

@@ -11,6 +11,8 @@
 //! `forms.rs` the top-level forms; `scene.rs` the scene forms and settings;
 //! `expr.rs` expressions; `args.rs` argument binding and width checks; `files.rs`
 //! the file-backed nodes; `library.rs` classes kept for hosts.
+//! The lowerer's state is grouped by job: `Names` (what the file defines),
+//! `SceneForms`, `Includes` and `Expansion` (of named trees).
 
 mod args;
 mod events;
@@ -177,63 +179,90 @@ pub(crate) struct Origin {
 pub(crate) struct Lowerer<'a> {
     options: &'a CompileOptions<'a>,
     pub(crate) graph: Graph,
-    definitions: HashMap<String, Definition>,
-    definition_order: Vec<String>,
+    names: Names,
     settings: Settings,
-    scene_span: Option<(Span, Arc<SourceFile>)>,
     /// Top-level expressions, lowered once all forms are read.
     sounds: Vec<(Expr, Origin)>,
-    errors: Vec<Diag>,
-    /// Files being read, to catch include cycles; and files read already.
-    include_stack: Vec<PathBuf>,
-    included: HashSet<PathBuf>,
-    /// Names of the instances lowered so far.
-    instance_names: HashSet<String>,
-    /// The `score` forms' notes, in the order written.
-    scores: Vec<crate::music::Score>,
+    scene: SceneForms,
+    includes: Includes,
+    expansion: Expansion,
     samples: HashMap<PathBuf, Arc<SampleData>>,
     used_bindings: HashSet<String>,
-    /// Named trees being expanded, innermost last, to catch recursion.
-    expanding: Vec<String>,
-    depth: usize,
-    /// Named-tree expansions so far (see `Limits::expansions`).
-    expansions_made: usize,
+    /// Scene time at an instance's t = 0 while it is lowered (keyframes read scene time).
+    time_offset: f64,
+    /// While unused definitions are checked (see `check_unused_definitions`).
+    checking_unused: bool,
+    errors: Vec<Diag>,
+    /// Lints met so far, at most one per place.
+    warnings: Vec<Diag>,
     /// Whether a limit has been reported: later excesses are follow-ons.
     limit_reported: bool,
+    /// When loading must have ended (see `Limits::load_time`).
+    deadline: Option<Instant>,
+}
+
+/// The names a file defines: named trees and keyframed variables, and what failed.
+#[derive(Default)]
+struct Names {
+    definitions: HashMap<String, Definition>,
+    /// The named trees' names, in definition order.
+    order: Vec<String>,
     /// Keyframed variables by name.
     keyframes: HashMap<String, Arc<KeyframeTrack>>,
     /// Keyframed vectors (positions) by name, one track per coordinate.
     vector_keyframes: HashMap<String, Arc<[Arc<KeyframeTrack>]>>,
-    /// Sources, receivers and the medium of a scene in space.
-    space: space::Space,
-    /// `listener`, `microphone` and `source` forms, read once all other forms are
-    /// (so they may name keyframes defined further down).
-    space_forms: Vec<(Expr, Origin)>,
-    /// `instance` forms, lowered once all forms are read; and the lowered instances.
-    instance_forms: Vec<(Expr, Origin)>,
-    instances: Vec<Instance>,
-    /// Scene time at an instance's t = 0 while it is lowered (keyframes read scene time).
-    time_offset: f64,
-    /// Expansions of named trees by (name, argument nodes, time offset): a tree
-    /// called again with the same arguments is the same node, found, not rebuilt.
-    expansions: HashMap<(String, Vec<NodeId>, u64), NodeId>,
     /// Names whose defining form failed (a `define` or `keyframes` with an error):
     /// their uses report nothing more, since the first error explains them.
-    failed_names: HashSet<String>,
+    failed: HashSet<String>,
+    /// Set when an include failed or a file had syntax errors, so that forms may be
+    /// missing: an unknown name is then no error of its own.
+    incomplete: bool,
+}
+
+/// The scene forms: `scene`, the forms of space, and the instance forms with what
+/// they made.
+#[derive(Default)]
+struct SceneForms {
+    /// The `scene` form, once read (a file has one).
+    span: Option<(Span, Arc<SourceFile>)>,
+    /// Sources, receivers and the medium of a scene in space.
+    space: space::Space,
+    /// `listener`, `microphone`, `source`, `room`, `box` and `wall` forms, read once
+    /// all other forms are (so they may name keyframes defined further down).
+    space_forms: Vec<(Expr, Origin)>,
     /// Sources whose `source` form failed: instances placed at them report nothing
     /// more.
     failed_sources: HashSet<String>,
-    /// Set when an include failed or a file had syntax errors, so that forms may be
-    /// missing: an unknown name is then no error of its own.
-    names_incomplete: bool,
+    /// `instance`, `instances` and `score` forms, lowered once all forms are read;
+    /// the lowered instances and their names.
+    instance_forms: Vec<(Expr, Origin)>,
+    instances: Vec<Instance>,
+    instance_names: HashSet<String>,
+    /// The `score` forms' notes, in the order written.
+    scores: Vec<crate::music::Score>,
+}
+
+/// Files being read, to catch include cycles; and files read already.
+#[derive(Default)]
+struct Includes {
+    stack: Vec<PathBuf>,
+    read: HashSet<PathBuf>,
+}
+
+/// The expansion of named trees.
+#[derive(Default)]
+struct Expansion {
+    /// Named trees being expanded, innermost last, to catch recursion.
+    expanding: Vec<String>,
+    /// Nesting of expressions, counting expansions (see [`MAX_LOWER_DEPTH`]).
+    depth: usize,
+    /// Expansions so far (see `Limits::expansions`).
+    made: usize,
+    /// Expansions by (name, argument nodes, time offset): a tree called again with
+    /// the same arguments is the same node, found, not rebuilt.
+    memo: HashMap<(String, Vec<NodeId>, u64), NodeId>,
     /// Named trees expanded at least once (successfully or not).
     expanded: HashSet<String>,
-    /// While unused definitions are checked (see `check_unused_definitions`).
-    checking_unused: bool,
-    /// Lints met so far, at most one per place.
-    warnings: Vec<Diag>,
-    /// When loading must have ended (see `Limits::load_time`).
-    deadline: Option<Instant>,
 }
 
 /// The code of a diagnostic that only follows from an earlier one; such diagnostics
@@ -248,36 +277,19 @@ impl<'a> Lowerer<'a> {
         Lowerer {
             options,
             graph: Graph::new(),
-            definitions: HashMap::new(),
-            definition_order: vec![],
+            names: Names::default(),
             settings: Settings::default(),
-            scene_span: None,
             sounds: vec![],
-            errors: vec![],
-            include_stack: vec![],
-            included: HashSet::new(),
-            instance_names: HashSet::new(),
-            scores: vec![],
+            scene: SceneForms::default(),
+            includes: Includes::default(),
+            expansion: Expansion::default(),
             samples: HashMap::new(),
             used_bindings: HashSet::new(),
-            expanding: vec![],
-            depth: 0,
-            expansions_made: 0,
-            limit_reported: false,
-            keyframes: HashMap::new(),
-            vector_keyframes: HashMap::new(),
-            space: space::Space::default(),
-            space_forms: vec![],
-            instance_forms: vec![],
-            instances: vec![],
             time_offset: 0.0,
-            expansions: HashMap::new(),
-            failed_names: HashSet::new(),
-            failed_sources: HashSet::new(),
-            names_incomplete: false,
-            expanded: HashSet::new(),
             checking_unused: false,
+            errors: vec![],
             warnings: vec![],
+            limit_reported: false,
             deadline: (options.limits.load_time).and_then(|d| Instant::now().checked_add(d)),
         }
     }
@@ -312,6 +324,7 @@ impl<'a> Lowerer<'a> {
     }
 
     fn finish(mut self) -> Result<Compiled, Diagnostics> {
+        use forms::Form;
         if let Some(seed) = self.options.seed {
             self.settings.seed = seed;
         }
@@ -353,31 +366,26 @@ impl<'a> Lowerer<'a> {
                 );
             }
         }
-        for (form, origin) in std::mem::take(&mut self.space_forms) {
+        for (form, origin) in std::mem::take(&mut self.scene.space_forms) {
             if let Err(diag) = self.read_space_form(&form, &origin) {
                 // A source that failed is not unknown where instances name it.
                 let items = form.as_list().unwrap_or_default();
-                if let (Some("source"), Some(name)) = (
-                    items.first().and_then(Expr::as_symbol),
-                    items.get(1).and_then(Expr::as_symbol),
-                ) {
-                    self.failed_sources.insert(name.to_owned());
+                if let (Some(Form::Source), Some(name)) =
+                    (Form::of(&form), items.get(1).and_then(Expr::as_symbol))
+                {
+                    self.scene.failed_sources.insert(name.to_owned());
                 }
                 self.errors.push(diag);
             }
         }
-        let instance_forms = std::mem::take(&mut self.instance_forms);
+        let instance_forms = std::mem::take(&mut self.scene.instance_forms);
         for (form, origin) in &instance_forms {
-            let head = form
-                .as_list()
-                .and_then(|l| l.first())
-                .and_then(Expr::as_symbol);
-            let lowered = match head {
-                Some("instances") => self.lower_instances(form, origin),
-                Some("score") => self.lower_score(form, origin),
+            let lowered = match Form::of(form) {
+                Some(Form::Instances) => self.lower_instances(form, origin),
+                Some(Form::Score) => self.lower_score(form, origin),
                 _ => self
                     .lower_instance(form, origin)
-                    .map(|instance| self.instances.push(instance)),
+                    .map(|instance| self.scene.instances.push(instance)),
             };
             if let Err(diag) = lowered {
                 self.errors.push(diag);
@@ -408,11 +416,12 @@ impl<'a> Lowerer<'a> {
             .cloned()
             .collect();
         let mut variables: Vec<(String, Arc<KeyframeTrack>)> = self
+            .names
             .keyframes
             .iter()
             .map(|(name, track)| (name.clone(), track.clone()))
             .collect();
-        for (name, tracks) in &self.vector_keyframes {
+        for (name, tracks) in &self.names.vector_keyframes {
             for (axis, track) in ["x", "y", "z"].iter().zip(tracks.iter()) {
                 variables.push((format!("{name}.{axis}"), track.clone()));
             }
@@ -423,13 +432,13 @@ impl<'a> Lowerer<'a> {
                 graph: self.graph,
                 root,
                 settings: self.settings,
-                instances: self.instances,
+                instances: self.scene.instances,
             },
-            definitions: self.definition_order,
+            definitions: self.names.order,
             unused_bindings,
             warnings: self.warnings,
             variables,
-            scores: self.scores,
+            scores: self.scene.scores,
         })
     }
 
@@ -450,9 +459,10 @@ impl<'a> Lowerer<'a> {
     /// instances), a class whose sound is wider than one lane is an error too.
     pub(crate) fn check_unused_definitions(&mut self, one_lane_classes: bool) {
         let unused: Vec<String> = self
-            .definition_order
+            .names
+            .order
             .iter()
-            .filter(|n| !self.expanded.contains(*n) && !self.failed_names.contains(*n))
+            .filter(|n| !self.expansion.expanded.contains(*n) && !self.names.failed.contains(*n))
             .cloned()
             .collect();
         if unused.is_empty() {
@@ -460,12 +470,12 @@ impl<'a> Lowerer<'a> {
         }
         let saved = (
             self.graph.clone(),
-            self.expansions.clone(),
+            self.expansion.memo.clone(),
             self.used_bindings.clone(),
         );
         self.checking_unused = true;
         for name in unused {
-            let Some(def) = self.definitions.get(&name).cloned() else {
+            let Some(def) = self.names.definitions.get(&name).cloned() else {
                 continue;
             };
             let one = self.graph.constant(1.0);
@@ -474,7 +484,7 @@ impl<'a> Lowerer<'a> {
                 source: def.source.clone(),
                 dir: def.dir.clone(),
             };
-            self.expanding.push(name.clone());
+            self.expansion.expanding.push(name.clone());
             match self.lower(&def.body, &origin, &mut scope) {
                 Err(diag) => self.errors.push(diag),
                 Ok(sound) if one_lane_classes && def.class && self.graph.width(sound) != 1 => {
@@ -490,10 +500,10 @@ impl<'a> Lowerer<'a> {
                 }
                 Ok(_) => {}
             }
-            self.expanding.pop();
+            self.expansion.expanding.pop();
         }
         self.checking_unused = false;
-        (self.graph, self.expansions, self.used_bindings) = saved;
+        (self.graph, self.expansion.memo, self.used_bindings) = saved;
     }
 
     /// The errors met, if any, without follow-ons (the first error explains them, and

@@ -116,7 +116,7 @@ impl Lowerer<'_> {
     ) -> Result<(String, Definition, Vec<NodeId>), Diag> {
         let items = end.as_list().unwrap_or_default();
         let name = items.first().and_then(Expr::as_symbol);
-        let Some(def) = name.and_then(|n| self.definitions.get(n)).cloned() else {
+        let Some(def) = name.and_then(|n| self.names.definitions.get(n)).cloned() else {
             return Err(self
                 .diag(
                     "timbre::bad-morph",

@@ -10,6 +10,10 @@
 //!   class tree with its parameters bound, `t` its local time (0 at `:start`), under a
 //!   timer node that switches it on and off with short declick ramps (at the start only
 //!   where the sound does not start at zero, unless `:declick` says otherwise).
+//!
+//! The options of the scene forms (`:key value` after their fixed parts) are read here
+//! too: `keyword_pairs` walks them, and `options` reports unknown options and missing
+//! values for every form but `scene`, whose settings report their own.
 
 use std::sync::Arc;
 
@@ -87,6 +91,37 @@ impl<'e> Options<'e> {
     }
 }
 
+/// One `:key value` pair of a form's options as written.
+pub(crate) struct KeywordPair<'e> {
+    pub key: &'e str,
+    pub key_span: Span,
+    /// None when the keyword ends the form.
+    pub value: Option<&'e Expr>,
+}
+
+/// Walks `items` as `:key value` pairs, in the order written, ending with `Err(item)`
+/// at the first item that is not a keyword where one is expected. Each form reports
+/// its own faults: [`Lowerer::options`] for most forms, `read_scene` for the settings.
+pub(crate) fn keyword_pairs(
+    items: &[Expr],
+) -> impl Iterator<Item = Result<KeywordPair<'_>, &Expr>> {
+    let mut rest = items;
+    std::iter::from_fn(move || {
+        let (item, after) = rest.split_first()?;
+        let ExprKind::Keyword(key) = &item.kind else {
+            rest = &[];
+            return Some(Err(item));
+        };
+        let value = after.first();
+        rest = after.get(1..).unwrap_or_default();
+        Some(Ok(KeywordPair {
+            key,
+            key_span: item.span,
+            value,
+        }))
+    })
+}
+
 impl Lowerer<'_> {
     /// Splits `items` into `:key value` pairs, reporting anything else.
     pub(crate) fn options<'e>(
@@ -102,43 +137,44 @@ impl Lowerer<'_> {
             .map(|k| format!(":{k}"))
             .collect::<Vec<_>>()
             .join(" ");
-        let mut i = 0;
-        while i < items.len() {
-            let ExprKind::Keyword(key) = &items[i].kind else {
-                return Err(self
-                    .diag(
-                        "timbre::bad-scene-form",
-                        format!("unexpected {} in `{form}`", items[i].describe()),
-                        origin,
-                    )
-                    .label(items[i].span, "expected a keyword")
-                    .help(format!("`{form}` takes {list}")));
-            };
-            if !known.contains(&key.as_str()) {
+        for pair in keyword_pairs(items) {
+            let KeywordPair {
+                key,
+                key_span,
+                value,
+            } = pair.map_err(|item| {
+                self.diag(
+                    "timbre::bad-scene-form",
+                    format!("unexpected {} in `{form}`", item.describe()),
+                    origin,
+                )
+                .label(item.span, "expected a keyword")
+                .help(format!("`{form}` takes {list}"))
+            })?;
+            if !known.contains(&key) {
                 return Err(self
                     .diag(
                         "timbre::unknown-keyword",
                         format!("`{form}` has no option `:{key}`"),
                         origin,
                     )
-                    .label(items[i].span, "unknown option")
+                    .label(key_span, "unknown option")
                     .help(match super::did_you_mean(key, known.iter().copied()) {
                         Some(close) => format!("did you mean `:{close}`? its options are {list}"),
                         None => format!("its options are {list}"),
                     }));
             }
-            let Some(value) = items.get(i + 1) else {
+            let Some(value) = value else {
                 return Err(self
                     .diag(
                         "timbre::keyword-without-value",
                         format!("option `:{key}` has no value"),
                         origin,
                     )
-                    .label(items[i].span, "needs a value")
+                    .label(key_span, "needs a value")
                     .help(format!("write `:{key} VALUE`")));
             };
-            pairs.push((key.as_str(), items[i].span, value));
-            i += 2;
+            pairs.push((key, key_span, value));
         }
         Ok(Options { pairs })
     }
@@ -186,10 +222,10 @@ impl Lowerer<'_> {
         self.check_new_name(&name, name_span, origin)?;
         match self.track(&items[2..], form.span, origin)? {
             Track::Scalar(track) => {
-                self.keyframes.insert(name, track);
+                self.names.keyframes.insert(name, track);
             }
             Track::Vector(tracks) => {
-                self.vector_keyframes.insert(name, tracks);
+                self.names.vector_keyframes.insert(name, tracks);
             }
         }
         Ok(())
@@ -457,7 +493,7 @@ impl Lowerer<'_> {
         origin: &Origin,
     ) -> Result<Instance, Diag> {
         let items = form.as_list().unwrap_or_default();
-        if self.instances.len() >= self.options.limits.instances {
+        if self.scene.instances.len() >= self.options.limits.instances {
             let limit = self.options.limits.instances;
             let diag = self
                 .diag(
@@ -493,7 +529,7 @@ impl Lowerer<'_> {
                 .label(name_expr.span, "expected a name")
                 .help(format!("write {usage}")));
         };
-        if !self.instance_names.insert(name.to_owned()) {
+        if !self.scene.instance_names.insert(name.to_owned()) {
             return Err(self
                 .diag(
                     "timbre::duplicate-instance",
@@ -503,61 +539,7 @@ impl Lowerer<'_> {
                 .label(name_expr.span, "defined again here")
                 .help("give each instance its own name"));
         }
-        let class = call
-            .as_list()
-            .and_then(|c| c.first())
-            .and_then(Expr::as_symbol);
-        let Some(class) = class else {
-            return Err(self
-                .diag(
-                    "timbre::bad-instance",
-                    "an instance names its class in a call",
-                    origin,
-                )
-                .label(call.span, "expected (class :param value …)")
-                .help(format!("write {usage}")));
-        };
-        match self.definitions.get(class) {
-            Some(def) if def.class => {}
-            Some(_) => {
-                return Err(self
-                    .diag(
-                        "timbre::not-a-class",
-                        format!("`{class}` is a tree, not a sound class"),
-                        origin,
-                    )
-                    .label(call.span, "defined with `define`")
-                    .help(format!(
-                        "declare it with (define-sound {class} (params…) body)"
-                    )))
-            }
-            // A class from a failed include or definition: that error explains it.
-            None if self.names_incomplete || self.failed_names.contains(class) => {
-                return Err(self.follow_on(class, call.span, origin));
-            }
-            None => {
-                let classes = self
-                    .definitions
-                    .iter()
-                    .filter(|(_, d)| d.class)
-                    .map(|(n, _)| n.as_str());
-                let help = match super::did_you_mean(class, classes) {
-                    Some(close) => format!("did you mean `{close}`?"),
-                    None => "define it first with (define-sound name (params…) body)".into(),
-                };
-                return Err(self
-                    .diag(
-                        "timbre::unknown-class",
-                        format!("unknown sound class `{class}`"),
-                        origin,
-                    )
-                    .label(
-                        call.as_list().map_or(call.span, |c| c[0].span),
-                        "not a sound class",
-                    )
-                    .help(help));
-            }
-        }
+        let class = self.instance_class(call, usage, origin)?;
         let options = self.options(
             &items[3..],
             "instance",
@@ -584,42 +566,7 @@ impl Lowerer<'_> {
                 .label(*place_span, "placed here")
                 .help("remove the :pan or :channel; the receivers decide the channels"));
         }
-        let start = match options.get("start") {
-            Some(e) => self.constant_option(e, "the start time", origin)?,
-            None => 0.0,
-        };
-        if start < 0.0 {
-            let span = options.get("start").map_or(form.span, |e| e.span);
-            return Err(self
-                .diag(
-                    "timbre::bad-instance",
-                    format!("start time {start} is before the scene starts"),
-                    origin,
-                )
-                .label(span, "negative")
-                .help("start times are seconds from the start of the scene, ≥ 0"));
-        }
-        let stop = match options.get("stop") {
-            Some(e) => Some((self.constant_option(e, "the stop time", origin)?, e.span)),
-            None => None,
-        };
-        if let Some((stop, span)) = stop {
-            if stop <= start {
-                let mut diag = self
-                    .diag(
-                        "timbre::stop-before-start",
-                        format!(
-                            "instance `{name}` stops at {stop} s, before it starts at {start} s"
-                        ),
-                        origin,
-                    )
-                    .label(span, "stop");
-                if let Some(start_expr) = options.get("start") {
-                    diag = diag.label(start_expr.span, "start");
-                }
-                return Err(diag.help("the stop time must be after the start time"));
-            }
-        }
+        let (start, stop) = self.instance_times(name, &options, form.span, origin)?;
         let gain = options.get("gain");
         // Parameters and keyframes are lowered with the instance's place on the
         // scene's timeline.
@@ -697,17 +644,124 @@ impl Lowerer<'_> {
         };
         Ok(Instance {
             name: name.to_owned(),
-            class: call
-                .as_list()
-                .and_then(|items| items.first())
-                .and_then(Expr::as_symbol)
-                .unwrap_or_default()
-                .to_owned(),
+            class: class.to_owned(),
             root,
             start,
             stop: stop.map(|(s, _)| s),
             tail,
         })
+    }
+
+    /// The sound class an instance's call names, which must be declared with
+    /// `define-sound`.
+    fn instance_class<'e>(
+        &self,
+        call: &'e Expr,
+        usage: &str,
+        origin: &Origin,
+    ) -> Result<&'e str, Diag> {
+        let class = call
+            .as_list()
+            .and_then(|c| c.first())
+            .and_then(Expr::as_symbol);
+        let Some(class) = class else {
+            return Err(self
+                .diag(
+                    "timbre::bad-instance",
+                    "an instance names its class in a call",
+                    origin,
+                )
+                .label(call.span, "expected (class :param value …)")
+                .help(format!("write {usage}")));
+        };
+        match self.names.definitions.get(class) {
+            Some(def) if def.class => Ok(class),
+            Some(_) => Err(self
+                .diag(
+                    "timbre::not-a-class",
+                    format!("`{class}` is a tree, not a sound class"),
+                    origin,
+                )
+                .label(call.span, "defined with `define`")
+                .help(format!(
+                    "declare it with (define-sound {class} (params…) body)"
+                ))),
+            // A class from a failed include or definition: that error explains it.
+            None if self.names.incomplete || self.names.failed.contains(class) => {
+                Err(self.follow_on(class, call.span, origin))
+            }
+            None => {
+                let classes = self
+                    .names
+                    .definitions
+                    .iter()
+                    .filter(|(_, d)| d.class)
+                    .map(|(n, _)| n.as_str());
+                let help = match super::did_you_mean(class, classes) {
+                    Some(close) => format!("did you mean `{close}`?"),
+                    None => "define it first with (define-sound name (params…) body)".into(),
+                };
+                Err(self
+                    .diag(
+                        "timbre::unknown-class",
+                        format!("unknown sound class `{class}`"),
+                        origin,
+                    )
+                    .label(
+                        call.as_list().map_or(call.span, |c| c[0].span),
+                        "not a sound class",
+                    )
+                    .help(help))
+            }
+        }
+    }
+
+    /// An instance's `:start` (0 if not given) and `:stop`, with its span, checked:
+    /// the start not before the scene's, the stop after the start.
+    fn instance_times(
+        &mut self,
+        name: &str,
+        options: &Options<'_>,
+        form_span: Span,
+        origin: &Origin,
+    ) -> Result<(f64, Option<(f64, Span)>), Diag> {
+        let start = match options.get("start") {
+            Some(e) => self.constant_option(e, "the start time", origin)?,
+            None => 0.0,
+        };
+        if start < 0.0 {
+            let span = options.get("start").map_or(form_span, |e| e.span);
+            return Err(self
+                .diag(
+                    "timbre::bad-instance",
+                    format!("start time {start} is before the scene starts"),
+                    origin,
+                )
+                .label(span, "negative")
+                .help("start times are seconds from the start of the scene, ≥ 0"));
+        }
+        let stop = match options.get("stop") {
+            Some(e) => Some((self.constant_option(e, "the stop time", origin)?, e.span)),
+            None => None,
+        };
+        if let Some((stop, span)) = stop {
+            if stop <= start {
+                let mut diag = self
+                    .diag(
+                        "timbre::stop-before-start",
+                        format!(
+                            "instance `{name}` stops at {stop} s, before it starts at {start} s"
+                        ),
+                        origin,
+                    )
+                    .label(span, "stop");
+                if let Some(start_expr) = options.get("start") {
+                    diag = diag.label(start_expr.span, "start");
+                }
+                return Err(diag.help("the stop time must be after the start time"));
+            }
+        }
+        Ok((start, stop))
     }
 
     /// An instance's `:declick`: `off` or 0 (no fade-in), or a ramp of that many
@@ -847,9 +901,9 @@ impl Lowerer<'_> {
                 .label(span, "cannot be redefined")
                 .help("choose another name"));
         }
-        if self.definitions.contains_key(name)
-            || self.keyframes.contains_key(name)
-            || self.vector_keyframes.contains_key(name)
+        if self.names.definitions.contains_key(name)
+            || self.names.keyframes.contains_key(name)
+            || self.names.vector_keyframes.contains_key(name)
         {
             return Err(self
                 .diag(
@@ -865,7 +919,7 @@ impl Lowerer<'_> {
 
     /// `(scene :sample-rate … :duration … :seed … :channels …)`: render settings.
     pub(crate) fn read_scene(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
-        if let Some((first, source)) = &self.scene_span {
+        if let Some((first, source)) = &self.scene.span {
             let mut diag = Diag::new("timbre::duplicate-scene", "the file has two `scene` forms")
                 .label(form.span, "second `scene`");
             if Arc::ptr_eq(source, &origin.source) {
@@ -875,192 +929,35 @@ impl Lowerer<'_> {
                 .help("merge the settings into one `scene` form")
                 .in_source(&origin.source));
         }
-        self.scene_span = Some((form.span, origin.source.clone()));
+        self.scene.span = Some((form.span, origin.source.clone()));
         let items = form.as_list().unwrap_or_default();
-        let args = &items[1..];
         let err = |span: Span, msg: String, label: &str, help: &str| {
-            Diag::new("timbre::bad-scene", msg)
-                .label(span, label)
-                .help(help)
-                .in_source(&origin.source)
+            bad_scene(origin, span, msg, label, help)
         };
-        let known = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance, :air-absorption, :temperature, :humidity";
-        let mut i = 0;
-        while i < args.len() {
-            let ExprKind::Keyword(key) = &args[i].kind else {
-                return Err(err(
-                    args[i].span,
-                    format!("expected a setting keyword, found {}", args[i].describe()),
+        for pair in keyword_pairs(&items[1..]) {
+            let KeywordPair {
+                key,
+                key_span,
+                value,
+            } = pair.map_err(|item| {
+                err(
+                    item.span,
+                    format!("expected a setting keyword, found {}", item.describe()),
                     "expected a keyword",
-                    &format!("settings are {known}"),
-                ));
-            };
-            let Some(value_expr) = args.get(i + 1) else {
+                    &format!("settings are {SCENE_SETTINGS}"),
+                )
+            })?;
+            let Some(value_expr) = value else {
                 return Err(err(
-                    args[i].span,
+                    key_span,
                     format!("setting `:{key}` has no value"),
                     "needs a value",
                     "write e.g. `:duration 4.0`",
                 ));
             };
-            if key == "air-absorption" {
-                let on = match value_expr.as_symbol() {
-                    Some("on") => true,
-                    Some("off") => false,
-                    _ => {
-                        return Err(err(
-                            value_expr.span,
-                            format!("`:air-absorption` is on or off, not {value_expr}"),
-                            "on or off",
-                            "write :air-absorption off to hear no air",
-                        ))
-                    }
-                };
-                let medium = &mut self.space.medium;
-                medium.air = on.then(|| {
-                    timbre_ir::dsp::air::Air::new(self.space.temperature, self.space.humidity)
-                });
-                i += 2;
-                continue;
-            }
-            if key == "distance-law" {
-                let law = value_expr
-                    .as_symbol()
-                    .and_then(timbre_ir::space::DistanceLaw::from_name);
-                let Some(law) = law else {
-                    return Err(err(
-                        value_expr.span,
-                        format!("unknown distance law {value_expr}"),
-                        "not a law",
-                        "write :distance-law inverse, inverse-square, linear or none",
-                    ));
-                };
-                self.space.medium.law = law;
-                i += 2;
-                continue;
-            }
-            let ExprKind::Number(value) = value_expr.kind else {
-                return Err(err(
-                    value_expr.span,
-                    format!(
-                        "setting `:{key}` must be a number, not {}",
-                        value_expr.describe()
-                    ),
-                    "expected a number",
-                    "write e.g. `:duration 4.0`",
-                ));
-            };
-            match key.as_str() {
-                "sample-rate"
-                    if (1000.0..=1_536_000.0).contains(&value) && value.fract() == 0.0 =>
-                {
-                    self.settings.sample_rate = Some(value)
-                }
-                "sample-rate" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!(
-                            "sample rate {value} is not a whole number of Hz from 1000 to 1536000"
-                        ),
-                        "not a usable sample rate",
-                        "use a rate between 1000 and 1536000 Hz, e.g. 48000",
-                    ))
-                }
-                "duration" if value > 0.0 && value.is_finite() => {
-                    self.settings.duration = Some(value)
-                }
-                "duration" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!("duration {value} is not positive"),
-                        "expected seconds > 0",
-                        "write e.g. `:duration 4.0`",
-                    ))
-                }
-                "seed" if value >= 0.0 && value.fract() == 0.0 && value < 2f64.powi(53) => {
-                    self.settings.seed = value as u64
-                }
-                "channels" if (1.0..=64.0).contains(&value) && value.fract() == 0.0 => {
-                    self.settings.channels = Some(value as usize)
-                }
-                "channels" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!("{value} is not a number of channels"),
-                        "expected 1 to 64",
-                        "write e.g. `:channels 2`",
-                    ))
-                }
-                "speed-of-sound" if value > 0.0 && value.is_finite() => {
-                    self.space.medium.speed_of_sound = value
-                }
-                "speed-of-sound" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!("speed of sound {value} is not positive"),
-                        "expected metres per second > 0",
-                        "write e.g. `:speed-of-sound 343` (air at 20 °C)",
-                    ))
-                }
-                "temperature" if (-60.0..=60.0).contains(&value) => {
-                    self.space.temperature = value;
-                    self.space.refresh_air();
-                }
-                "humidity" if (0.0..=100.0).contains(&value) => {
-                    self.space.humidity = value;
-                    self.space.refresh_air();
-                }
-                "temperature" | "humidity" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!("{key} {value} is out of range"),
-                        "out of range",
-                        "the temperature is in °C, −60 to 60; the humidity in percent, 0 to 100",
-                    ))
-                }
-                "reference-distance" | "min-distance" | "max-distance"
-                    if value > 0.0 && value <= timbre_ir::space::MAX_COORDINATE =>
-                {
-                    let medium = &mut self.space.medium;
-                    match key.as_str() {
-                        "reference-distance" => medium.reference_distance = value,
-                        "min-distance" => medium.min_distance = value,
-                        _ => medium.max_distance = value,
-                    }
-                }
-                "reference-distance" | "min-distance" | "max-distance" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!("distance {value} is not from 0 to 1000 km"),
-                        "expected metres > 0, ≤ 1000000",
-                        "write e.g. `:reference-distance 1`",
-                    ))
-                }
-                "seed" => {
-                    return Err(err(
-                        value_expr.span,
-                        format!("seed {value} is not a whole number"),
-                        "expected a whole number ≥ 0",
-                        "write e.g. `:seed 7`",
-                    ))
-                }
-                _ => {
-                    let names = known.split(", ").map(|k| k.trim_start_matches(':'));
-                    let help = match super::did_you_mean(key, names) {
-                        Some(close) => format!("did you mean `:{close}`? settings are {known}"),
-                        None => format!("settings are {known}"),
-                    };
-                    return Err(err(
-                        args[i].span,
-                        format!("unknown scene setting `:{key}`"),
-                        "not a setting",
-                        &help,
-                    ));
-                }
-            }
-            i += 2;
+            self.scene_setting(key, key_span, value_expr, origin)?;
         }
-        let medium = &self.space.medium;
+        let medium = &self.scene.space.medium;
         if medium.law == timbre_ir::space::DistanceLaw::Linear
             && medium.max_distance <= medium.reference_distance
         {
@@ -1076,4 +973,183 @@ impl Lowerer<'_> {
         }
         Ok(())
     }
+
+    /// One `:key value` setting of a `scene` form.
+    fn scene_setting(
+        &mut self,
+        key: &str,
+        key_span: Span,
+        value_expr: &Expr,
+        origin: &Origin,
+    ) -> Result<(), Diag> {
+        let err = |span: Span, msg: String, label: &str, help: &str| {
+            bad_scene(origin, span, msg, label, help)
+        };
+        if key == "air-absorption" {
+            let on = match value_expr.as_symbol() {
+                Some("on") => true,
+                Some("off") => false,
+                _ => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("`:air-absorption` is on or off, not {value_expr}"),
+                        "on or off",
+                        "write :air-absorption off to hear no air",
+                    ))
+                }
+            };
+            let medium = &mut self.scene.space.medium;
+            medium.air = on.then(|| {
+                timbre_ir::dsp::air::Air::new(
+                    self.scene.space.temperature,
+                    self.scene.space.humidity,
+                )
+            });
+            return Ok(());
+        }
+        if key == "distance-law" {
+            let law = value_expr
+                .as_symbol()
+                .and_then(timbre_ir::space::DistanceLaw::from_name);
+            let Some(law) = law else {
+                return Err(err(
+                    value_expr.span,
+                    format!("unknown distance law {value_expr}"),
+                    "not a law",
+                    "write :distance-law inverse, inverse-square, linear or none",
+                ));
+            };
+            self.scene.space.medium.law = law;
+            return Ok(());
+        }
+        let ExprKind::Number(value) = value_expr.kind else {
+            return Err(err(
+                value_expr.span,
+                format!(
+                    "setting `:{key}` must be a number, not {}",
+                    value_expr.describe()
+                ),
+                "expected a number",
+                "write e.g. `:duration 4.0`",
+            ));
+        };
+        match key {
+            "sample-rate" if (1000.0..=1_536_000.0).contains(&value) && value.fract() == 0.0 => {
+                self.settings.sample_rate = Some(value)
+            }
+            "sample-rate" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("sample rate {value} is not a whole number of Hz from 1000 to 1536000"),
+                    "not a usable sample rate",
+                    "use a rate between 1000 and 1536000 Hz, e.g. 48000",
+                ))
+            }
+            "duration" if value > 0.0 && value.is_finite() => self.settings.duration = Some(value),
+            "duration" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("duration {value} is not positive"),
+                    "expected seconds > 0",
+                    "write e.g. `:duration 4.0`",
+                ))
+            }
+            "seed" if value >= 0.0 && value.fract() == 0.0 && value < 2f64.powi(53) => {
+                self.settings.seed = value as u64
+            }
+            "channels" if (1.0..=64.0).contains(&value) && value.fract() == 0.0 => {
+                self.settings.channels = Some(value as usize)
+            }
+            "channels" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("{value} is not a number of channels"),
+                    "expected 1 to 64",
+                    "write e.g. `:channels 2`",
+                ))
+            }
+            "speed-of-sound" if value > 0.0 && value.is_finite() => {
+                self.scene.space.medium.speed_of_sound = value
+            }
+            "speed-of-sound" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("speed of sound {value} is not positive"),
+                    "expected metres per second > 0",
+                    "write e.g. `:speed-of-sound 343` (air at 20 °C)",
+                ))
+            }
+            "temperature" if (-60.0..=60.0).contains(&value) => {
+                self.scene.space.temperature = value;
+                self.scene.space.refresh_air();
+            }
+            "humidity" if (0.0..=100.0).contains(&value) => {
+                self.scene.space.humidity = value;
+                self.scene.space.refresh_air();
+            }
+            "temperature" | "humidity" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("{key} {value} is out of range"),
+                    "out of range",
+                    "the temperature is in °C, −60 to 60; the humidity in percent, 0 to 100",
+                ))
+            }
+            "reference-distance" | "min-distance" | "max-distance"
+                if value > 0.0 && value <= timbre_ir::space::MAX_COORDINATE =>
+            {
+                let medium = &mut self.scene.space.medium;
+                match key {
+                    "reference-distance" => medium.reference_distance = value,
+                    "min-distance" => medium.min_distance = value,
+                    _ => medium.max_distance = value,
+                }
+            }
+            "reference-distance" | "min-distance" | "max-distance" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("distance {value} is not from 0 to 1000 km"),
+                    "expected metres > 0, ≤ 1000000",
+                    "write e.g. `:reference-distance 1`",
+                ))
+            }
+            "seed" => {
+                return Err(err(
+                    value_expr.span,
+                    format!("seed {value} is not a whole number"),
+                    "expected a whole number ≥ 0",
+                    "write e.g. `:seed 7`",
+                ))
+            }
+            _ => {
+                let names = SCENE_SETTINGS
+                    .split(", ")
+                    .map(|k| k.trim_start_matches(':'));
+                let help = match super::did_you_mean(key, names) {
+                    Some(close) => {
+                        format!("did you mean `:{close}`? settings are {SCENE_SETTINGS}")
+                    }
+                    None => format!("settings are {SCENE_SETTINGS}"),
+                };
+                return Err(err(
+                    key_span,
+                    format!("unknown scene setting `:{key}`"),
+                    "not a setting",
+                    &help,
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The settings a `scene` form may give.
+const SCENE_SETTINGS: &str = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance, :air-absorption, :temperature, :humidity";
+
+/// A `timbre::bad-scene` diagnostic.
+fn bad_scene(origin: &Origin, span: Span, message: String, label: &str, help: &str) -> Diag {
+    Diag::new("timbre::bad-scene", message)
+        .label(span, label)
+        .help(help)
+        .in_source(&origin.source)
 }

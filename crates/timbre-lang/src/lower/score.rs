@@ -265,7 +265,7 @@ impl Lowerer<'_> {
             let part = self.lower_part(name, part, (beat, start, end), origin)?;
             score.parts.push(part);
         }
-        self.scores.push(score);
+        self.scene.scores.push(score);
         Ok(())
     }
 
@@ -295,7 +295,7 @@ impl Lowerer<'_> {
             symbol(2, "an instrument class")?,
             symbol(3, "a keyframed variable")?,
         );
-        let Some(track) = self.keyframes.get(variable).cloned() else {
+        let Some(track) = self.names.keyframes.get(variable).cloned() else {
             return Err(self
                 .diag(
                     "timbre::bad-score",
@@ -306,216 +306,9 @@ impl Lowerer<'_> {
                 .help("a part follows one keyframed variable: define it with (keyframes name …)"));
         };
         let options = self.options(&items[4..], "part", PART_OPTIONS, origin)?;
-        let bad = |l: &Self, e: &Expr, message: String, help: &str| {
-            l.diag("timbre::bad-score", message, origin)
-                .label(e.span, "here")
-                .help(help.to_owned())
-        };
-        // An option's number, refused outside `accepted` at its argument.
-        let ranged = |l: &mut Self,
-                      key: &str,
-                      default: f64,
-                      (accepted, expected, help): Range|
-         -> Result<f64, Diag> {
-            let Some(e) = options.get(key) else {
-                return Ok(default);
-            };
-            let x = l.constant_option(e, &format!("`:{key}`"), origin)?;
-            if accepted(x) {
-                return Ok(x);
-            }
-            Err(l
-                .diag(
-                    "timbre::bad-score",
-                    format!("part `{name}`: `:{key}` {} is out of range", number(x)),
-                    origin,
-                )
-                .label(e.span, format!("expected {expected}"))
-                .help(help))
-        };
-        let semitones = ranged(self, "semitones", 12.0, SEMITONES)?;
-        let offset = ranged(self, "offset", 60.0, OFFSET)?;
-        let curve = ranged(self, "curve", 1.0, CURVE)?;
-        let scale = match options.get("scale") {
-            None => Scale::named("chromatic").expect("a named scale"),
-            Some(e) => match (&e.kind, e.as_symbol()) {
-                (_, Some(named)) => Scale::named(named).ok_or_else(|| {
-                    let names: Vec<&str> = scale::NAMED.iter().map(|(n, _)| *n).collect();
-                    bad(
-                        self,
-                        e,
-                        format!("unknown scale `{named}`"),
-                        &format!(
-                            "the scales are {}, or a list of semitones such as (0 2 4 7 9)",
-                            names.join(", ")
-                        ),
-                    )
-                })?,
-                (ExprKind::List(degrees), _) => {
-                    let mut values = vec![];
-                    for d in degrees {
-                        values.push(self.constant_option(d, "a degree of the scale", origin)?);
-                    }
-                    Scale::from_degrees(&values).map_err(|_| {
-                        bad(
-                            self,
-                            e,
-                            "a scale's degrees must ascend within one octave".into(),
-                            "give semitones above the key, from 0 up to below 12: (0 3 5 6 7 10)",
-                        )
-                    })?
-                }
-                _ => {
-                    return Err(bad(
-                        self,
-                        e,
-                        format!("a scale is a name or a list, not {}", e.describe()),
-                        "write :scale blues or :scale (0 2 4 7 9)",
-                    ))
-                }
-            },
-        };
-        let key = match options.get("key") {
-            None => 0.0,
-            Some(e) => match (e.as_symbol(), &e.kind) {
-                (Some(named), _) => scale::key_class(named).ok_or_else(|| {
-                    bad(
-                        self,
-                        e,
-                        format!("`{named}` is not a key"),
-                        "write a note name: C, F#, Bb …, or a pitch class 0 to 11",
-                    )
-                })?,
-                (None, ExprKind::Number(x)) if (0.0..12.0).contains(x) => *x,
-                _ => {
-                    return Err(bad(
-                        self,
-                        e,
-                        format!("{} is not a key", e.describe()),
-                        "write a note name: C, F#, Bb …, or a pitch class 0 to 11",
-                    ))
-                }
-            },
-        };
-        let (low, high) = match options.get("octaves") {
-            None => (0.0, 127.0),
-            Some(e) => {
-                let Some([lo, hi]) = e.as_list() else {
-                    return Err(bad(
-                        self,
-                        e,
-                        "`:octaves` is a list of two octave numbers, low to high".into(),
-                        "write :octaves (3 5): C3 to B5, middle C being C4",
-                    ));
-                };
-                let octave = |l: &mut Self, at: &Expr, what: &str| -> Result<f64, Diag> {
-                    let x = l.constant_option(at, what, origin)?;
-                    if (-1.0..=9.0).contains(&x) && x.fract() == 0.0 {
-                        return Ok(x);
-                    }
-                    Err(l
-                        .diag(
-                            "timbre::bad-score",
-                            format!("part `{name}`: octave {} is not a MIDI octave", number(x)),
-                            origin,
-                        )
-                        .label(at.span, "expected a whole number from -1 to 9")
-                        .help("MIDI's octaves are -1 (C-1 = 0) to 9 (G9 = 127), middle C being C4"))
-                };
-                let (lo, hi) = (
-                    octave(self, lo, "the lowest octave")?,
-                    octave(self, hi, "the highest octave")?,
-                );
-                if lo > hi {
-                    return Err(self
-                        .diag(
-                            "timbre::bad-score",
-                            format!("`:octaves` is a list of two octave numbers, low to high: ({lo} {hi}) holds none"),
-                            origin,
-                        )
-                        .label(e.span, "an empty range")
-                        .help(format!("write :octaves ({hi} {lo}): C{hi} to B{lo}")));
-                }
-                (12.0 * (lo + 1.0), (12.0 * (hi + 1.0) + 11.0).min(127.0))
-            }
-        };
-        let mapping = Mapping {
-            semitones,
-            offset,
-            curve,
-            scale,
-            key,
-            low,
-            high,
-        };
-        let rhythm = match options.get("rhythm") {
-            None => Rhythm::Pattern(vec![Mark::On]),
-            Some(e) => match (&e.kind, e.as_symbol()) {
-                (ExprKind::Str(pattern), _) => {
-                    let marks: Option<Vec<Mark>> = pattern
-                        .chars()
-                        .filter(|c| !c.is_whitespace() && *c != '|')
-                        .map(|c| match c {
-                            'x' => Some(Mark::On),
-                            '-' => Some(Mark::Hold),
-                            '.' => Some(Mark::Off),
-                            _ => None,
-                        })
-                        .collect();
-                    match marks {
-                        Some(marks) if !marks.is_empty() => Rhythm::Pattern(marks),
-                        _ => return Err(bad(self, e, format!("bad rhythm pattern {pattern:?}"), "a pattern is marks per beat: x a note, - hold it, . a rest (spaces and | are ignored): \"x-x. x---\"")),
-                    }
-                }
-                (_, Some("random")) => {
-                    let on = ranged(self, "on", 0.5, PROBABILITY)?;
-                    let hold = ranged(self, "hold", 0.25, PROBABILITY)?;
-                    if !(on >= 0.0 && hold >= 0.0 && on + hold <= 1.0) {
-                        return Err(bad(self, e, format!("probabilities :on {on} and :hold {hold} do not fit in 1"), "give :on and :hold between 0 and 1, adding up to at most 1 (the rest are rests)"));
-                    }
-                    let seed = ranged(self, "seed", 0.0, SEED)?;
-                    Rhythm::Random {
-                        on,
-                        hold,
-                        seed: seed as u64,
-                    }
-                }
-                (_, Some("motion")) => {
-                    let threshold = ranged(self, "threshold", 1.0, THRESHOLD)?;
-                    let min_duration = ranged(self, "min-duration", beat, MIN_DURATION)?;
-                    let frame_rate = ranged(self, "frame-rate", 30.0, FRAME_RATE)?;
-                    let trigger = match options.get("trigger") {
-                        None => None,
-                        Some(t) => match t.as_symbol().and_then(|v| self.keyframes.get(v)) {
-                            Some(track) => Some(track.clone()),
-                            None => {
-                                return Err(bad(
-                                    self,
-                                    t,
-                                    format!("`:trigger` is a keyframed variable, not {}", t.describe()),
-                                    "name a variable whose level starts notes, such as an image's motion",
-                                ))
-                            }
-                        },
-                    };
-                    Rhythm::Motion {
-                        threshold,
-                        min_duration,
-                        frame_rate,
-                        trigger,
-                    }
-                }
-                _ => {
-                    return Err(bad(
-                        self,
-                        e,
-                        format!("unknown rhythm {}", e.describe()),
-                        "write a pattern such as \"x-x.\", or random, or motion",
-                    ))
-                }
-            },
-        };
-        let velocity = ranged(self, "velocity", 0.8, VELOCITY)?;
+        let mapping = self.part_mapping(name, &options, origin)?;
+        let rhythm = self.part_rhythm(name, &options, beat, origin)?;
+        let velocity = self.ranged(&options, name, "velocity", 0.8, VELOCITY, origin)?;
         let delay = self.amount(options.get("delay"), "delay", origin)?;
         let tail = self
             .amount(options.get("tail"), "tail", origin)?
@@ -524,7 +317,8 @@ impl Lowerer<'_> {
         let attack = self.amount(options.get("attack"), "attack", origin)?;
         // The class hears its note's attack and tail if it declares them.
         let declares = |l: &Self, param: &str| {
-            l.definitions
+            l.names
+                .definitions
                 .get(class)
                 .is_some_and(|d| d.params.iter().any(|(p, _)| p == param))
         };
@@ -532,7 +326,7 @@ impl Lowerer<'_> {
         if let (Some(given), false, true) = (
             options.get("attack"),
             takes_attack,
-            self.definitions.contains_key(class),
+            self.names.definitions.contains_key(class),
         ) {
             return Err(self
                 .diag(
@@ -549,16 +343,17 @@ impl Lowerer<'_> {
                 )));
         }
         let attack = attack.unwrap_or(Amount::Fixed(0.0));
-        let bend = ranged(self, "bend", 0.0, BEND)?;
+        let bend = self.ranged(&options, name, "bend", 0.0, BEND, origin)?;
         let slur = match options.get("slur").map(|e| (e, e.as_symbol())) {
             None | Some((_, Some("on"))) => true,
             Some((_, Some("off"))) => false,
             Some((e, _)) => {
-                return Err(bad(
+                return Err(bad_part(
                     self,
                     e,
                     "`:slur` is on or off".into(),
                     "write :slur off to strike every beat again",
+                    origin,
                 ))
             }
         };
@@ -577,7 +372,7 @@ impl Lowerer<'_> {
         let bounds = music::Bounds {
             reads: music::MAX_READS,
             // Each note is an instance: those the scene may still have.
-            notes: (self.options.limits.instances).saturating_sub(self.instances.len()),
+            notes: (self.options.limits.instances).saturating_sub(self.scene.instances.len()),
             deadline: self.deadline,
         };
         let notes = match music::notes(&track, &mapping, &playing, &bounds) {
@@ -596,41 +391,7 @@ impl Lowerer<'_> {
             let freq = if bend == 0.0 {
                 num(timbre_ir::op::UnaryOp::MidiHz.apply(key_number))
             } else {
-                // Toward the unquantised pitch, moved by the octaves the range moved
-                // the note: key + bend·(pitch(v(t)) + shift − key).
-                let value = track.value(note.beat);
-                let snapped = mapping.scale.snap(mapping.pitch(value), key);
-                let shift = key_number - snapped.round();
-                let var = sym(variable);
-                let shaped = if curve == 1.0 {
-                    var
-                } else {
-                    let sign = list(vec![
-                        sym("if"),
-                        list(vec![sym("<"), var.clone(), num(0.0)]),
-                        num(-1.0),
-                        num(1.0),
-                    ]);
-                    list(vec![
-                        sym("*"),
-                        sign,
-                        list(vec![sym("pow"), list(vec![sym("abs"), var]), num(curve)]),
-                    ])
-                };
-                let pitch = list(vec![
-                    sym("+"),
-                    num(offset + shift),
-                    list(vec![sym("*"), num(semitones), shaped]),
-                ]);
-                let toward = list(vec![
-                    sym("*"),
-                    num(bend),
-                    list(vec![sym("-"), pitch, num(key_number)]),
-                ]);
-                list(vec![
-                    sym("midihz"),
-                    list(vec![sym("+"), num(key_number), toward]),
-                ])
+                bent_freq(note, &track, &mapping, variable, bend, span)
             };
             let gate = list(vec![sym("<"), sym("t"), num(note.duration)]);
             let tail = tail.at(note.beat);
@@ -665,13 +426,254 @@ impl Lowerer<'_> {
                 }
             }
             let instance = self.lower_instance(&list(instance), origin)?;
-            self.instances.push(instance);
+            self.scene.instances.push(instance);
         }
         Ok(music::Part {
             name: name.to_owned(),
             class: class.to_owned(),
             notes,
         })
+    }
+
+    /// A part's mapping from its variable's values to MIDI keys: `:semitones`,
+    /// `:offset`, `:curve`, `:scale`, `:key` and `:octaves`.
+    fn part_mapping(
+        &mut self,
+        name: &str,
+        options: &super::scene::Options<'_>,
+        origin: &Origin,
+    ) -> Result<Mapping, Diag> {
+        let semitones = self.ranged(options, name, "semitones", 12.0, SEMITONES, origin)?;
+        let offset = self.ranged(options, name, "offset", 60.0, OFFSET, origin)?;
+        let curve = self.ranged(options, name, "curve", 1.0, CURVE, origin)?;
+        let scale = match options.get("scale") {
+            None => Scale::named("chromatic").expect("a named scale"),
+            Some(e) => match (&e.kind, e.as_symbol()) {
+                (_, Some(named)) => Scale::named(named).ok_or_else(|| {
+                    let names: Vec<&str> = scale::NAMED.iter().map(|(n, _)| *n).collect();
+                    bad_part(
+                        self,
+                        e,
+                        format!("unknown scale `{named}`"),
+                        &format!(
+                            "the scales are {}, or a list of semitones such as (0 2 4 7 9)",
+                            names.join(", ")
+                        ),
+                        origin,
+                    )
+                })?,
+                (ExprKind::List(degrees), _) => {
+                    let mut values = vec![];
+                    for d in degrees {
+                        values.push(self.constant_option(d, "a degree of the scale", origin)?);
+                    }
+                    Scale::from_degrees(&values).map_err(|_| {
+                        bad_part(
+                            self,
+                            e,
+                            "a scale's degrees must ascend within one octave".into(),
+                            "give semitones above the key, from 0 up to below 12: (0 3 5 6 7 10)",
+                            origin,
+                        )
+                    })?
+                }
+                _ => {
+                    return Err(bad_part(
+                        self,
+                        e,
+                        format!("a scale is a name or a list, not {}", e.describe()),
+                        "write :scale blues or :scale (0 2 4 7 9)",
+                        origin,
+                    ))
+                }
+            },
+        };
+        let key = match options.get("key") {
+            None => 0.0,
+            Some(e) => match (e.as_symbol(), &e.kind) {
+                (Some(named), _) => scale::key_class(named).ok_or_else(|| {
+                    bad_part(
+                        self,
+                        e,
+                        format!("`{named}` is not a key"),
+                        "write a note name: C, F#, Bb …, or a pitch class 0 to 11",
+                        origin,
+                    )
+                })?,
+                (None, ExprKind::Number(x)) if (0.0..12.0).contains(x) => *x,
+                _ => {
+                    return Err(bad_part(
+                        self,
+                        e,
+                        format!("{} is not a key", e.describe()),
+                        "write a note name: C, F#, Bb …, or a pitch class 0 to 11",
+                        origin,
+                    ))
+                }
+            },
+        };
+        let (low, high) = match options.get("octaves") {
+            None => (0.0, 127.0),
+            Some(e) => {
+                let Some([lo, hi]) = e.as_list() else {
+                    return Err(bad_part(
+                        self,
+                        e,
+                        "`:octaves` is a list of two octave numbers, low to high".into(),
+                        "write :octaves (3 5): C3 to B5, middle C being C4",
+                        origin,
+                    ));
+                };
+                let octave = |l: &mut Self, at: &Expr, what: &str| -> Result<f64, Diag> {
+                    let x = l.constant_option(at, what, origin)?;
+                    if (-1.0..=9.0).contains(&x) && x.fract() == 0.0 {
+                        return Ok(x);
+                    }
+                    Err(l
+                        .diag(
+                            "timbre::bad-score",
+                            format!("part `{name}`: octave {} is not a MIDI octave", number(x)),
+                            origin,
+                        )
+                        .label(at.span, "expected a whole number from -1 to 9")
+                        .help("MIDI's octaves are -1 (C-1 = 0) to 9 (G9 = 127), middle C being C4"))
+                };
+                let (lo, hi) = (
+                    octave(self, lo, "the lowest octave")?,
+                    octave(self, hi, "the highest octave")?,
+                );
+                if lo > hi {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-score",
+                            format!("`:octaves` is a list of two octave numbers, low to high: ({lo} {hi}) holds none"),
+                            origin,
+                        )
+                        .label(e.span, "an empty range")
+                        .help(format!("write :octaves ({hi} {lo}): C{hi} to B{lo}")));
+                }
+                (12.0 * (lo + 1.0), (12.0 * (hi + 1.0) + 11.0).min(127.0))
+            }
+        };
+        Ok(Mapping {
+            semitones,
+            offset,
+            curve,
+            scale,
+            key,
+            low,
+            high,
+        })
+    }
+
+    /// A part's `:rhythm`: a pattern, random (`:on`, `:hold`, `:seed`) or from motion
+    /// (`:threshold`, `:min-duration`, `:frame-rate`, `:trigger`).
+    fn part_rhythm(
+        &mut self,
+        name: &str,
+        options: &super::scene::Options<'_>,
+        beat: f64,
+        origin: &Origin,
+    ) -> Result<Rhythm, Diag> {
+        Ok(match options.get("rhythm") {
+            None => Rhythm::Pattern(vec![Mark::On]),
+            Some(e) => match (&e.kind, e.as_symbol()) {
+                (ExprKind::Str(pattern), _) => {
+                    let marks: Option<Vec<Mark>> = pattern
+                        .chars()
+                        .filter(|c| !c.is_whitespace() && *c != '|')
+                        .map(|c| match c {
+                            'x' => Some(Mark::On),
+                            '-' => Some(Mark::Hold),
+                            '.' => Some(Mark::Off),
+                            _ => None,
+                        })
+                        .collect();
+                    match marks {
+                        Some(marks) if !marks.is_empty() => Rhythm::Pattern(marks),
+                        _ => return Err(bad_part(self, e, format!("bad rhythm pattern {pattern:?}"), "a pattern is marks per beat: x a note, - hold it, . a rest (spaces and | are ignored): \"x-x. x---\"", origin)),
+                    }
+                }
+                (_, Some("random")) => {
+                    let on = self.ranged(options, name, "on", 0.5, PROBABILITY, origin)?;
+                    let hold = self.ranged(options, name, "hold", 0.25, PROBABILITY, origin)?;
+                    if !(on >= 0.0 && hold >= 0.0 && on + hold <= 1.0) {
+                        return Err(bad_part(self, e, format!("probabilities :on {on} and :hold {hold} do not fit in 1"), "give :on and :hold between 0 and 1, adding up to at most 1 (the rest are rests)", origin));
+                    }
+                    let seed = self.ranged(options, name, "seed", 0.0, SEED, origin)?;
+                    Rhythm::Random {
+                        on,
+                        hold,
+                        seed: seed as u64,
+                    }
+                }
+                (_, Some("motion")) => {
+                    let threshold =
+                        self.ranged(options, name, "threshold", 1.0, THRESHOLD, origin)?;
+                    let min_duration =
+                        self.ranged(options, name, "min-duration", beat, MIN_DURATION, origin)?;
+                    let frame_rate =
+                        self.ranged(options, name, "frame-rate", 30.0, FRAME_RATE, origin)?;
+                    let trigger = match options.get("trigger") {
+                        None => None,
+                        Some(t) => match t.as_symbol().and_then(|v| self.names.keyframes.get(v)) {
+                            Some(track) => Some(track.clone()),
+                            None => {
+                                return Err(bad_part(
+                                    self,
+                                    t,
+                                    format!("`:trigger` is a keyframed variable, not {}", t.describe()),
+                                    "name a variable whose level starts notes, such as an image's motion", origin,
+                                ))
+                            }
+                        },
+                    };
+                    Rhythm::Motion {
+                        threshold,
+                        min_duration,
+                        frame_rate,
+                        trigger,
+                    }
+                }
+                _ => {
+                    return Err(bad_part(
+                        self,
+                        e,
+                        format!("unknown rhythm {}", e.describe()),
+                        "write a pattern such as \"x-x.\", or random, or motion",
+                        origin,
+                    ))
+                }
+            },
+        })
+    }
+
+    /// Part `part`'s option `key`, or `default`: a number, refused outside `accepted`
+    /// at its argument.
+    fn ranged(
+        &mut self,
+        options: &super::scene::Options<'_>,
+        part: &str,
+        key: &str,
+        default: f64,
+        (accepted, expected, help): Range,
+        origin: &Origin,
+    ) -> Result<f64, Diag> {
+        let Some(e) = options.get(key) else {
+            return Ok(default);
+        };
+        let x = self.constant_option(e, &format!("`:{key}`"), origin)?;
+        if accepted(x) {
+            return Ok(x);
+        }
+        Err(self
+            .diag(
+                "timbre::bad-score",
+                format!("part `{part}`: `:{key}` {} is out of range", number(x)),
+                origin,
+            )
+            .label(e.span, format!("expected {expected}"))
+            .help(help))
     }
 }
 
@@ -739,7 +741,7 @@ impl Lowerer<'_> {
         if let Some([variable, max]) = value.as_list() {
             if let Some(track) = variable
                 .as_symbol()
-                .and_then(|v| self.keyframes.get(v))
+                .and_then(|v| self.names.keyframes.get(v))
                 .cloned()
             {
                 let seconds =
@@ -789,4 +791,65 @@ impl Lowerer<'_> {
 
 fn atom(kind: ExprKind, span: Span) -> Expr {
     Expr { kind, span }
+}
+
+/// The frequency of `note` bent toward its variable's unquantised pitch, as an
+/// expression: `(midihz (+ key (* bend (- pitch key))))`, the pitch moved by the
+/// octaves the range moved the note: key + bend·(pitch(v(t)) + shift − key).
+fn bent_freq(
+    note: &music::Note,
+    track: &timbre_ir::keyframes::KeyframeTrack,
+    mapping: &Mapping,
+    variable: &str,
+    bend: f64,
+    span: Span,
+) -> Expr {
+    let num = |x: f64| atom(ExprKind::Number(x), span);
+    let sym = |s: &str| atom(ExprKind::Symbol(s.to_owned()), span);
+    let list = |items: Vec<Expr>| atom(ExprKind::List(items), span);
+    let key_number = f64::from(note.key);
+    let value = track.value(note.beat);
+    let snapped = mapping.scale.snap(mapping.pitch(value), mapping.key);
+    let shift = key_number - snapped.round();
+    let var = sym(variable);
+    let shaped = if mapping.curve == 1.0 {
+        var
+    } else {
+        let sign = list(vec![
+            sym("if"),
+            list(vec![sym("<"), var.clone(), num(0.0)]),
+            num(-1.0),
+            num(1.0),
+        ]);
+        list(vec![
+            sym("*"),
+            sign,
+            list(vec![
+                sym("pow"),
+                list(vec![sym("abs"), var]),
+                num(mapping.curve),
+            ]),
+        ])
+    };
+    let pitch = list(vec![
+        sym("+"),
+        num(mapping.offset + shift),
+        list(vec![sym("*"), num(mapping.semitones), shaped]),
+    ]);
+    let toward = list(vec![
+        sym("*"),
+        num(bend),
+        list(vec![sym("-"), pitch, num(key_number)]),
+    ]);
+    list(vec![
+        sym("midihz"),
+        list(vec![sym("+"), num(key_number), toward]),
+    ])
+}
+
+/// A `timbre::bad-score` diagnostic at `e`.
+fn bad_part(l: &Lowerer<'_>, e: &Expr, message: String, help: &str, origin: &Origin) -> Diag {
+    l.diag("timbre::bad-score", message, origin)
+        .label(e.span, "here")
+        .help(help.to_owned())
 }

@@ -96,16 +96,13 @@ const PATTERNS: &str = "omni, subcardioid, cardioid, supercardioid, hypercardioi
 impl Lowerer<'_> {
     /// A `listener`, `microphone` or `source` form.
     pub(crate) fn read_space_form(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
-        match form
-            .as_list()
-            .and_then(|l| l.first())
-            .and_then(Expr::as_symbol)
-        {
-            Some("listener") => self.read_listener(form, origin),
-            Some("microphone") => self.read_microphone(form, origin),
-            Some("room") => self.read_room(form, origin),
-            Some("box") => self.read_box(form, origin),
-            Some("wall") => self.read_wall(form, origin),
+        use super::forms::Form;
+        match Form::of(form) {
+            Some(Form::Listener) => self.read_listener(form, origin),
+            Some(Form::Microphone) => self.read_microphone(form, origin),
+            Some(Form::Room) => self.read_room(form, origin),
+            Some(Form::Box) => self.read_box(form, origin),
+            Some(Form::Wall) => self.read_wall(form, origin),
             _ => self.read_source(form, origin),
         }
     }
@@ -114,7 +111,7 @@ impl Lowerer<'_> {
     /// `:pair spaced :spacing 0.5` (two omnis) or `:pair xy :angle 90` (two cardioids).
     fn read_listener(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
         let items = form.as_list().unwrap_or_default();
-        if let Some((_, first)) = &self.space.listener {
+        if let Some((_, first)) = &self.scene.space.listener {
             return Err(self
                 .diag("timbre::duplicate-listener", "the scene has two listeners", origin)
                 .label(form.span, "second listener")
@@ -222,7 +219,7 @@ impl Lowerer<'_> {
                 }
             }
         };
-        self.space.listener = Some((receivers, form.span));
+        self.scene.space.listener = Some((receivers, form.span));
         Ok(())
     }
 
@@ -254,7 +251,7 @@ impl Lowerer<'_> {
                 .help("set the number of channels with (scene :channels N)"));
         }
         let channel = channel as usize;
-        if let Some((_, _, first)) = self.space.microphones.iter().find(|m| m.0 == channel) {
+        if let Some((_, _, first)) = self.scene.space.microphones.iter().find(|m| m.0 == channel) {
             return Err(self
                 .diag(
                     "timbre::bad-microphone",
@@ -282,7 +279,10 @@ impl Lowerer<'_> {
             pattern,
             ..Receiver::omni(position)
         };
-        self.space.microphones.push((channel, receiver, form.span));
+        self.scene
+            .space
+            .microphones
+            .push((channel, receiver, form.span));
         Ok(())
     }
 
@@ -297,7 +297,7 @@ impl Lowerer<'_> {
                 .help(format!("write {usage}")));
         };
         let name = name_expr.as_symbol().unwrap_or_default().to_owned();
-        if let Some((_, _, first)) = self.space.sources.iter().find(|s| s.0 == name) {
+        if let Some((_, _, first)) = self.scene.space.sources.iter().find(|s| s.0 == name) {
             return Err(self
                 .diag(
                     "timbre::duplicate-source",
@@ -320,14 +320,14 @@ impl Lowerer<'_> {
                 .help(format!("write {usage}, or a keyframed position")));
         };
         let path = self.position(position, "the source's position", origin)?;
-        self.space.sources.push((name, path, name_expr.span));
+        self.scene.space.sources.push((name, path, name_expr.span));
         Ok(())
     }
 
     /// `(room :size (x y z) :absorption a :order 2 :rt60 s :reverb fdn)`: a shoebox.
     fn read_room(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
         let items = form.as_list().unwrap_or_default();
-        if let Some((_, first)) = &self.space.room {
+        if let Some((_, first)) = &self.scene.space.room {
             return Err(self
                 .diag("timbre::bad-room", "the scene has two rooms", origin)
                 .label(form.span, "second room")
@@ -450,7 +450,7 @@ impl Lowerer<'_> {
             late: Late::None,
         };
         let sr = self.settings.sample_rate.unwrap_or(48_000.0);
-        let reference = self.space.medium.reference_distance;
+        let reference = self.scene.space.medium.reference_distance;
         let late = match options.get("reverb") {
             None => "fdn",
             Some(Expr {
@@ -503,7 +503,7 @@ impl Lowerer<'_> {
                 gain: (target / energy.max(1e-30)).sqrt(),
             };
         }
-        self.space.room = Some((acoustics, form.span));
+        self.scene.space.room = Some((acoustics, form.span));
         Ok(())
     }
 
@@ -555,7 +555,10 @@ impl Lowerer<'_> {
     fn obstacle_name(&self, items: &[Expr], kind: &str) -> (String, usize) {
         match items.get(1).and_then(Expr::as_symbol) {
             Some(name) => (name.to_owned(), 2),
-            None => (format!("{kind} {}", self.space.obstacles.len() + 1), 1),
+            None => (
+                format!("{kind} {}", self.scene.space.obstacles.len() + 1),
+                1,
+            ),
         }
     }
 
@@ -630,7 +633,7 @@ impl Lowerer<'_> {
                 .help("write (x y z) in metres, each > 0"));
         }
         let material = self.material(&options, origin)?;
-        self.space.obstacles.push((
+        self.scene.space.obstacles.push((
             PlacedObstacle {
                 name,
                 shape: Shape::Box {
@@ -713,7 +716,7 @@ impl Lowerer<'_> {
                 .help("a wall has a length and a height, and its openings lie on it"));
         }
         let material = self.material(&options, origin)?;
-        self.space.obstacles.push((
+        self.scene.space.obstacles.push((
             PlacedObstacle {
                 name,
                 shape: Shape::Wall(wall),
@@ -726,29 +729,31 @@ impl Lowerer<'_> {
 
     /// The scene's obstacles and room, checked against its receivers, once.
     fn environment(&mut self, at: Span, origin: &Origin) -> Result<Arc<Environment>, Diag> {
-        if let Some(environment) = &self.space.environment {
+        if let Some(environment) = &self.scene.space.environment {
             return Ok(environment.clone());
         }
         let environment = Arc::new(Environment {
             obstacles: self
+                .scene
                 .space
                 .obstacles
                 .iter()
                 .map(|(o, _)| o.clone())
                 .collect(),
-            room: self.space.room.as_ref().map(|(r, _)| r.clone()),
+            room: self.scene.space.room.as_ref().map(|(r, _)| r.clone()),
         });
         let receivers = self.receivers(at, origin)?;
-        if let Some((acoustics, room_span)) = &self.space.room {
+        if let Some((acoustics, room_span)) = &self.scene.space.room {
             for receiver in receivers.iter() {
                 for (time, p) in key_positions(&receiver.position) {
                     if !acoustics.room.contains(p) {
                         let span = self
+                            .scene
                             .space
                             .listener
                             .as_ref()
                             .map(|l| l.1)
-                            .or(self.space.microphones.first().map(|m| m.2))
+                            .or(self.scene.space.microphones.first().map(|m| m.2))
                             .unwrap_or(at);
                         return Err(self
                             .diag(
@@ -763,14 +768,14 @@ impl Lowerer<'_> {
                 }
             }
         }
-        self.space.environment = Some(environment.clone());
+        self.scene.space.environment = Some(environment.clone());
         Ok(environment)
     }
 
     /// A source must not start inside an obstacle, nor leave the room.
     fn check_source(&self, source: &Path, span: Span, origin: &Origin) -> Result<(), Diag> {
         for (time, p) in key_positions(source) {
-            for (obstacle, obstacle_span) in &self.space.obstacles {
+            for (obstacle, obstacle_span) in &self.scene.space.obstacles {
                 if obstacle.at(time).contains(p) {
                     return Err(self
                         .diag(
@@ -783,7 +788,7 @@ impl Lowerer<'_> {
                         .help("move the source or the obstacle: sound starts in the air"));
                 }
             }
-            if let Some((acoustics, room_span)) = &self.space.room {
+            if let Some((acoustics, room_span)) = &self.scene.space.room {
                 if !acoustics.room.contains(p) {
                     return Err(self
                         .diag(
@@ -859,7 +864,7 @@ impl Lowerer<'_> {
             .help("a position is (x y z), in metres; z is up")
         };
         if let Some(items) = e.as_list() {
-            if items.first().and_then(Expr::as_symbol) == Some("keyframes") {
+            if super::forms::Form::of(e) == Some(super::forms::Form::Keyframes) {
                 return match self.track(&items[1..], e.span, origin)? {
                     Track::Vector(tracks) if tracks.len() == 3 => Ok(keyed(&tracks)),
                     Track::Vector(tracks) => Err(wrong_length(self, tracks.len(), e.span)),
@@ -887,19 +892,19 @@ impl Lowerer<'_> {
             };
         }
         if let Some(name) = e.as_symbol() {
-            if let Some(tracks) = self.vector_keyframes.get(name) {
+            if let Some(tracks) = self.names.vector_keyframes.get(name) {
                 return match tracks.len() {
                     3 => Ok(keyed(tracks)),
                     n => Err(wrong_length(self, n, e.span)),
                 };
             }
-            if self.keyframes.contains_key(name) {
+            if self.names.keyframes.contains_key(name) {
                 return Err(wrong_length(self, 1, e.span));
             }
-            if self.names_incomplete || self.failed_names.contains(name) {
+            if self.names.incomplete || self.names.failed.contains(name) {
                 return Err(self.follow_on(name, e.span, origin));
             }
-            let names = self.vector_keyframes.keys().map(String::as_str);
+            let names = self.names.vector_keyframes.keys().map(String::as_str);
             let hint = match super::did_you_mean(name, names) {
                 Some(close) => format!("did you mean `{close}`?"),
                 None => help.to_owned(),
@@ -953,11 +958,14 @@ impl Lowerer<'_> {
     /// The receivers of the scene, one per output channel (or one heard in every
     /// channel): its microphones, or its listener.
     fn receivers(&mut self, at: Span, origin: &Origin) -> Result<Arc<[Receiver]>, Diag> {
-        if let Some(receivers) = &self.space.receivers {
+        if let Some(receivers) = &self.scene.space.receivers {
             return Ok(receivers.clone());
         }
         let channels = self.settings.channels.unwrap_or(1);
-        let receivers: Vec<Receiver> = match (&self.space.listener, &self.space.microphones[..]) {
+        let receivers: Vec<Receiver> = match (
+            &self.scene.space.listener,
+            &self.scene.space.microphones[..],
+        ) {
             (Some((_, listener)), [(_, _, mic), ..]) => {
                 return Err(self
                     .diag(
@@ -1003,7 +1011,7 @@ impl Lowerer<'_> {
             }
         };
         let receivers: Arc<[Receiver]> = receivers.into();
-        self.space.receivers = Some(receivers.clone());
+        self.scene.space.receivers = Some(receivers.clone());
         Ok(receivers)
     }
 
@@ -1025,21 +1033,22 @@ impl Lowerer<'_> {
                 .help("place it at a named source, or at a position")),
             (Some(name_expr), None) => {
                 let name = name_expr.as_symbol().unwrap_or_default();
-                if let Some((_, path, _)) = self.space.sources.iter().find(|s| s.0 == name) {
+                if let Some((_, path, _)) = self.scene.space.sources.iter().find(|s| s.0 == name) {
                     return Ok(Some((path.clone(), name_expr.span)));
                 }
-                if self.names_incomplete || self.failed_sources.contains(name) {
+                if self.names.incomplete || self.scene.failed_sources.contains(name) {
                     return Err(self.follow_on(name, name_expr.span, origin));
                 }
-                let names = self.space.sources.iter().map(|s| s.0.as_str());
+                let names = self.scene.space.sources.iter().map(|s| s.0.as_str());
                 let help = match super::did_you_mean(name, names) {
                     Some(close) => format!("did you mean `{close}`?"),
-                    None if self.space.sources.is_empty() => {
+                    None if self.scene.space.sources.is_empty() => {
                         "declare it with (source NAME :position (x y z))".to_owned()
                     }
                     None => format!(
                         "the sources are {}",
-                        self.space
+                        self.scene
+                            .space
                             .sources
                             .iter()
                             .map(|s| format!("`{}`", s.0))
@@ -1074,7 +1083,7 @@ impl Lowerer<'_> {
         origin: &Origin,
     ) -> Result<(NodeId, f64), Diag> {
         let receivers = self.receivers(span, origin)?;
-        let medium = self.space.medium.clone();
+        let medium = self.scene.space.medium.clone();
         let farthest = receivers
             .iter()
             .map(|r| max_distance(source.bounds(), r.bounds()))
