@@ -5,13 +5,17 @@
 //! one entry per name typed (`define`, `define-sound`, `keyframes`), so typing a
 //! definition again replaces it, and the files given to `:load`, which are read again
 //! at every evaluation. Each input is compiled after the session's definitions (read
-//! as a library), so its diagnostics point into exactly what was typed. Ctrl-C during
-//! an audition stops it and keeps the session.
+//! as a library), so its diagnostics point into exactly what was typed. Inputs are
+//! read and rendered through one `timbre::Engine` for the session, as `timbre render`
+//! renders: its kernels are kept (a sound heard again compiles nothing), and a take
+//! is checked against the same limits first. Ctrl-C during an audition stops it and
+//! keeps the session.
 
 use std::collections::BTreeSet;
 use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use rustyline::completion::{Completer, FilenameCompleter, Pair};
@@ -20,11 +24,12 @@ use rustyline::hint::Hinter;
 use rustyline::history::DefaultHistory;
 use rustyline::validate::Validator;
 use rustyline::{Context, Editor, Helper};
+use timbre::{Diagnostics, FsLoader, Loader, SceneFile, SourceFile};
 use timbre_ir::dsp::analysis;
-use timbre_ir::{RenderConfig, SourceFile};
 use timbre_lang::Compiled;
-use timbre_lang::{compile, compile_after, CompileOptions, FsLoader, Loader, Registry};
 use timbre_syntax::{Expr, ExprKind};
+
+use crate::Failure;
 
 const PROMPT: &str = "timbre> ";
 /// Shown while an input's parentheses are still open.
@@ -105,7 +110,7 @@ const FORM_KEYWORDS: &[&str] = &[
 ];
 
 /// The longest audition of a scene without a duration, seconds.
-const OPEN_SCENE_LIMIT: f64 = 600.0;
+const OPEN_SCENE_LIMIT: f64 = timbre::OPEN_SCENE_SECONDS;
 
 /// Frames rendered between two looks at Ctrl-C.
 const CHUNK_FRAMES: usize = 8192;
@@ -140,6 +145,9 @@ struct Session {
     last_channels: usize,
     last_rate: f64,
     audition_path: PathBuf,
+    /// Reads and renders every input, with the limits `timbre render` has; its
+    /// kernels are kept for the session, so a sound heard again compiles nothing.
+    engine: timbre::Engine,
 }
 
 impl Default for Session {
@@ -156,18 +164,19 @@ impl Default for Session {
             last_channels: 1,
             last_rate: 48_000.0,
             audition_path: PathBuf::new(),
+            engine: timbre::Engine::new(48_000.0),
         }
     }
 }
 
 /// Serves the session's loaded files as `<load:N>`, keeping only their definitions.
-struct SessionLoader<'a> {
-    entries: &'a [Entry],
+struct SessionLoader {
+    entries: Vec<Entry>,
     /// Names about to be redefined: left out of every file.
-    exclude: &'a BTreeSet<String>,
+    exclude: BTreeSet<String>,
 }
 
-impl Loader for SessionLoader<'_> {
+impl Loader for SessionLoader {
     fn load(&self, path: &str, base: Option<&Path>) -> io::Result<(PathBuf, Vec<u8>)> {
         let index = path
             .strip_prefix("<load:")
@@ -295,22 +304,25 @@ impl Session {
         input: &str,
         exclude: &BTreeSet<String>,
         own_seed: bool,
-    ) -> Result<Compiled, timbre_ir::Diagnostics> {
-        let registry = Registry::new();
+    ) -> Result<SceneFile, Diagnostics> {
         let loader = SessionLoader {
-            entries: &self.entries,
-            exclude,
+            entries: self.entries.clone(),
+            exclude: exclude.clone(),
         };
-        let mut options = CompileOptions::new(&registry, &loader);
-        options.bindings = self.bindings.clone();
-        options.seed = (!own_seed).then_some(self.seed);
         // A `(scene :channels …)` typed earlier holds for this input too.
-        options.channels = Some(self.channels);
-        compile_after(
+        let mut engine = (self.engine.clone())
+            .with_loader(Arc::new(loader))
+            .with_channels(self.channels);
+        if !own_seed {
+            engine = engine.with_seed(self.seed);
+        }
+        for (name, value) in &self.bindings {
+            engine = engine.with_binding(name.clone(), *value);
+        }
+        engine.read_scene_after(
             SourceFile::new("<session>", self.prelude(exclude)),
             SourceFile::new("<input>", input),
             Some(Path::new(".")),
-            &options,
         )
     }
 
@@ -362,71 +374,98 @@ impl Session {
     }
 }
 
-/// How long to render, and at what rate and width.
+/// How long to render, and at what rate.
 struct Take {
     sample_rate: f64,
-    channels: usize,
-    /// Frames to render at most.
-    frames: usize,
+    /// Seconds to render at most (the render's cost is checked for them).
+    seconds: f64,
     /// Stop early once every instance has ended (a scene without a duration).
     until_ended: bool,
+}
+
+impl Take {
+    /// Frames to render at most.
+    fn frames(&self) -> usize {
+        (self.seconds * self.sample_rate).round() as usize
+    }
+}
+
+/// A render: interleaved samples of `channels` channels.
+struct Rendered {
+    samples: Vec<f64>,
+    channels: usize,
 }
 
 /// The most samples a take may hold (2 GiB of f64: 46 minutes of stereo at 48 kHz).
 const MAX_KEPT_SAMPLES: usize = 1 << 28;
 
-/// Renders `take` of `program`, a chunk at a time so that Ctrl-C can stop it; `None`
-/// when cancelled. A progress line appears when it takes over a second.
+/// Renders `take` of `file` with `backend`, a chunk at a time so that Ctrl-C can stop
+/// it; `None` when cancelled. The scene is made by `engine` (its kernels, and the
+/// render's cost checked first, as `timbre render` does). A progress line appears
+/// when it takes over a second.
 fn render(
-    program: &Compiled,
+    engine: &timbre::Engine,
+    file: &SceneFile,
     take: &Take,
-    engine: timbre_scene::Engine,
-) -> Result<Option<Vec<f64>>, String> {
-    let mut program = program.clone();
-    program.settings.channels = Some(take.channels);
-    let config = RenderConfig {
-        sample_rate: take.sample_rate,
-        block_size: 256,
-    };
-    let mut scene =
-        timbre_scene::SceneRenderer::new(&program, config, engine).map_err(|e| e.to_string())?;
+    backend: timbre::Backend,
+) -> Result<Option<Rendered>, Failure> {
+    let engine = (engine.clone())
+        .with_sample_rate(take.sample_rate)
+        .with_backend(backend);
+    let mut scene = engine.scene_from(file, take.seconds).map_err(|e| match e {
+        timbre::Error::Script(diagnostics) => Failure::Diagnostics(diagnostics),
+        other => Failure::Message(other.to_string()),
+    })?;
     let channels = scene.channels();
+    let frames = take.frames();
     // The session keeps a render whole (for :save and :plot): refused, not
     // attempted, when that would not fit.
-    let samples = take
-        .frames
+    let samples = frames
         .checked_mul(channels)
         .filter(|&n| n <= MAX_KEPT_SAMPLES);
     let mut out = vec![];
     if samples.is_none_or(|n| out.try_reserve_exact(n).is_err()) {
-        return Err(format!(
+        return Err(Failure::Message(format!(
             "{} s of {channels} channels at {} Hz is more than the REPL holds in memory              ({} MiB at most); audition a shorter take, or write it with `timbre render`",
-            take.frames as f64 / take.sample_rate,
+            frames as f64 / take.sample_rate,
             take.sample_rate,
             (MAX_KEPT_SAMPLES * 8) >> 20
-        ));
+        )));
     }
-    out.resize(take.frames * channels, 0.0);
-    let progress = Progress::new(take.frames, take.sample_rate);
+    out.resize(frames * channels, 0.0);
+    let progress = Progress::new(frames, take.sample_rate);
     let mut done = 0;
-    while done < take.frames {
+    while done < frames {
         if CANCEL.load(Ordering::Relaxed) {
             return Ok(None);
         }
-        let n = CHUNK_FRAMES.min(take.frames - done);
-        let first = scene.position();
+        let n = CHUNK_FRAMES.min(frames - done);
+        let first = scene.frame();
         scene
             .render(&mut out[done * channels..(done + n) * channels])
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| Failure::Message(e.to_string()))?;
         if take.until_ended && scene.finished() {
-            done += (scene.ended_at().saturating_sub(first) as usize).min(n);
+            done += (scene.ended_at_frame().saturating_sub(first) as usize).min(n);
             break;
         }
         done += n;
         progress.advance(done);
     }
     out.truncate(done * channels);
-    Ok(Some(out))
+    Ok(Some(Rendered {
+        samples: out,
+        channels,
+    }))
+}
+
+/// Reports a failed render: diagnostics as `timbre render` prints them, else the
+/// message.
+fn report_failure(failure: Failure) {
+    match failure {
+        Failure::Diagnostics(diagnostics) => report(diagnostics),
+        Failure::Message(message) => eprintln!("error: {message}"),
+        Failure::Interrupted | Failure::ReaderGone => {}
+    }
 }
 
 /// A one-line progress bar on stderr for renders over a second.
@@ -646,7 +685,7 @@ pub fn run(audition_path: PathBuf) -> Result<(), String> {
     Ok(())
 }
 
-fn report(diagnostics: timbre_ir::Diagnostics) {
+fn report(diagnostics: Diagnostics) {
     crate::print_diagnostics(diagnostics.0);
 }
 
@@ -654,13 +693,25 @@ fn report(diagnostics: timbre_ir::Diagnostics) {
 /// the same name), a `(scene …)` sets the session's settings, and a sound is
 /// rendered and auditioned.
 fn evaluate(session: &mut Session, input: &str) {
+    if render_input(session, input) {
+        audition(session);
+    }
+}
+
+/// [`evaluate`] short of the audition: true when the input made a sound, now the
+/// session's last render.
+fn render_input(session: &mut Session, input: &str) -> bool {
     let reading = read_input(input);
     let exclude: BTreeSet<String> = reading.defines.iter().map(|(n, _)| n.clone()).collect();
-    let program = match session.compile(input, &exclude, reading.scene_keys.contains("seed")) {
-        Ok(program) => program,
-        Err(diagnostics) => return report(diagnostics),
+    let file = match session.compile(input, &exclude, reading.scene_keys.contains("seed")) {
+        Ok(file) => file,
+        Err(diagnostics) => {
+            report(diagnostics);
+            return false;
+        }
     };
-    report(timbre_ir::Diagnostics(program.warnings.clone()));
+    report(Diagnostics(file.warnings().to_vec()));
+    let program = file.program();
     for (name, text) in reading.defines {
         let verb = if session.redefine(&name, text) {
             "redefined"
@@ -677,40 +728,40 @@ fn evaluate(session: &mut Session, input: &str) {
     if !reading.scene_keys.is_empty() {
         adopt_settings(session, &program.settings, &reading.scene_keys);
     }
-    if program.root.is_none() && program.instances.is_empty() {
-        return;
+    if !file.has_sound() {
+        return false;
     }
     let take = Take {
         sample_rate: session.sample_rate,
-        channels: session.channels,
-        frames: (session.duration * session.sample_rate).round() as usize,
+        seconds: session.duration,
         until_ended: false,
     };
-    if let Some(samples) = render_or_report(&program, &take) {
-        session.last_source = Some(input.to_owned());
-        keep_render(session, samples, &take);
-        audition(session);
-    }
+    let Some(rendered) = render_or_report(&session.engine, &file, &take) else {
+        return false;
+    };
+    session.last_source = Some(input.to_owned());
+    keep_render(session, rendered, &take);
+    true
 }
 
 /// Renders with the JIT, reporting errors and cancellation.
-fn render_or_report(program: &Compiled, take: &Take) -> Option<Vec<f64>> {
-    match render(program, take, timbre_scene::Engine::Jit) {
-        Ok(Some(samples)) => Some(samples),
+fn render_or_report(engine: &timbre::Engine, file: &SceneFile, take: &Take) -> Option<Rendered> {
+    match render(engine, file, take, timbre::Backend::Jit) {
+        Ok(Some(rendered)) => Some(rendered),
         Ok(None) => {
             println!("cancelled");
             None
         }
-        Err(e) => {
-            eprintln!("error: {e}");
+        Err(failure) => {
+            report_failure(failure);
             None
         }
     }
 }
 
-fn keep_render(session: &mut Session, samples: Vec<f64>, take: &Take) {
-    session.last_samples = samples;
-    session.last_channels = take.channels;
+fn keep_render(session: &mut Session, rendered: Rendered, take: &Take) {
+    session.last_samples = rendered.samples;
+    session.last_channels = rendered.channels;
     session.last_rate = take.sample_rate;
 }
 
@@ -865,20 +916,22 @@ fn command(session: &mut Session, input: &str) -> bool {
         }
         (":reset", []) => {
             let audition_path = std::mem::take(&mut session.audition_path);
+            // The kernels compiled so far stay: they are not the session's settings.
             *session = Session {
                 audition_path,
+                engine: session.engine.clone(),
                 ..Default::default()
             };
             println!("reset: no definitions, no loaded files, no --set values; 1 s at 48000 Hz, seed 0, 1 channel");
         }
         (":tree", []) => match last_program(session) {
-            Some(program) => print!("{}", tree_text(&program)),
+            Some(file) => print!("{}", tree_text(file.program())),
             None => eprintln!("error: nothing rendered yet"),
         },
         (":graph", rest) if rest.len() <= 1 => match last_program(session) {
-            Some(program) => {
-                let dot =
-                    crate::graph::dot(&program, session.last_source.as_deref().unwrap_or_default());
+            Some(file) => {
+                let source = session.last_source.as_deref().unwrap_or_default();
+                let dot = crate::graph::dot(file.program(), source);
                 match rest.first() {
                     Some(path) => {
                         match crate::graph::write(&dot, Path::new(path), &session.loaded_files()) {
@@ -929,7 +982,7 @@ fn defs(session: &Session) {
     }
 }
 
-fn last_program(session: &Session) -> Option<Compiled> {
+fn last_program(session: &Session) -> Option<SceneFile> {
     let source = session.last_source.as_deref()?;
     let reading = read_input(source);
     let exclude = reading.defines.iter().map(|(n, _)| n.clone()).collect();
@@ -956,13 +1009,15 @@ fn load(session: &mut Session, path: &str) {
         Ok(text) => text,
         Err(e) => return eprintln!("error: cannot read `{path}`: {e}"),
     };
-    let registry = Registry::new();
-    let mut options = CompileOptions::new(&registry, &FsLoader);
-    options.bindings = session.bindings.clone();
-    let program = match compile(SourceFile::new(path, text), absolute.parent(), &options) {
-        Ok(program) => program,
+    let mut engine = session.engine.clone().with_loader(Arc::new(FsLoader));
+    for (name, value) in &session.bindings {
+        engine = engine.with_binding(name.clone(), *value);
+    }
+    let file = match engine.read_scene_source(SourceFile::new(path, text), absolute.parent()) {
+        Ok(file) => file,
         Err(diagnostics) => return report(diagnostics),
     };
+    let program = file.program();
     // The file's definitions replace the session's of the same names.
     let previous = session.entries.clone();
     let mut replaced = vec![];
@@ -1035,21 +1090,20 @@ fn load(session: &mut Session, path: &str) {
     let sample_rate = program.settings.sample_rate.unwrap_or(session.sample_rate);
     let scene = !program.instances.is_empty();
     let duration = program.settings.duration;
+    let open = if scene {
+        OPEN_SCENE_LIMIT
+    } else {
+        session.duration
+    };
     let take = Take {
         sample_rate,
-        channels: program.settings.channels.unwrap_or(1),
-        frames: (duration.unwrap_or(if scene {
-            OPEN_SCENE_LIMIT
-        } else {
-            session.duration
-        }) * sample_rate)
-            .round() as usize,
+        seconds: duration.unwrap_or(open),
         until_ended: scene && duration.is_none(),
     };
-    if let Some(samples) = render_or_report(&program, &take) {
+    if let Some(rendered) = render_or_report(&session.engine, &file, &take) {
         // The last expression is the file's own text, for :tree and :graph.
         session.last_source = None;
-        keep_render(session, samples, &take);
+        keep_render(session, rendered, &take);
         audition(session);
     }
 }
@@ -1103,24 +1157,23 @@ fn plot(session: &Session, kind: &str, path: Option<&str>) {
 
 /// Render speed of the last expression with both engines.
 fn time(session: &Session) {
-    let Some(program) = last_program(session) else {
+    let Some(file) = last_program(session) else {
         return eprintln!("error: nothing rendered yet");
     };
     let take = Take {
         sample_rate: session.sample_rate,
-        channels: session.channels,
-        frames: (session.duration * session.sample_rate).round() as usize,
+        seconds: session.duration,
         until_ended: false,
     };
-    for (name, engine) in [
-        ("interpreter", timbre_scene::Engine::Interpreter),
-        ("jit", timbre_scene::Engine::Jit),
+    for (name, backend) in [
+        ("interpreter", timbre::Backend::Interpreter),
+        ("jit", timbre::Backend::Jit),
     ] {
         let start = Instant::now();
-        match render(&program, &take, engine) {
-            Ok(Some(samples)) => {
+        match render(&session.engine, &file, &take, backend) {
+            Ok(Some(rendered)) => {
                 let seconds = start.elapsed().as_secs_f64();
-                let frames = samples.len() / take.channels.max(1);
+                let frames = rendered.samples.len() / rendered.channels.max(1);
                 let audio = frames as f64 / take.sample_rate;
                 println!(
                     "  {name:<12} {:>10.0} samples/s  {:>8.1}× real time",
@@ -1129,7 +1182,7 @@ fn time(session: &Session) {
                 );
             }
             Ok(None) => return println!("cancelled"),
-            Err(e) => eprintln!("error: {e}"),
+            Err(failure) => report_failure(failure),
         }
     }
 }
@@ -1187,25 +1240,56 @@ mod tests {
 
     #[test]
     fn a_take_too_large_to_keep_is_refused_before_it_is_allocated() {
-        let session = Session::default();
-        let program = session
+        let session = Session {
+            channels: 64,
+            ..Default::default()
+        };
+        let file = session
             .compile("(sine (* t 440))", &BTreeSet::new(), false)
             .unwrap();
         // (scene :duration 3600 :channels 64): 88 GB of samples.
         let take = Take {
             sample_rate: 48_000.0,
-            channels: 64,
-            frames: 3600 * 48_000,
+            seconds: 3600.0,
             until_ended: false,
         };
-        let err = render(&program, &take, timbre_scene::Engine::Interpreter).unwrap_err();
+        let interpreter = timbre::Backend::Interpreter;
+        let Err(Failure::Message(err)) = render(&session.engine, &file, &take, interpreter) else {
+            panic!("not refused with a message");
+        };
         assert!(err.contains("more than the REPL holds in memory"), "{err}");
         let small = Take {
-            frames: 480,
+            seconds: 0.01,
             ..take
         };
-        let samples = render(&program, &small, timbre_scene::Engine::Interpreter).unwrap();
-        assert_eq!(samples.map(|s| s.len()), Some(480 * 64));
+        let Ok(rendered) = render(&session.engine, &file, &small, interpreter) else {
+            panic!("a short take is rendered");
+        };
+        assert_eq!(rendered.map(|r| r.samples.len()), Some(480 * 64));
+    }
+
+    #[test]
+    fn a_sound_heard_again_reuses_its_kernel() {
+        let mut session = Session {
+            duration: 0.05,
+            ..Default::default()
+        };
+        assert!(render_input(&mut session, "(* 0.5 (sine (* t 440)))"));
+        let compiled = session.engine.kernels_compiled();
+        let first = session.last_samples.clone();
+        assert!(compiled >= 1, "the JIT compiled the sound");
+        // Typed again: the kernel compiled for the first input renders it.
+        assert!(render_input(&mut session, "(* 0.5 (sine (* t 440)))"));
+        assert_eq!(session.engine.kernels_compiled(), compiled);
+        assert_eq!(session.last_samples, first);
+        // Forgetting everything keeps the kernels too.
+        command(&mut session, ":reset");
+        session.duration = 0.05;
+        assert!(render_input(&mut session, "(* 0.5 (sine (* t 440)))"));
+        assert_eq!(session.engine.kernels_compiled(), compiled);
+        // A new shape is compiled: the count is live.
+        assert!(render_input(&mut session, "(* 0.5 (sawtooth (* t 440)))"));
+        assert!(session.engine.kernels_compiled() > compiled);
     }
 
     #[test]

@@ -253,3 +253,60 @@ fn a_scene_s_channels_hold_for_the_next_input() {
         assert!((freq - expected).abs() < 2.0, "channel {k} at {freq} Hz");
     }
 }
+
+/// A take that would cost more than the limits allow is refused before it is
+/// rendered, with the diagnostic `timbre render` gives for the same sound and length
+/// (standard input piped: the REPL reads lines from it as from a terminal).
+#[test]
+fn a_take_over_the_limits_is_refused_as_render_refuses_it() {
+    use std::io::Write;
+    use std::process::Stdio;
+
+    // An hour of 65 536 sines: 10^13 lane-samples, over the limit of 10^12.
+    let sound = "(combine (sine (* t (iota 65536))))";
+    let dir = tempfile::tempdir().unwrap();
+    let audition = dir.path().join("audition.wav");
+    let mut repl = repl_command(dir.path(), &audition)
+        .env("TIMBRE_PLAYER", "none")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let typed = format!(":dur 3600\n{sound}\n:quit\n");
+    repl.stdin
+        .take()
+        .unwrap()
+        .write_all(typed.as_bytes())
+        .unwrap();
+    let repl = repl.wait_with_output().unwrap();
+    let render = Command::new(env!("CARGO_BIN_EXE_timbre"))
+        .args(["render", "--expr", sound, "--duration", "3600", "-o"])
+        .arg(dir.path().join("render.wav"))
+        .env("NO_COLOR", "1")
+        .output()
+        .unwrap();
+    assert!(!render.status.success());
+
+    // The code and the message: the lines from the code to the quoted source.
+    let diagnostic = |stderr: &[u8]| -> String {
+        let text = String::from_utf8_lossy(stderr);
+        let lines: Vec<&str> = text.lines().collect();
+        let Some(first) = lines
+            .iter()
+            .position(|l| l.contains("timbre::too-much-work"))
+        else {
+            panic!("no too-much-work diagnostic in:\n{text}");
+        };
+        (lines[first..].iter())
+            .take_while(|l| !l.contains('╭') && !l.contains("[<"))
+            .map(|l| l.trim())
+            .filter(|l| !l.is_empty())
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let refused = diagnostic(&repl.stderr);
+    assert!(refused.contains("lane-samples"), "{refused}");
+    assert_eq!(refused, diagnostic(&render.stderr));
+    assert!(!audition.exists(), "nothing rendered");
+}
