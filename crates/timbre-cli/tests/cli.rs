@@ -377,12 +377,7 @@ fn random_nodes_reading_keyframes_agree_across_engines_and_processes() {
     let interp = samples_of(&keyframed_noise_in_three_processes("interp")[0]);
     assert_eq!(jit.len(), 24_000);
     assert!(peak(&jit) > 0.01, "a silent test");
-    let diff = jit
-        .iter()
-        .zip(&interp)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max);
-    assert!(diff < 1e-5, "the JIT and the interpreter differ by {diff}");
+    assert_close(&jit, &interp, 1e-5, "the JIT and the interpreter");
 }
 
 #[test]
@@ -1430,7 +1425,7 @@ fn long_renders_show_progress_on_a_terminal_only() {
     // Four seconds of 500 modes with the interpreter: a couple of seconds of work.
     let args = format!(
         "{} render {} -d 4 --engine interp -o {}",
-        env!("CARGO_BIN_EXE_timbre"),
+        BINARY,
         wood.display(),
         out.display()
     );

@@ -5,22 +5,16 @@ mod common;
 
 use std::io::Write;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
-use common::{run_in, SR};
+use common::{command, run_in, SR};
 use timbre_testkit::{peak, read_wav, rms, zero_crossing_frequency};
 
 const TONE: &str = "(* 0.5 (sine (* t 440)))";
 
-fn timbre() -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
-    command.env("NO_COLOR", "1");
-    command
-}
-
 #[test]
 fn a_wav_streams_to_standard_output_and_parses_from_the_pipe() {
-    let mut child = timbre()
+    let mut child = command()
         .args(["render", "--expr", TONE, "-d", "0.5", "-o", "-"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -45,7 +39,7 @@ fn a_wav_streams_to_standard_output_and_parses_from_the_pipe() {
 #[test]
 fn a_reader_that_stops_early_ends_the_render_quietly() {
     use std::io::Read;
-    let mut child = timbre()
+    let mut child = command()
         .args(["render", "--expr", TONE, "-d", "30", "-o", "-"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -72,7 +66,7 @@ fn a_scene_without_duration_streams_exactly_its_length() {
     .unwrap();
     run_in(Some(dir.path()), ["render", "s.tt", "-o", "file.wav"]).assert_success();
     let file = read_wav(&dir.path().join("file.wav"));
-    let out = timbre()
+    let out = command()
         .current_dir(dir.path())
         .args(["render", "s.tt", "-o", "-"])
         .output()
@@ -89,7 +83,7 @@ fn a_scene_without_duration_streams_exactly_its_length() {
 #[test]
 fn standard_input_is_read_as_the_source() {
     let dir = tempfile::tempdir().unwrap();
-    let mut child = timbre()
+    let mut child = command()
         .current_dir(dir.path())
         .args(["render", "-", "-o", "in.wav"])
         .stdin(Stdio::piped())
@@ -397,7 +391,7 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&player, std::fs::Permissions::from_mode(0o755)).unwrap();
     }
-    let out = timbre()
+    let out = command()
         .current_dir(dir.path())
         .env("TIMBRE_PLAYER", &player)
         .args(["play", "--expr", TONE, "-d", "0.3"])
@@ -415,7 +409,7 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
 
     // render --play plays the file it has written.
     std::fs::remove_file(&copy).unwrap();
-    let out = timbre()
+    let out = command()
         .current_dir(dir.path())
         .env("TIMBRE_PLAYER", &player)
         .args([
@@ -433,7 +427,7 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
         read_wav(&dir.path().join("r.wav")).samples
     );
     // A FLAC output is played too.
-    let out = timbre()
+    let out = command()
         .current_dir(dir.path())
         .env("TIMBRE_PLAYER", &player)
         .args([
@@ -450,7 +444,7 @@ fn play_hands_the_sound_to_a_player_or_writes_it() {
     assert_eq!(heard.samples.len(), 14_400);
     assert!((zero_crossing_frequency(&heard.samples, SR) - 440.0).abs() < 1.0);
 
-    let out = timbre()
+    let out = command()
         .current_dir(dir.path())
         .env("TIMBRE_PLAYER", "none")
         .args(["play", "--expr", TONE, "-d", "0.3"])

@@ -1,8 +1,9 @@
 //! Every `lisp` code block of the user guide (`docs/*.md`) is a whole file that
 //! `timbre check` accepts, so the guide cannot drift from the language.
 
+mod common;
+
 use std::path::Path;
-use std::process::Command;
 
 /// The `lisp` blocks of a Markdown text, with the line each starts on.
 fn lisp_blocks(text: &str) -> Vec<(usize, String)> {
@@ -37,12 +38,7 @@ fn every_lisp_block_in_the_guide_checks() {
         for (line, block) in lisp_blocks(&text) {
             let file = dir.path().join("block.tt");
             std::fs::write(&file, &block).unwrap();
-            let out = Command::new(env!("CARGO_BIN_EXE_timbre"))
-                .arg("check")
-                .arg(&file)
-                .env("NO_COLOR", "1")
-                .output()
-                .unwrap();
+            let out = common::command().arg("check").arg(&file).output().unwrap();
             checked += 1;
             if !out.status.success() {
                 failures.push(format!(

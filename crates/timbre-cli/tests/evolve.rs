@@ -3,6 +3,8 @@
 //! ratings, a saved candidate is written, and the same seed and ratings give the same
 //! trees.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -13,7 +15,7 @@ const SCRIPT: &[&str] = &["7", "s", "3", "0", "r", "5", "9", "1", "2", "4", "q"]
 
 fn session(dir: &Path) {
     let seed = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/cubes.tt");
-    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    let mut command = common::command();
     command
         .args([
             "evolve",
@@ -27,8 +29,7 @@ fn session(dir: &Path) {
         .args(["--seconds", "0.5", "-o", "out"])
         .arg(seed)
         .current_dir(dir)
-        .env("TIMBRE_PLAYER", "none")
-        .env("NO_COLOR", "1");
+        .env("TIMBRE_PLAYER", "none");
     let mut evolve = spawn_command(command, Some(60_000)).unwrap();
     evolve
         .exp_string("each candidate is written as a WAV")
@@ -75,11 +76,7 @@ fn rated_generations_are_kept_and_reproducible() {
     for generation in 0..3 {
         for k in 1..=3 {
             let tree = out.join(format!("gen-{generation:03}/{k:02}.tt"));
-            let status = Command::new(env!("CARGO_BIN_EXE_timbre"))
-                .arg("check")
-                .arg(&tree)
-                .output()
-                .unwrap();
+            let status = common::command().arg("check").arg(&tree).output().unwrap();
             assert!(status.status.success(), "{}: {:?}", tree.display(), status);
             let wav = timbre_testkit::read_wav(&tree.with_extension("wav"));
             assert!(
@@ -126,7 +123,7 @@ fn tone_and_target(class: &str, target: &str) -> tempfile::TempDir {
 }
 
 fn timbre_in(dir: &Path) -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    let mut command = common::command();
     command.current_dir(dir);
     command
 }

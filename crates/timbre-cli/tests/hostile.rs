@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{strip_ansi, workspace_root};
+use common::{command_in_shell, strip_ansi, workspace_root};
 
 /// The address space each run may use, in KiB (`ulimit -v`).
 const MEMORY_CAP_KIB: u64 = 4 << 20;
@@ -28,13 +28,9 @@ struct Outcome {
 /// Runs `timbre ARGS…` in `dir` under the memory cap, killing it at the time limit.
 fn run_capped(dir: &Path, args: &[&str], stdin: Option<&[u8]>) -> Outcome {
     let script = format!("ulimit -v {MEMORY_CAP_KIB} && exec \"$0\" \"$@\"");
-    let mut child = Command::new("sh")
-        .arg("-c")
-        .arg(script)
-        .arg(env!("CARGO_BIN_EXE_timbre"))
+    let mut child = command_in_shell("sh", &script)
         .args(args)
         .current_dir(dir)
-        .env("NO_COLOR", "1")
         .stdin(if stdin.is_some() {
             Stdio::piped()
         } else {

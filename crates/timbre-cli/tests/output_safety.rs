@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{command, dir_entries, run_in};
+use common::{command, command_in_shell, dir_entries, run_in};
 
 const TONE: &str = "(sine (* t 440))";
 const SCORE: &str = "(keyframes p :interp linear (0 0) (2 1))\n\
@@ -231,10 +231,7 @@ fn a_file_size_limit_is_an_error_naming_the_file_and_leaves_the_old_one() {
     let d = dir.path();
     write(d, "out.wav", "old");
     // A limit of 64 KiB (bash counts in KiB): a second of stereo float is 384 KB.
-    let output = Command::new("bash")
-        .arg("-c")
-        .arg("ulimit -f 64 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_timbre"))
+    let output = command_in_shell("bash", "ulimit -f 64 && exec \"$0\" \"$@\"")
         .args([
             "render",
             "--expr",
@@ -247,7 +244,6 @@ fn a_file_size_limit_is_an_error_naming_the_file_and_leaves_the_old_one() {
             "out.wav",
         ])
         .current_dir(d)
-        .env("NO_COLOR", "1")
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -263,12 +259,8 @@ fn standard_output_closed_or_taken_twice_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write(d, "s.tt", SCORE);
-    let output = Command::new("sh")
-        .arg("-c")
-        .arg("exec \"$0\" \"$@\" >&-")
-        .arg(env!("CARGO_BIN_EXE_timbre"))
+    let output = command_in_shell("sh", "exec \"$0\" \"$@\" >&-")
         .args(["render", "--expr", TONE, "-d", "0.1", "-o", "-"])
-        .env("NO_COLOR", "1")
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);

@@ -1,5 +1,7 @@
 //! The REPL driven in a real pseudo-terminal, as a person would use it.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -9,14 +11,13 @@ use timbre_testkit::{read_wav, strongest_peak_in};
 /// `timbre repl` auditioning into `audition`, run in `dir`, whose history goes to
 /// `dir` as its home.
 fn repl_command(dir: &Path, audition: &Path) -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    let mut command = common::command();
     command
         .arg("repl")
         .arg("--audition")
         .arg(audition)
         .current_dir(dir)
-        .env("HOME", dir)
-        .env("NO_COLOR", "1");
+        .env("HOME", dir);
     command
 }
 

@@ -7,6 +7,7 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use timbre::{Backend, Engine, Interpolation, KeyframeTrack, ParamValue, Variable};
+use timbre_testkit::assert_close;
 
 /// Counts the allocations a thread makes while its `COUNTING` is on (other tests run
 /// on other threads meanwhile).
@@ -408,10 +409,5 @@ fn a_hosts_swarm_runs_as_lanes_without_allocating() {
     let (interp, lanes, _) = render(Backend::Interpreter);
     assert_eq!(lanes, 0);
     assert!(interp.iter().any(|x| x.abs() > 0.1), "a silent test");
-    let worst = jit
-        .iter()
-        .zip(&interp)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    assert!(worst < 1e-9, "lanes and the interpreter differ by {worst}");
+    assert_close(&jit, &interp, 1e-9, "lanes and the interpreter");
 }

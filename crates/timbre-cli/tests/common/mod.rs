@@ -1,5 +1,6 @@
-//! Helpers shared by the end-to-end tests of the `timbre` binary: run it and read the
-//! WAV it wrote. The measurements (spectra, levels, frequencies, WAV reading) are
+//! Helpers shared by the end-to-end tests of the `timbre` binary: build its command
+//! (every test file starts it through [`command`]), run it and read the WAV it wrote.
+//! The measurements (spectra, levels, frequencies, WAV reading) are
 //! `timbre-testkit`'s, not here: tests use that crate directly.
 #![allow(dead_code)]
 
@@ -88,13 +89,31 @@ pub fn strip_ansi(text: &str) -> String {
     out
 }
 
-/// The `timbre` binary with a colourless, predictable environment.
+/// The path of the `timbre` binary under test.
+pub const BINARY: &str = env!("CARGO_BIN_EXE_timbre");
+
+/// The `timbre` binary with a colourless, predictable environment: every test runs
+/// the command through this (or [`command_in_shell`]).
 pub fn command() -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_timbre"));
+    let mut cmd = Command::new(BINARY);
+    without_colour(&mut cmd);
+    cmd
+}
+
+/// `SHELL -c SCRIPT` with the binary as the script's `$0` (arguments added after are
+/// `$@`), in the environment of [`command`]: for a limit set before the script runs
+/// `exec "$0" "$@"` (`ulimit`, a closed descriptor).
+pub fn command_in_shell(shell: &str, script: &str) -> Command {
+    let mut cmd = Command::new(shell);
+    cmd.arg("-c").arg(script).arg(BINARY);
+    without_colour(&mut cmd);
+    cmd
+}
+
+fn without_colour(cmd: &mut Command) {
     cmd.env("NO_COLOR", "1")
         .env_remove("CLICOLOR_FORCE")
         .env_remove("FORCE_COLOR");
-    cmd
 }
 
 /// Runs `timbre ARGS…` in `dir` (the workspace root if `None`).
