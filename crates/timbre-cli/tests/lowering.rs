@@ -3,7 +3,7 @@
 //! (`timbre_ir::dump`) must equal `lowering/NAME.ir` beside it. Refresh the snapshots
 //! with `UPDATE_EXPECT=1 cargo test --release -p timbre-cli --test lowering`, then
 //! read the diff. Files the inputs read (a library, tables, a sound, frames) are in
-//! `lowering/data/`. Every form of `timbre_ir::catalogue::FORMS` has an input named
+//! `lowering/data/`. Every form of `timbre_lang::catalogue::FORMS` has an input named
 //! after it, so a new form cannot go without a snapshot.
 
 mod common;
@@ -78,7 +78,7 @@ fn every_form_has_an_input_and_every_input_a_snapshot() {
             .collect()
     };
     let inputs = stems(".tt");
-    let missing: Vec<&str> = timbre_ir::catalogue::FORMS
+    let missing: Vec<&str> = timbre_lang::catalogue::FORMS
         .iter()
         .copied()
         .filter(|form| !inputs.contains(*form))
