@@ -16,7 +16,7 @@ const TREES: u64 = 2000;
 
 /// Catalogue nodes the generator does not emit, each with the reason. Every other
 /// node must be reached by the generated trees: a new node needs a place in
-/// `generate.rs`.
+/// `crates/timbre-gen/src/generate/`.
 const NOT_GENERATED: &[&str] = &[
     // Plays a sound file: generated trees are compiled without files (`NoFiles`).
     "sample",
@@ -355,7 +355,7 @@ fn generated_trees_compile_render_and_cover_the_nodes() {
     // A catalogue entry lacks a place in the generator.
     assert!(
         missing.is_empty(),
-        "the generator never emits {missing:?}: give them a place in generate.rs, or \
+        "the generator never emits {missing:?}: give them a place in generate/, or \
          exempt them in NOT_GENERATED with the reason"
     );
     assert!(max_nesting < 256, "the parser nests at most 256 lists");

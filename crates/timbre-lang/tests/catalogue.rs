@@ -1,5 +1,5 @@
 //! Tidy checks on the node catalogue: every entry has its place everywhere a node
-//! needs one. (The random-tree generator's coverage is checked in `generate.rs`,
+//! needs one. (The random-tree generator's coverage is checked in timbre-gen's `tests/generate.rs`,
 //! the engines' agreement on each entry's example in timbre-jit's differential
 //! tests, and each entry's conformance case in the top-level `tests/`.)
 
