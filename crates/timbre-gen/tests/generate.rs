@@ -162,37 +162,18 @@ fn heads(sx: &Sx, counts: &mut BTreeMap<String, usize>) {
 
 // ------------------------------------------------------------------- exactness
 
-/// Nodes whose result is exact (bit-identical in any IEEE engine without FMA
-/// contraction) when all their arguments are.
-const EXACT_NODES: &[&str] = &[
-    "+", "-", "*", "abs", "min", "max", "clamp", "floor", "frac", "mod", "<", ">", "<=", ">=", "=",
-    "!=", "and", "or", "not", "if", "sawtooth", "square", "pulse", "triangle", "vector", "rvector",
-    "iota", "combine", "index", "lanes", "latch",
-];
+/// Whether the catalogue marks `name` exact: its result is exact (bit-identical in
+/// any IEEE engine without FMA contraction) when all its arguments are.
+fn is_exact_node(name: &str) -> bool {
+    catalogue::lookup(name).is_some_and(|node| node.exact)
+}
 
-/// Nodes that are discontinuous in every argument. (`saw-bl` and `square-bl` are
-/// continuous, but jump within a sample or two: a slow phase's rounding error, over
-/// its step per sample, is what they change by.)
-const JUMPY_NODES: &[&str] = &[
-    "floor",
-    "frac",
-    "mod",
-    "<",
-    ">",
-    "<=",
-    ">=",
-    "=",
-    "!=",
-    "and",
-    "or",
-    "not",
-    "sawtooth",
-    "square",
-    "pulse",
-    "saw-bl",
-    "square-bl",
-    "adsr",
-];
+/// Whether the catalogue marks `name` jumpy: discontinuous in every argument.
+/// (`saw-bl` and `square-bl` are continuous, but jump within a sample or two: a slow
+/// phase's rounding error, over its step per sample, is what they change by.)
+fn is_jumpy_node(name: &str) -> bool {
+    catalogue::lookup(name).is_some_and(|node| node.jumpy)
+}
 
 /// Walks a tree independently of the generator: returns whether `sx` is exact and
 /// records every discontinuous consumer of an inexact value.
@@ -259,7 +240,7 @@ fn exact(sx: &Sx, env: &mut Vec<(String, bool)>, violations: &mut Vec<String>) -
         "if" => name == "condition",
         "index" => name == "i",
         "latch" => name == "trigger",
-        _ => JUMPY_NODES.contains(&head),
+        _ => is_jumpy_node(head),
     };
     for (name, x) in &args {
         if needs_exact(name) && !x {
@@ -269,7 +250,7 @@ fn exact(sx: &Sx, env: &mut Vec<(String, bool)>, violations: &mut Vec<String>) -
     match head {
         // Constants computed while lowering, whatever their arguments.
         "lanes" | "iota" | "tube-modes" => true,
-        _ if EXACT_NODES.contains(&head) => args.iter().all(|(_, x)| *x),
+        _ if is_exact_node(head) => args.iter().all(|(_, x)| *x),
         _ => false,
     }
 }

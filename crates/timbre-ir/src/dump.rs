@@ -90,7 +90,6 @@ fn describe(op: &Op) -> String {
             };
             format!("timer(length={length}, fade-in={fade_in}, fade-out={fade_out:?} s)")
         }
-        Op::Custom(node) => format!("custom({})", node.name()),
         // The rest are told apart by their names (and argument counts: `-` of one
         // argument is negation).
         other => other.name(),

@@ -225,10 +225,6 @@ impl Graph {
                 let widths: Vec<usize> = widths.collect();
                 kernel.width(&widths)
             }
-            Op::Custom(node) => {
-                let widths: Vec<usize> = widths.collect();
-                node.output_width(&widths).unwrap_or(1)
-            }
             _ => widths.max().unwrap_or(1),
         }
     }

@@ -8,7 +8,6 @@
 
 use std::any::Any;
 
-use crate::custom::{BlockContext, Lanes};
 use crate::dsp::conv::Convolver;
 use crate::dsp::noise::white;
 use crate::dsp::wav::resample;
@@ -389,66 +388,11 @@ impl Interpreter {
                     kernel.process(kernel_state.as_mut(), &inputs, &mut outputs);
                     return;
                 }
-                (Op::Custom(node), State::Kernel(custom_state)) => {
-                    // Custom nodes fill all lanes at once.
-                    if lane == 0 {
-                        let args: Vec<Lanes<'_>> = step
-                            .args
-                            .iter()
-                            .map(|&a| Lanes::new(&self.buffers[a], self.steps[a].width, bs))
-                            .collect();
-                        let ctx = BlockContext {
-                            sample_rate: sr,
-                            first_sample: n0,
-                            len: n,
-                            width,
-                        };
-                        eval_custom(node.as_ref(), &ctx, &args, out, bs, custom_state.as_mut());
-                    }
-                    return;
-                }
                 // `new_state` makes the state of every op above, so a node
-                // added later cannot reach this: it is a kernel or a host node.
+                // added later cannot reach this: it is a kernel.
                 (op, _) => unreachable!("state of `{op}` was not prepared"),
             }
         }
-    }
-}
-
-/// Calls a custom node with a tightly packed output (`width × n`) and spreads the
-/// lanes back to the block stride.
-fn eval_custom(
-    node: &dyn crate::custom::CustomNode,
-    ctx: &BlockContext,
-    args: &[Lanes<'_>],
-    out: &mut [f64],
-    bs: usize,
-    state: &mut (dyn Any + Send),
-) {
-    let (n, width) = (ctx.len, ctx.width);
-    if n == bs {
-        node.eval_block(ctx, args, &mut out[..width * bs], state);
-        return;
-    }
-    // A short final block: arguments are still laid out with the block stride, so
-    // present them and the output packed to `n`.
-    let packed_args: Vec<Vec<f64>> = args
-        .iter()
-        .map(|a| {
-            (0..a.width())
-                .flat_map(|l| a.lane(l)[..n].to_vec())
-                .collect()
-        })
-        .collect();
-    let lanes: Vec<Lanes<'_>> = packed_args
-        .iter()
-        .zip(args)
-        .map(|(data, a)| Lanes::new(data, a.width(), n))
-        .collect();
-    let mut packed = vec![0.0; width * n];
-    node.eval_block(ctx, &lanes, &mut packed, state);
-    for l in 0..width {
-        out[l * bs..l * bs + n].copy_from_slice(&packed[l * n..(l + 1) * n]);
     }
 }
 
@@ -474,7 +418,6 @@ fn new_state(graph: &Graph, step: &Step, config: RenderConfig) -> State {
             )
         }
         Op::Stateful(kernel) => State::Kernel(kernel.new_state(&StateContext { width: w, config })),
-        Op::Custom(node) => State::Kernel(node.new_state(w, sr)),
         Op::Const(_)
         | Op::Time
         | Op::Unary(_)

@@ -1,14 +1,45 @@
-//! Stateful built-in nodes: each implements [`StatefulKernel`] in its own file under
-//! `dsp/`, and its catalogue entry makes the op. The interpreter creates the state
-//! and calls the kernel a block at a time; nothing else names it (compiled engines
-//! call back into the interpreter for it), so a new stateful node touches no engine.
-//! (One exception: the JIT compiles the optimiser's modal bank itself.)
+//! Stateful nodes: each built-in one implements [`StatefulKernel`] in its own file
+//! under `dsp/`, and its catalogue entry makes the op; a host's node
+//! ([`crate::custom::CustomNode`]) runs as one through [`crate::custom::HostKernel`].
+//! The interpreter creates the state and calls the kernel a block at a time; nothing
+//! else names it (compiled engines call back into the interpreter for it), so a new
+//! stateful node touches no engine. (One exception: the JIT compiles the optimiser's
+//! modal bank itself.) A kernel also says how much memory its state takes (for the
+//! render-cost check) and how a call writes it back as source ([`KernelOption`]).
 
 use std::any::Any;
 use std::fmt;
 
+use crate::graph::{Graph, NodeId};
 use crate::interp::RenderConfig;
 use crate::op::Description;
+
+/// One piece of a kernel's constant configuration, as its call in the language
+/// writes it (see `timbre_lang::print`). A kernel lists them in call order.
+#[derive(Clone, Copy, Debug)]
+pub enum KernelOption<'a> {
+    /// A keyword argument after the positional ones: `:max 0.5`.
+    Number(&'static str, f64),
+    /// The file the node reads, written as a string before the positional arguments:
+    /// `(sample "kick.wav" …)`.
+    File(&'a str),
+    /// The seed of each output lane: `:lanes` where there are more lanes than the
+    /// first argument's (or than one, with `lanes_follow_arg` false), then the first
+    /// lane's seed as `:seed-bits`.
+    Seeds {
+        seeds: &'a [u64],
+        lanes_follow_arg: bool,
+    },
+    /// A tree of another graph the node replays, written after the positional
+    /// arguments as an expression.
+    Source(&'a Graph, NodeId),
+}
+
+/// The bytes of a kernel whose state is a few numbers per lane (filters,
+/// oscillators, envelopes): what the render-cost check counts for it.
+pub fn small_state_bytes(ctx: &StateContext) -> u64 {
+    64 * ctx.width as u64
+}
 
 /// What a kernel may use to build its state.
 pub struct StateContext {
@@ -69,8 +100,15 @@ impl Outputs<'_> {
 pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
     type State: Send + 'static;
 
-    /// The node's name in the catalogue (and in pictures).
+    /// The node's name in the catalogue (and in pictures): its kind. Every host's
+    /// node is of the kind `custom`.
     fn name(&self) -> &'static str;
+
+    /// The name its call is written with: [`name`](Self::name), but for a host's
+    /// node, which goes by the name it was registered under.
+    fn call_name(&self) -> &str {
+        self.name()
+    }
 
     /// Everything besides the name that tells this node from another (its constant
     /// configuration: a seed, a filter kind, a maximum delay …), for node identity.
@@ -91,10 +129,15 @@ pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
 
     /// Bytes its state will need at `ctx`, estimated without making it, so that a
     /// render beyond the host's memory limit is refused before it starts (see
-    /// `timbre_ir::limits`). Kernels whose state grows with a time or a length
-    /// (delay lines, replays) say how much; the small ones keep the default.
-    fn memory(&self, ctx: &StateContext) -> u64 {
-        64 * ctx.width as u64
+    /// `timbre_ir::limits`). Every kernel says it (no default, so a delay line or a
+    /// replay cannot be forgotten); small ones use [`small_state_bytes`].
+    fn memory(&self, ctx: &StateContext) -> u64;
+
+    /// Its configuration as its call writes it (after the name and the positional
+    /// arguments), or `None` for a kernel no call makes (the scene's and the
+    /// optimiser's). The default: the name says it all, as for `lowpass`.
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(Vec::new())
     }
 
     /// Computes the next `inputs.n` samples of every lane.
@@ -104,11 +147,13 @@ pub trait StatefulKernel: fmt::Debug + Send + Sync + 'static {
 /// [`StatefulKernel`] with its state type erased, as ops hold it.
 pub trait DynKernel: fmt::Debug + Send + Sync + 'static {
     fn name(&self) -> &'static str;
+    fn call_name(&self) -> &str;
     fn describe(&self, d: &mut Description);
     fn detail(&self) -> String;
     fn width(&self, args: &[usize]) -> usize;
     fn new_state(&self, ctx: &StateContext) -> Box<dyn Any + Send>;
     fn memory(&self, ctx: &StateContext) -> u64;
+    fn options(&self) -> Option<Vec<KernelOption<'_>>>;
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>);
     /// The kernel itself, for an engine that compiles some kernels of its own (the
     /// JIT's modal bank) to recognise them.
@@ -118,6 +163,10 @@ pub trait DynKernel: fmt::Debug + Send + Sync + 'static {
 impl<K: StatefulKernel> DynKernel for K {
     fn name(&self) -> &'static str {
         StatefulKernel::name(self)
+    }
+
+    fn call_name(&self) -> &str {
+        StatefulKernel::call_name(self)
     }
 
     fn describe(&self, d: &mut Description) {
@@ -138,6 +187,10 @@ impl<K: StatefulKernel> DynKernel for K {
 
     fn memory(&self, ctx: &StateContext) -> u64 {
         StatefulKernel::memory(self, ctx)
+    }
+
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        StatefulKernel::options(self)
     }
 
     fn process(&self, state: &mut (dyn Any + Send), inputs: &Inputs<'_>, out: &mut Outputs<'_>) {

@@ -10,7 +10,7 @@ use std::f64::consts::TAU;
 use std::fmt;
 use std::sync::Arc;
 
-use crate::custom::CustomNode;
+use crate::custom::{CustomNode, HostKernel};
 use crate::dsp::envelope;
 use crate::dsp::noise::gradient_noise;
 use crate::dsp::wav::SampleData;
@@ -70,8 +70,6 @@ pub enum Op {
         fade_in: FadeIn,
         fade_out: f64,
     },
-    /// A node implemented in Rust by the host.
-    Custom(Arc<dyn CustomNode>),
 }
 
 /// Where a convolution's impulse response comes from.
@@ -170,10 +168,16 @@ impl Description {
 }
 
 impl Op {
+    /// A node implemented in Rust by the host: a stateful kernel like the built-in
+    /// ones.
+    pub fn custom(node: Arc<dyn CustomNode>) -> Op {
+        Op::Stateful(Arc::new(HostKernel(node)))
+    }
+
     /// Whether the node keeps state from block to block (and so is never folded).
     pub fn is_stateful(&self) -> bool {
         match self {
-            Op::Phasor | Op::Conv(_) | Op::Stateful(_) | Op::Custom(_) => true,
+            Op::Phasor | Op::Conv(_) | Op::Stateful(_) => true,
             Op::Const(_)
             | Op::Time
             | Op::Unary(_)
@@ -196,7 +200,7 @@ impl Op {
         match self {
             Op::Const(values) if values.len() == 1 => format!("{}", values[0]),
             Op::Const(values) => format!("[{} lanes]", values.len()),
-            Op::Custom(node) => node.name().into(),
+            Op::Stateful(kernel) => kernel.call_name().into(),
             _ => self.kind().into(),
         }
     }
@@ -221,7 +225,6 @@ impl Op {
             Op::Variable(_) => "variable",
             Op::Keyframe(_) => "keyframe",
             Op::Timer { .. } => "timer",
-            Op::Custom(_) => "custom",
         }
     }
 
@@ -278,10 +281,6 @@ impl Op {
                     .u64(always)
                     .f64(*seconds)
                     .f64(*fade_out);
-            }
-            // A host node by its registered name.
-            Op::Custom(node) => {
-                d.str(node.name());
             }
             // The kind (an element-wise op by its name) says it all.
             Op::Time

@@ -64,8 +64,7 @@ impl Kind {
             | Op::Conv(_)
             | Op::Stateful(_)
             | Op::Variable(_)
-            | Op::Keyframe(_)
-            | Op::Custom(_) => Kind::Interpreted,
+            | Op::Keyframe(_) => Kind::Interpreted,
         }
     }
 

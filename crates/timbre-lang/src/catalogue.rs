@@ -101,6 +101,9 @@ pub struct NodeSpec {
     pub width: Width,
     /// The heading of the `lang-spec/nodes.md` section that defines it.
     pub section: &'static str,
+    /// For differential tests: see the `exact` and `jumpy` marks of `NODES`.
+    pub exact: bool,
+    pub jumpy: bool,
     /// A one-lane tree that exercises the node (rendered under both engines by the
     /// differential tests); empty where that needs a file (`sample`).
     pub example: &'static str,
@@ -123,6 +126,8 @@ impl NodeSpec {
             kind: Kind::Pure,
             width: Width::Broadcast,
             section,
+            exact: false,
+            jumpy: false,
             example,
             build,
         }
@@ -161,6 +166,18 @@ impl NodeSpec {
     }
 }
 
+/// Marks a node exact: bit-identical in any IEEE engine without FMA if its arguments are.
+const fn exact(mut spec: NodeSpec) -> NodeSpec {
+    spec.exact = true;
+    spec
+}
+
+/// Marks a node jumpy: discontinuous in every argument (or within a sample, as `saw-bl`).
+const fn jumpy(mut spec: NodeSpec) -> NodeSpec {
+    spec.jumpy = true;
+    spec
+}
+
 /// The built-in node called `name`.
 pub fn lookup(name: &str) -> Option<&'static NodeSpec> {
     NODES.iter().find(|n| n.name == name)
@@ -195,29 +212,29 @@ const BIQUAD: &[Param<'static>] = &[p("x"), p("freq"), opt("q", std::f64::consts
 /// engines.
 pub static NODES: &[NodeSpec] = &[
     // Arithmetic and maths.
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "+",
         X,
         MATHS,
         Build::Fold(BinaryOp::Add),
         "(+ (sine (* t 440)) 0.25 (* 0.1 t))",
-    )
+    ))
     .variadic(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "*",
         X,
         MATHS,
         Build::Fold(BinaryOp::Mul),
         "(* (sine (* t 440)) (sine (* t 3)) 0.5)",
-    )
+    ))
     .variadic(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "-",
         X,
         MATHS,
         Build::Args(minus),
         "(- (- (sine (* t 440))) (* 0.1 t) 0.25)",
-    )
+    ))
     .variadic(),
     NodeSpec::new(
         "/",
@@ -227,21 +244,21 @@ pub static NODES: &[NodeSpec] = &[
         "(/ (sine (* t 440)) (+ 2 t) (/ (+ 3 (sine t))))",
     )
     .variadic(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "min",
         X,
         MATHS,
         Build::Fold(BinaryOp::Min),
         "(min (sine (* t 440)) (sine (* t 330)) 0.5)",
-    )
+    ))
     .variadic(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "max",
         X,
         MATHS,
         Build::Fold(BinaryOp::Max),
         "(max (sine (* t 440)) (sine (* t 330)) -0.5)",
-    )
+    ))
     .variadic(),
     NodeSpec::new(
         "pow",
@@ -250,13 +267,13 @@ pub static NODES: &[NodeSpec] = &[
         Build::Binary(BinaryOp::Pow),
         "(pow (+ 1.5 (sine (* t 440))) (+ 1 t))",
     ),
-    NodeSpec::new(
+    exact(jumpy(NodeSpec::new(
         "mod",
         &[p("x"), p("divisor")],
         MATHS,
         Build::Binary(BinaryOp::Mod),
         "(mod (* t 440) (+ 1 (* 0.5 (sine t))))",
-    ),
+    ))),
     NodeSpec::new(
         "exp",
         X,
@@ -278,13 +295,13 @@ pub static NODES: &[NodeSpec] = &[
         Build::Unary(UnaryOp::Sqrt),
         "(sqrt (+ 1 (sine (* t 440))))",
     ),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "abs",
         X,
         MATHS,
         Build::Unary(UnaryOp::Abs),
         "(abs (sine (* t 440.7)))",
-    ),
+    )),
     NodeSpec::new(
         "sin",
         X,
@@ -313,100 +330,100 @@ pub static NODES: &[NodeSpec] = &[
         Build::Unary(UnaryOp::Tanh),
         "(tanh (* 4 (sine (* t 440))))",
     ),
-    NodeSpec::new(
+    exact(jumpy(NodeSpec::new(
         "floor",
         X,
         MATHS,
         Build::Unary(UnaryOp::Floor),
         "(* 0.1 (floor (* 4 (sine (* t 440.7)))))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         "frac",
         X,
         MATHS,
         Build::Unary(UnaryOp::Frac),
         "(frac (* t 440))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(NodeSpec::new(
         "clamp",
         &[p("x"), p("lo"), p("hi")],
         MATHS,
         Build::Ternary(TernaryOp::Clamp),
         "(clamp (* 2 (sine (* t 440))) -0.5 (sine t))",
-    ),
+    )),
     // Comparisons and logic.
-    NodeSpec::new(
+    exact(jumpy(NodeSpec::new(
         "<",
         AB,
         LOGIC,
         Build::Binary(BinaryOp::Lt),
         "(< (sine (* t 440.7)) (sine (* t 3)))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         ">",
         AB,
         LOGIC,
         Build::Binary(BinaryOp::Gt),
         "(> (sine (* t 440.7)) (sine (* t 3)))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         "<=",
         AB,
         LOGIC,
         Build::Binary(BinaryOp::Le),
         "(<= (sine (* t 440.7)) 0)",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         ">=",
         AB,
         LOGIC,
         Build::Binary(BinaryOp::Ge),
         "(>= (sine (* t 440.7)) 0)",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         "=",
         AB,
         LOGIC,
         Build::Binary(BinaryOp::Eq),
         "(= (floor (* t 10)) 3)",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         "!=",
         AB,
         LOGIC,
         Build::Binary(BinaryOp::Ne),
         "(!= (floor (* t 10)) 3)",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         "and",
         X,
         LOGIC,
         Build::Fold(BinaryOp::And),
         "(and (> (sine (* t 440.7)) 0) (> (sine (* t 3)) 0))",
-    )
+    )))
     .variadic(),
-    NodeSpec::new(
+    exact(jumpy(NodeSpec::new(
         "or",
         X,
         LOGIC,
         Build::Fold(BinaryOp::Or),
         "(or (> (sine (* t 440.7)) 0.5) (> (sine (* t 3)) 0.5))",
-    )
+    )))
     .variadic(),
-    NodeSpec::new(
+    exact(jumpy(NodeSpec::new(
         "not",
         X,
         LOGIC,
         Build::Unary(UnaryOp::Not),
         "(not (> (sine (* t 440.7)) 0))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(NodeSpec::new(
         "if",
         &[p("condition"), p("then"), p("else")],
         LOGIC,
         Build::Ternary(TernaryOp::If),
         "(if (< (frac t) 0.5) (sine (* t 440.7)) (sine (* t 660)))",
-    ),
+    )),
     // Waveforms.
     NodeSpec::new(
         "sine",
@@ -415,34 +432,34 @@ pub static NODES: &[NodeSpec] = &[
         Build::Unary(UnaryOp::Sine),
         "(sine (* t 440))",
     ),
-    NodeSpec::new(
+    exact(jumpy(NodeSpec::new(
         "sawtooth",
         X,
         WAVES,
         Build::Unary(UnaryOp::Sawtooth),
         "(sawtooth (* t 440))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(jumpy(NodeSpec::new(
         "square",
         X,
         WAVES,
         Build::Unary(UnaryOp::Square),
         "(square (* t 440))",
-    ),
-    NodeSpec::new(
+    ))),
+    exact(NodeSpec::new(
         "triangle",
         X,
         WAVES,
         Build::Unary(UnaryOp::Triangle),
         "(triangle (* t 440))",
-    ),
-    NodeSpec::new(
+    )),
+    exact(jumpy(NodeSpec::new(
         "pulse",
         &[p("x"), opt("width", 0.5)],
         WAVES,
         Build::Binary(BinaryOp::Pulse),
         "(pulse (* t 440) (+ 0.5 (* 0.4 (sine t))))",
-    ),
+    ))),
     NodeSpec::new(
         "damp",
         X,
@@ -450,21 +467,21 @@ pub static NODES: &[NodeSpec] = &[
         Build::Unary(UnaryOp::Damp),
         "(* (damp (* 3 t)) (sine (* t 440)))",
     ),
-    NodeSpec::new(
+    jumpy(NodeSpec::new(
         "saw-bl",
         X,
         BAND_LIMITED,
         Build::Args(saw_bl),
         "(saw-bl (phasor (+ 440 (* 200 (sine (* t 5))))))",
-    )
+    ))
     .stateful(),
-    NodeSpec::new(
+    jumpy(NodeSpec::new(
         "square-bl",
         X,
         BAND_LIMITED,
         Build::Args(square_bl),
         "(square-bl (* t 1234.5))",
-    )
+    ))
     .stateful(),
     NodeSpec::new(
         "triangle-bl",
@@ -539,57 +556,57 @@ pub static NODES: &[NodeSpec] = &[
     .random()
     .stateful(),
     // Vector nodes.
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "rvector",
         &[p("n"), p("lo"), p("hi")],
         VECTORS,
         Build::Args(rvector),
         "(* 0.1 (combine (sine (* t (rvector 8 200 2000)))))",
-    )
+    ))
     .random()
     .own_width(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "iota",
         &[p("n")],
         VECTORS,
         Build::Args(iota),
         "(* 0.2 (combine (sine (* t 110 (+ 1 (iota 4))))))",
-    )
+    ))
     .constant()
     .own_width(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "vector",
         X,
         VECTORS,
         Build::Args(vector),
         "(* 0.3 (combine (sine (* t (vector 440 (+ 550 t) 660)))))",
-    )
+    ))
     .variadic()
     .own_width(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "combine",
         X,
         VECTORS,
         Build::Args(combine),
         "(* 0.1 (combine (sine (* t (rvector 5 100 900)))))",
-    )
+    ))
     .own_width(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "lanes",
         X,
         VECTORS,
         Build::Args(lanes),
         "(sine (* t 100 (lanes (rvector 5 0 1))))",
-    )
+    ))
     .constant()
     .own_width(),
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "index",
         &[p("x"), p("i")],
         VECTORS,
         Build::Args(index),
         "(index (sine (* t (vector 440 550 660))) (* 3 (frac t)))",
-    )
+    ))
     .own_width(),
     // Phase.
     NodeSpec::new(
@@ -697,13 +714,13 @@ pub static NODES: &[NodeSpec] = &[
     .stateful()
     .own_width(),
     // Control.
-    NodeSpec::new(
+    exact(NodeSpec::new(
         "latch",
         &[p("x"), p("trigger")],
         CONTROL,
         Build::Args(latch),
         "(sine (* t 100 (+ 2 (latch (white) (square (* t 8))))))",
-    )
+    ))
     .stateful(),
     NodeSpec::new(
         "lag",
@@ -728,7 +745,7 @@ pub static NODES: &[NodeSpec] = &[
         Build::Args(env),
         "(* (env t 0.01 0.5 :hold 0.1 :decay-curve -4) (sine (* t 440)))",
     ),
-    NodeSpec::new(
+    jumpy(NodeSpec::new(
         "adsr",
         &[
             p("gate"),
@@ -741,7 +758,7 @@ pub static NODES: &[NodeSpec] = &[
         ENVELOPES,
         Build::Args(adsr),
         "(* (adsr (< (frac (* 2 t)) 0.3) 0.01 0.1 0.5 0.2) (sine (* t 440)))",
-    )
+    ))
     .stateful(),
     // Expressive nodes (the 2006 schematic paper's aesthetic effects).
     NodeSpec::new(

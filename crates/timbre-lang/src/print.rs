@@ -20,14 +20,10 @@ use std::sync::Arc;
 
 use timbre_syntax::{Expr, ExprKind, Span};
 
-use crate::catalogue::{self, Kind};
-use timbre_ir::dsp::delay::{Allpass, Comb, Delay};
-use timbre_ir::dsp::expressive::{Energetic, Sputter, SweepCurve};
-use timbre_ir::dsp::noise::{MarkovNoise, PinkNoise};
-use timbre_ir::dsp::sample::SamplePlayer;
-use timbre_ir::kernel::DynKernel;
+use crate::catalogue;
+use timbre_ir::kernel::{DynKernel, KernelOption};
 use timbre_ir::keyframes::KeyframeTrack;
-use timbre_ir::op::{Description, ImpulseResponse, Op, UnaryOp};
+use timbre_ir::op::{ImpulseResponse, Op, UnaryOp};
 use timbre_ir::{Graph, NodeId};
 
 /// Subtrees deeper than this are bound with `let` rather than nested.
@@ -246,11 +242,12 @@ impl Printer<'_> {
             Op::Timer { .. } => {
                 return Err(unprintable("an instance's timer is made by its scene"))
             }
-            Op::Custom(node) => call(node.name(), args),
         })
     }
 
-    /// A stateful node's call, or None for a kernel no call makes.
+    /// A stateful node's call, or None for a kernel no call makes: its name, the
+    /// file it reads, its arguments, then the rest of its configuration as the
+    /// kernel lists it.
     fn kernel(
         &mut self,
         graph: &Graph,
@@ -258,70 +255,43 @@ impl Printer<'_> {
         kernel: &dyn DynKernel,
         args: Vec<Expr>,
     ) -> Result<Option<Expr>, Unprintable> {
-        let any = kernel.as_any();
-        let max = |max_seconds: f64, name| {
-            let mut items = args.clone();
-            items.extend([keyword("max"), number(max_seconds)]);
-            call(name, items)
+        let Some(options) = kernel.options() else {
+            return Ok(None);
         };
-        if let Some(k) = any.downcast_ref::<Delay>() {
-            return Ok(Some(max(k.max_seconds, "delay")));
+        let name = kernel.call_name();
+        let files = options.iter().filter_map(|option| match option {
+            KernelOption::File(path) => Some(string(path)),
+            _ => None,
+        });
+        let mut items: Vec<Expr> = files.collect();
+        items.extend(args);
+        let mut seeds = None;
+        for option in options {
+            match option {
+                KernelOption::File(_) => {}
+                KernelOption::Number(key, x) => items.extend([keyword(key), number(x)]),
+                KernelOption::Source(source, root) => items.push(self.expression(source, root)?),
+                KernelOption::Seeds {
+                    seeds: lane_seeds,
+                    lanes_follow_arg,
+                } => {
+                    let x_width = match lanes_follow_arg {
+                        true => graph.width(graph.node(node).args[0]),
+                        false => 1,
+                    };
+                    seeds = Some((lane_seeds, x_width));
+                }
+            }
         }
-        if let Some(k) = any.downcast_ref::<Comb>() {
-            return Ok(Some(max(k.max_seconds, "comb")));
-        }
-        if let Some(k) = any.downcast_ref::<Allpass>() {
-            return Ok(Some(max(k.max_seconds, "allpass")));
-        }
-        if let Some(k) = any.downcast_ref::<Sputter>() {
-            let curve = match k.curve {
-                SweepCurve::Linear => 0.0,
-                SweepCurve::Exponential => 1.0,
-            };
-            let mut items = args;
-            items.extend([keyword("curve"), number(curve)]);
-            return Ok(Some(call("sputter", items)));
-        }
-        let noise = |name, seeds: &[u64], x_width| {
-            noise_call(name, args.clone(), seeds, x_width).map_err(|reason| Unprintable {
-                node,
-                kind: name.into(),
-                reason,
-            })
+        let Some((seeds, x_width)) = seeds else {
+            return Ok(Some(call(name, items)));
         };
-        if let Some(k) = any.downcast_ref::<PinkNoise>() {
-            return noise("pink", &k.seeds, 1).map(Some);
-        }
-        if let Some(k) = any.downcast_ref::<MarkovNoise>() {
-            let rate_width = graph.width(graph.node(node).args[0]);
-            return noise("markov", &k.seeds, rate_width).map(Some);
-        }
-        if let Some(k) = any.downcast_ref::<SamplePlayer>() {
-            let mut items = vec![string(&k.path)];
-            items.extend(args);
-            items.extend([
-                keyword("start"),
-                number(k.start_seconds),
-                keyword("loop"),
-                number(if k.looping { 1.0 } else { 0.0 }),
-            ]);
-            return Ok(Some(call("sample", items)));
-        }
-        if let Some(k) = any.downcast_ref::<Energetic>() {
-            let source = self.expression(&k.source, k.root)?;
-            let mut items = args;
-            items.push(source);
-            return Ok(Some(call("energetic", items)));
-        }
-        // Any other stateful node of the catalogue is configured by its name alone
-        // (`lowpass`, `saw-bl` …): its description says nothing more.
-        let name = kernel.name();
-        let mut bare = Description::new();
-        bare.str(name);
-        let mut described = bare.clone();
-        kernel.describe(&mut described);
-        let plain = catalogue::lookup(name).is_some_and(|spec| spec.kind == Kind::Stateful);
-        Ok((plain && described == bare).then(|| call(name, args)))
+        let expr = noise_call(name, items, seeds, x_width).map_err(|reason| Unprintable {
+            node,
+            kind: name.into(),
+            reason,
+        })?;
+        Ok(Some(expr))
     }
 
     /// The name a track is written under, defining it on first use.
@@ -482,14 +452,10 @@ pub fn same_tree(a: &Graph, a_root: NodeId, b: &Graph, b_root: NodeId) -> bool {
                 pending.push((*rx, *ry));
                 sx.to_bits() == sy.to_bits()
             }
-            (Op::Stateful(kx), Op::Stateful(ky)) => {
-                match (
-                    kx.as_any().downcast_ref::<Energetic>(),
-                    ky.as_any().downcast_ref::<Energetic>(),
-                ) {
-                    (Some(ex), Some(ey)) => same_tree(&ex.source, ex.root, &ey.source, ey.root),
-                    _ => nx.op.same_as(&ny.op),
-                }
+            (Op::Stateful(kx), Op::Stateful(ky))
+                if replays(kx.as_ref()) || replays(ky.as_ref()) =>
+            {
+                same_replaying_kernel(kx.as_ref(), ky.as_ref())
             }
             (op_x, op_y) => op_x.same_as(op_y),
         };
@@ -499,4 +465,43 @@ pub fn same_tree(a: &Graph, a_root: NodeId, b: &Graph, b_root: NodeId) -> bool {
         pending.extend(nx.args.iter().copied().zip(ny.args.iter().copied()));
     }
     true
+}
+
+/// Whether a kernel replays a tree of another graph (`energetic`).
+fn replays(kernel: &dyn DynKernel) -> bool {
+    let options = kernel.options().unwrap_or_default();
+    options
+        .iter()
+        .any(|option| matches!(option, KernelOption::Source(..)))
+}
+
+/// Two kernels that replay trees: the same name and configuration, the replayed
+/// trees compared as trees (their node ids may differ).
+fn same_replaying_kernel(x: &dyn DynKernel, y: &dyn DynKernel) -> bool {
+    let (ox, oy) = (
+        x.options().unwrap_or_default(),
+        y.options().unwrap_or_default(),
+    );
+    x.call_name() == y.call_name()
+        && ox.len() == oy.len()
+        && ox.iter().zip(&oy).all(|pair| match pair {
+            (KernelOption::Source(gx, rx), KernelOption::Source(gy, ry)) => {
+                same_tree(gx, *rx, gy, *ry)
+            }
+            (KernelOption::Number(kx, x), KernelOption::Number(ky, y)) => {
+                kx == ky && x.to_bits() == y.to_bits()
+            }
+            (KernelOption::File(x), KernelOption::File(y)) => x == y,
+            (
+                KernelOption::Seeds {
+                    seeds: sx,
+                    lanes_follow_arg: fx,
+                },
+                KernelOption::Seeds {
+                    seeds: sy,
+                    lanes_follow_arg: fy,
+                },
+            ) => sx == sy && fx == fy,
+            _ => false,
+        })
 }

@@ -628,6 +628,51 @@ fn a_node_written_in_rust_is_callable_by_name() {
     assert_eq!(err.0[0].help.as_deref(), Some("did you mean `accumulate`?"));
 }
 
+/// A host node whose state would hold a second of samples per lane, and says so.
+struct Recorder;
+
+impl CustomNode for Recorder {
+    fn name(&self) -> &str {
+        "recorder"
+    }
+    fn arity(&self) -> std::ops::RangeInclusive<usize> {
+        1..=1
+    }
+    fn memory(&self, width: usize, sample_rate: f64) -> u64 {
+        width as u64 * sample_rate as u64 * 8
+    }
+    fn eval_block(
+        &self,
+        ctx: &BlockContext,
+        args: &[Lanes<'_>],
+        out: &mut [f64],
+        _state: &mut (dyn std::any::Any + Send),
+    ) {
+        for lane in 0..ctx.width {
+            out[lane * ctx.len..(lane + 1) * ctx.len].copy_from_slice(args[0].lane(lane));
+        }
+    }
+}
+
+#[test]
+fn a_node_written_in_rust_is_a_kernel_that_states_its_memory_and_prints_back() {
+    let mut registry = Registry::new();
+    registry.register(Recorder).register(Accumulate);
+    let options = CompileOptions::new(&registry, &NoFiles);
+    let source = "(+ (combine (recorder (vector (sine t) 0.5))) (accumulate 1))";
+    let program = timbre_lang::compile_str(source, &options).unwrap();
+    let (graph, root) = (&program.graph, program.root.unwrap());
+    // The render-cost check counts what the node states (two lanes of a second).
+    let config = timbre_ir::RenderConfig::default();
+    let cost = timbre_ir::limits::state_bytes(graph, root, config);
+    let (largest, bytes) = cost.largest.expect("a node with state");
+    assert_eq!(graph.node(largest).op.name(), "recorder");
+    assert_eq!(bytes, 2 * config.sample_rate as u64 * 8);
+    // Host nodes are written back as their calls.
+    let text = timbre_lang::print_tree(graph, root, &[]).unwrap();
+    assert_eq!(text, format!("{source}\n"));
+}
+
 // ----------------------------------------------------- levels, pitches, control
 
 #[test]

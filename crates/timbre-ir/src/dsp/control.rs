@@ -1,7 +1,7 @@
 //! Control-rate helpers: `latch` (sample and hold) and `lag` (smoothing).
 
 use super::flush;
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{small_state_bytes, Inputs, Outputs, StateContext, StatefulKernel};
 
 /// The `latch` node: holds `x` as it was at the last rising edge of `trigger` (a
 /// sample where the trigger is > 0 after one where it was ≤ 0; the trigger is taken
@@ -33,6 +33,10 @@ impl StatefulKernel for Latch {
                 *y = *held;
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }
 
@@ -79,5 +83,9 @@ impl StatefulKernel for Lag {
                 *y = next;
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }

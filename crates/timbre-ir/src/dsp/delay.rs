@@ -1,7 +1,7 @@
 //! A variable, fractional delay line.
 
 use super::{clamp_or, flush};
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{Inputs, KernelOption, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
 /// Largest supported maximum delay, in samples (2²⁸ ≈ 93 minutes at 48 kHz,
@@ -179,6 +179,10 @@ impl StatefulKernel for Delay {
         format!("max={:?} s", self.max_seconds)
     }
 
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![KernelOption::Number("max", self.max_seconds)])
+    }
+
     fn new_state(&self, ctx: &StateContext) -> Vec<DelayLine> {
         lines(self.max_seconds, ctx)
     }
@@ -235,6 +239,10 @@ impl StatefulKernel for Comb {
         format!("max={:?} s", self.max_seconds)
     }
 
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![KernelOption::Number("max", self.max_seconds)])
+    }
+
     fn new_state(&self, ctx: &StateContext) -> Self::State {
         // One sample more: the loop reads a line whose newest sample is one old.
         let seconds = self.max_seconds + 1.0 / ctx.config.sample_rate;
@@ -287,6 +295,10 @@ impl StatefulKernel for Allpass {
 
     fn detail(&self) -> String {
         format!("max={:?} s", self.max_seconds)
+    }
+
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![KernelOption::Number("max", self.max_seconds)])
     }
 
     fn new_state(&self, ctx: &StateContext) -> Vec<DelayLine> {

@@ -3,7 +3,7 @@
 //! release.
 
 use super::{clamp_or, sane_rate};
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{small_state_bytes, Inputs, Outputs, StateContext, StatefulKernel};
 
 /// Curvature magnitudes below this are treated as linear.
 const LINEAR_EPS: f64 = 1e-6;
@@ -474,5 +474,9 @@ impl StatefulKernel for AdsrEnvelope {
                 );
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }

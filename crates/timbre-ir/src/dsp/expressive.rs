@@ -12,7 +12,9 @@ use std::sync::Arc;
 use super::clamp_or;
 use crate::graph::{Graph, NodeId};
 use crate::interp::{Interpreter, RenderConfig};
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{
+    small_state_bytes, Inputs, KernelOption, Outputs, StateContext, StatefulKernel,
+};
 use crate::op::{frac, Description};
 
 /// Importance weights made to sum to 1: negative and NaN weights count as 0, and
@@ -147,6 +149,10 @@ impl StatefulKernel for InverseImportance {
             out.lane(0)[k] = mix;
         }
     }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
+    }
 }
 
 /// Slowest and fastest replay speeds of `energetic`: a speed of 0 would stop the
@@ -233,6 +239,10 @@ impl StatefulKernel for Energetic {
 
     fn detail(&self) -> String {
         format!("source of {} nodes", self.source.len())
+    }
+
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![KernelOption::Source(&self.source, self.root)])
     }
 
     fn width(&self, _args: &[usize]) -> usize {
@@ -355,6 +365,15 @@ impl StatefulKernel for Sputter {
         }
     }
 
+    /// `:curve 0` is linear, `:curve 1` exponential.
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        let curve = match self.curve {
+            SweepCurve::Linear => 0.0,
+            SweepCurve::Exponential => 1.0,
+        };
+        Some(vec![KernelOption::Number("curve", curve)])
+    }
+
     fn width(&self, _args: &[usize]) -> usize {
         1
     }
@@ -381,6 +400,10 @@ impl StatefulKernel for Sputter {
                 *phase = next;
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }
 

@@ -9,7 +9,7 @@
 //! filter for good.
 
 use super::{clamp_or, flush, sane_rate};
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{small_state_bytes, Inputs, Outputs, StateContext, StatefulKernel};
 use std::f64::consts::PI;
 
 /// The response type of a [`BiquadCoeffs`].
@@ -436,6 +436,10 @@ impl StatefulKernel for Biquad {
             }
         }
     }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
+    }
 }
 
 /// The `onepole` node; arguments: input, cutoff.
@@ -465,6 +469,10 @@ impl StatefulKernel for OnePoleLowpass {
                 *y = filter.process(*a, x[k]);
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }
 
@@ -504,5 +512,9 @@ impl StatefulKernel for Resonator {
                 *y = filter.process(coeffs, x[k]);
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }

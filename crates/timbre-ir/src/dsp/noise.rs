@@ -7,7 +7,9 @@
 //! themselves deterministic.
 
 use super::{clamp_or, flush, sane_rate};
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{
+    small_state_bytes, Inputs, KernelOption, Outputs, StateContext, StatefulKernel,
+};
 use crate::op::Description;
 
 /// The splitmix64 output function applied to `x` (i.e. splitmix64's `next()`
@@ -542,6 +544,13 @@ impl StatefulKernel for PinkNoise {
         "pink"
     }
 
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![KernelOption::Seeds {
+            seeds: &self.seeds,
+            lanes_follow_arg: false,
+        }])
+    }
+
     fn describe(&self, d: &mut Description) {
         describe_seeds(d, &self.seeds);
     }
@@ -567,6 +576,10 @@ impl StatefulKernel for PinkNoise {
             }
         }
     }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
+    }
 }
 
 /// The `markov` node: per-lane AR(2) noise; argument: rate in Hz. Lane k is driven
@@ -582,6 +595,13 @@ impl StatefulKernel for MarkovNoise {
 
     fn name(&self) -> &'static str {
         "markov"
+    }
+
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![KernelOption::Seeds {
+            seeds: &self.seeds,
+            lanes_follow_arg: true,
+        }])
     }
 
     fn describe(&self, d: &mut Description) {
@@ -609,5 +629,9 @@ impl StatefulKernel for MarkovNoise {
                 *y = markov.next(white(white_seed, n0 + k as u64), rate[k], sr);
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }

@@ -7,7 +7,9 @@
 //! to a kernel of its own (`timbre-jit`'s `modal` module). The exact values both
 //! engines anchor to are [`exact`] and [`step_power`].
 
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{
+    small_state_bytes, Inputs, KernelOption, Outputs, StateContext, StatefulKernel,
+};
 use crate::op::frac;
 
 /// The `damped-sine` node; arguments τ (a time, one lane), constant F and D.
@@ -21,6 +23,11 @@ impl StatefulKernel for DampedSine {
         "damped-sine"
     }
 
+    /// Only the optimiser makes it: no call does.
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        None
+    }
+
     fn new_state(&self, ctx: &StateContext) -> RotatorBank {
         RotatorBank::new(ctx.width)
     }
@@ -29,6 +36,10 @@ impl StatefulKernel for DampedSine {
         let n = out.n;
         let (samples, stride) = out.strided();
         bank.render(inputs, BlockOut { samples, stride, n });
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }
 
@@ -48,6 +59,11 @@ impl StatefulKernel for ModalBank {
 
     fn name(&self) -> &'static str {
         "modal-bank"
+    }
+
+    /// Only the optimiser makes it: no call does.
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        None
     }
 
     /// One lane: the sum of the modes.
@@ -79,6 +95,10 @@ impl StatefulKernel for ModalBank {
                 *s += amplitude * x;
             }
         }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        small_state_bytes(ctx)
     }
 }
 

@@ -2,8 +2,8 @@
 
 use std::sync::Arc;
 
-use super::wav::{read_cubic, resample, SampleData};
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use super::wav::{read_cubic, resample, resampled_len, SampleData};
+use crate::kernel::{Inputs, KernelOption, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
 /// Plays `data` from `start_seconds`, advancing by the argument (the playback rate,
@@ -43,6 +43,14 @@ impl StatefulKernel for SamplePlayer {
         format!("{:?}, start={:?} s, {mode}", self.path, self.start_seconds)
     }
 
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        Some(vec![
+            KernelOption::File(&self.path),
+            KernelOption::Number("start", self.start_seconds),
+            KernelOption::Number("loop", if self.looping { 1.0 } else { 0.0 }),
+        ])
+    }
+
     fn width(&self, _args: &[usize]) -> usize {
         1
     }
@@ -67,5 +75,11 @@ impl StatefulKernel for SamplePlayer {
                 }
             }
         }
+    }
+
+    /// The sound resampled to the render's rate, and a position per lane.
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        let frames = resampled_len(&self.data, ctx.config.sample_rate) as u64;
+        (frames + ctx.width as u64) * 8 + std::mem::size_of::<Playback>() as u64
     }
 }

@@ -226,6 +226,22 @@ pub fn resample(data: &SampleData, target_rate: f64) -> Vec<f64> {
         .collect()
 }
 
+/// How many frames [`resample`] makes of `data` at `target_rate`, without making them.
+pub fn resampled_len(data: &SampleData, target_rate: f64) -> usize {
+    let sr = data.sample_rate;
+    let ok = |r: f64| r.is_finite() && r > 0.0;
+    if !ok(sr) || !ok(target_rate) || sr == target_rate {
+        return data.frames.len();
+    }
+    let len = data.frames.len() as f64;
+    clamp_or(
+        (len / (sr / target_rate)).ceil(),
+        0.0,
+        MAX_RESAMPLED_FRAMES as f64,
+        0.0,
+    ) as usize
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

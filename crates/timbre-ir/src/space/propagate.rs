@@ -25,7 +25,7 @@ use crate::dsp::delay::DelayLine;
 use crate::dsp::fdn::Fdn;
 use crate::dsp::filter::OnePole;
 use crate::dsp::wav::resample;
-use crate::kernel::{Inputs, Outputs, StateContext, StatefulKernel};
+use crate::kernel::{Inputs, KernelOption, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
 /// Samples between exact solutions of the retarded time (0.33 ms at 48 kHz).
@@ -725,6 +725,11 @@ impl StatefulKernel for Propagation {
 
     fn name(&self) -> &'static str {
         "propagate"
+    }
+
+    /// Only the scene makes it: no call does.
+    fn options(&self) -> Option<Vec<KernelOption<'_>>> {
+        None
     }
 
     fn describe(&self, d: &mut Description) {

@@ -509,7 +509,7 @@ impl Lowerer<'_> {
                 .label(call.span, format!("argument widths {widths:?}"))
                 .help("make the arguments' lane counts fit what the node accepts"));
         }
-        Ok(self.graph.add(Op::Custom(node), args))
+        Ok(self.graph.add(Op::custom(node), args))
     }
 
     // ------------------------------------------------------------------- builtins
