@@ -41,7 +41,7 @@ pub struct Engine {
 impl Engine {
     /// An engine at `sample_rate`, mono, compiling to native code, reading no files.
     ///
-    /// A rate is a finite number of Hz from [`MIN_SAMPLE_RATE`] to [`MAX_SAMPLE_RATE`]
+    /// A rate is a finite number of Hz from [`MIN_SAMPLE_RATE`](crate::MIN_SAMPLE_RATE) to [`MAX_SAMPLE_RATE`](crate::MAX_SAMPLE_RATE)
     /// (and at most [`Limits::sample_rate`]). The settings are checked together when a
     /// scene is made ([`Engine::scene`], [`Engine::scene_from`],
     /// [`Engine::load_scene`]), so another rate is refused there
@@ -198,7 +198,7 @@ impl Engine {
 
     /// Samples per block (256 by default): the unit in which instances start, stop
     /// and take variable changes in a real-time scene. Offline output does not depend
-    /// on it. From 1 to [`MAX_BLOCK_SIZE`]; another number is refused when a scene is
+    /// on it. From 1 to [`MAX_BLOCK_SIZE`](crate::MAX_BLOCK_SIZE); another number is refused when a scene is
     /// made (`timbre::bad-block-size`).
     ///
     /// ```
@@ -252,7 +252,7 @@ impl Engine {
     /// Output channels of the scenes it makes for a library (1 by default): frames of
     /// this many interleaved samples; also the channels of a file read without
     /// `(scene :channels …)`, whose sound may then be as wide. A one-lane instance is heard in every channel
-    /// unless it is placed (see [`Play::pan`] and [`Play::channel`]). From 1 to
+    /// unless it is placed (see [`Play::pan`](crate::Play::pan) and [`Play::channel`](crate::Play::channel)). From 1 to
     /// [`MAX_CHANNELS`]; another number is refused when a scene is made
     /// (`timbre::bad-channels`).
     ///

@@ -8,7 +8,7 @@ use crate::{
 
 /// When an instance plays and where it is heard: a start time, an optional stop, a
 /// gain, a placement among the output channels and its fade-in. Checked when the
-/// instance is started ([`Scene::play`]): times are finite seconds ≥ 0
+/// instance is started ([`Scene::play`](crate::Scene::play)): times are finite seconds ≥ 0
 /// (`timbre::bad-time`), a stop comes after the start (`timbre::stop-before-start`),
 /// a gain is finite (`timbre::bad-gain`), a pan position is from −1 to 1
 /// (`timbre::bad-pan`), a channel is one the scene has (`timbre::bad-channel`) and a

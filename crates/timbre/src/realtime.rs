@@ -64,7 +64,7 @@ impl Scene {
 
 /// The control side of a split scene (see [`Scene::split`]): starts and stops
 /// instances and changes their mix, from any thread (clones share it). Its calls lock
-/// a mutex of their own, which the audio thread never takes; set [`Variable`]s
+/// a mutex of their own, which the audio thread never takes; set [`Variable`](crate::Variable)s
 /// directly, without it.
 #[derive(Clone)]
 pub struct Control {

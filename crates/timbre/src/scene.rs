@@ -159,7 +159,7 @@ impl Scene {
     /// only). The samples are the same, bit for bit, whatever the number; with more
     /// than one, a block waits for the slowest thread and [`Scene::render`] may
     /// allocate, so keep the default on a real-time audio thread and use threads for
-    /// offline renders. From 1 to [`MAX_THREADS`] (`timbre::bad-threads`);
+    /// offline renders. From 1 to [`MAX_THREADS`](crate::MAX_THREADS) (`timbre::bad-threads`);
     /// `timbre::no-threads` if the system cannot start them.
     ///
     /// ```
@@ -227,7 +227,7 @@ impl Scene {
     /// Renders the next `out.len() / channels` frames, interleaved (a length that is
     /// not whole frames is `timbre::bad-buffer`). Allocates nothing,
     /// takes no lock (with one thread, the default: see [`Scene::set_threads`]). With
-    /// a wall-time limit ([`Limits::render_time`]), a call that takes longer stops at
+    /// a wall-time limit ([`Limits::render_time`](crate::Limits::render_time)), a call that takes longer stops at
     /// the end of a block with a diagnostic (the frames after it are left as they
     /// were).
     ///
@@ -309,8 +309,8 @@ impl Scene {
     }
 
     /// Renders until scene time `until` and returns the frames, interleaved (at most
-    /// [`Limits::duration`] seconds). The samples are held at once, so their memory
-    /// counts against [`Limits::memory`] (`timbre::too-much-memory`: 24 hours at
+    /// [`Limits::duration`](crate::Limits::duration) seconds). The samples are held at once, so their memory
+    /// counts against [`Limits::memory`](crate::Limits::memory) (`timbre::too-much-memory`: 24 hours at
     /// 48 kHz would be 33 GB) and is asked of the system before rendering
     /// (`timbre::out-of-memory`); render longer sounds block by block with
     /// [`Scene::render`].

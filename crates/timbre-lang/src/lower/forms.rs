@@ -101,7 +101,8 @@ impl Form {
     }
 }
 
-/// The names of the [`Form`]s. They, `t` and `pi` are reserved.
+/// The names of the forms that are not nodes (`Form`). They, `t` and `pi` are
+/// reserved.
 pub const FORMS: &[&str] = &{
     let mut names = [""; Form::ALL.len()];
     let mut i = 0;
