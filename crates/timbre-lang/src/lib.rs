@@ -1,5 +1,5 @@
 //! The timbre language, text to program and back: lowering the syntax tree to a
-//! [`Program`] (the node catalogue and its builders, the top-level and scene forms,
+//! [`Program`](timbre_ir::Program) (the node catalogue and its builders, the top-level and scene forms,
 //! width checks), the printer of lowered trees, the loader and its sandbox, CSV
 //! tables, `score` (music) and `frames` (image statistics), and `morph`.
 //!
@@ -32,8 +32,8 @@ pub use loader::{
     open_regular, read_bounded, FsLoader, Loader, NoFiles, SandboxLoader, MAX_FILE_BYTES,
 };
 pub use lower::{
-    compile, compile_after, did_you_mean, CompileOptions, Compiled, Instance, Instantiated,
-    Library, ParamValue, Program, Registry, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
+    compile, compile_after, did_you_mean, CompileOptions, Compiled, Instantiated, Library,
+    ParamValue, Registry,
 };
 pub use print::{print_tree, same_tree, Unprintable, MAX_INLINE_DEPTH};
 pub use timbre_diag::{Diag, Diagnostics, SourceFile, Span};
