@@ -225,6 +225,42 @@ impl KeyframeTrack {
         }
     }
 
+    /// The value at `t` and its first and second time derivatives, exactly those
+    /// of the interpolant (a step's are 0; a linear interval's slope is its secant).
+    /// Derivatives are right-continuous: at a key they are those of the interval
+    /// that starts there; before the first key and from the last on they are 0.
+    pub fn derivatives(&self, t: f64) -> [f64; 3] {
+        let value = self.value(t);
+        let times = &self.times;
+        let last = times.len() - 1;
+        if t < times[0] || t >= times[last] || t.is_nan() {
+            return [value, 0.0, 0.0];
+        }
+        let i = times.partition_point(|&x| x <= t);
+        let (t0, t1) = (times[i - 1], times[i]);
+        let (y0, y1) = (self.values[i - 1], self.values[i]);
+        let h = t1 - t0;
+        match self.interpolation {
+            Interpolation::Step => [value, 0.0, 0.0],
+            Interpolation::Linear => [value, (y1 - y0) / h, 0.0],
+            Interpolation::Smooth => {
+                let s = (t - t0) / h;
+                let (d0, d1) = (self.slopes[i - 1], self.slopes[i]);
+                // Derivatives of the Hermite basis with respect to s, then ds/dt = 1/h.
+                let s2 = s * s;
+                let slope = (6.0 * s2 - 6.0 * s) * y0
+                    + (3.0 * s2 - 4.0 * s + 1.0) * h * d0
+                    + (-6.0 * s2 + 6.0 * s) * y1
+                    + (3.0 * s2 - 2.0 * s) * h * d1;
+                let curvature = (12.0 * s - 6.0) * y0
+                    + (6.0 * s - 4.0) * h * d0
+                    + (-12.0 * s + 6.0) * y1
+                    + (6.0 * s - 2.0) * h * d1;
+                [value, slope / h, curvature / (h * h)]
+            }
+        }
+    }
+
     /// The key times, strictly increasing.
     pub fn times(&self) -> &[f64] {
         &self.times

@@ -32,6 +32,7 @@ mod interp;
 pub mod kernel;
 pub mod keyframes;
 pub mod limits;
+pub mod motion;
 pub mod op;
 pub mod optimise;
 mod program;

@@ -1,21 +1,42 @@
-//! Where something is over time: a fixed point or a keyframed 3-vector.
+//! Where something is over time: a fixed point, a keyframed 3-vector, or any other
+//! [`Trajectory`] (a node of an animated glTF file, a host's live positions).
 
 use std::sync::Arc;
 
 use glam::DVec3;
 
 use crate::keyframes::KeyframeTrack;
+use crate::motion::Trajectory;
 use crate::op::Description;
 
 /// Step of the central difference that gives a path's velocity, in seconds.
 pub(crate) const VELOCITY_STEP: f64 = 1e-4;
 
 /// A point moving on the scene's timeline (seconds of scene time).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub enum Path {
     Fixed(DVec3),
     /// One track per coordinate (x, y, z), keyed at the same times.
     Keyed(Arc<[Arc<KeyframeTrack>; 3]>),
+    /// A trajectory with exact derivatives.
+    Moving(Arc<dyn Trajectory>),
+}
+
+impl PartialEq for Path {
+    /// The same point over time: equal by content (a trajectory by its description).
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Path::Fixed(a), Path::Fixed(b)) => a == b,
+            (Path::Keyed(a), Path::Keyed(b)) => a == b,
+            (Path::Moving(a), Path::Moving(b)) => {
+                let (mut x, mut y) = (Description::new(), Description::new());
+                a.describe(&mut x);
+                b.describe(&mut y);
+                x == y
+            }
+            _ => false,
+        }
+    }
 }
 
 impl Path {
@@ -27,16 +48,19 @@ impl Path {
             Path::Keyed(tracks) => {
                 DVec3::new(tracks[0].value(t), tracks[1].value(t), tracks[2].value(t))
             }
+            Path::Moving(trajectory) => trajectory.position(t),
         }
     }
 
-    /// The velocity at scene time `t` (a central difference; zero for a fixed point).
+    /// The velocity at scene time `t` (zero for a fixed point; a central difference
+    /// for keyframes, the exact derivative for a trajectory).
     pub fn velocity(&self, t: f64) -> DVec3 {
         match self {
             Path::Fixed(_) => DVec3::ZERO,
             Path::Keyed(_) => {
                 (self.at(t + VELOCITY_STEP) - self.at(t - VELOCITY_STEP)) / (2.0 * VELOCITY_STEP)
             }
+            Path::Moving(trajectory) => trajectory.kinematics(t).velocity,
         }
     }
 
@@ -55,6 +79,7 @@ impl Path {
                 let (x, y, z) = (range(0), range(1), range(2));
                 (DVec3::new(x.0, y.0, z.0), DVec3::new(x.1, y.1, z.1))
             }
+            Path::Moving(trajectory) => trajectory.bounds(),
         }
     }
 
@@ -62,8 +87,10 @@ impl Path {
     /// it for smooth keys, whose monotone cubic never has a slope above three times
     /// its secant); 0 for a fixed point or step keys (which jump, not move).
     pub fn max_speed(&self) -> f64 {
-        let Path::Keyed(tracks) = self else {
-            return 0.0;
+        let tracks = match self {
+            Path::Fixed(_) => return 0.0,
+            Path::Keyed(tracks) => tracks,
+            Path::Moving(trajectory) => return trajectory.max_speed(),
         };
         let factor = match tracks[0].interpolation() {
             crate::keyframes::Interpolation::Step => return 0.0,
@@ -101,6 +128,10 @@ impl Path {
                     d.f64s(track.values());
                 }
             }
+            Path::Moving(trajectory) => {
+                d.str("moving");
+                trajectory.describe(d);
+            }
         }
     }
 
@@ -114,6 +145,7 @@ impl Path {
                 tracks[0].start(),
                 tracks[0].end()
             ),
+            Path::Moving(trajectory) => trajectory.detail(),
         }
     }
 }
