@@ -390,32 +390,17 @@ fn cubic_spline_rotations_are_normalised_with_exact_derivatives() {
     let node = b.node(json!({"name": "Spin", "children": [1]}));
     b.node(json!({"name": "Arm", "translation": [0.0, 0.0, -2.0]}));
     let q1 = DQuat::from_rotation_y(1.0);
-    let values = [
-        0.0,
-        0.3,
-        0.0,
-        0.0,
-        /* */ 0.0,
-        0.0,
-        0.0,
-        1.0,
-        /* */ 0.0,
-        0.4,
-        0.1,
-        0.0,
-        0.0,
-        0.2,
-        0.0,
-        -0.1,
-        /* */ q1.x as f32,
-        q1.y as f32,
-        q1.z as f32,
-        q1.w as f32,
-        /* */ 0.0,
-        0.0,
-        0.0,
-        0.0,
+    let q1 = [q1.x as f32, q1.y as f32, q1.z as f32, q1.w as f32];
+    // Per key: in-tangent, value, out-tangent.
+    let outputs: [[f32; 4]; 6] = [
+        [0.0, 0.3, 0.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0, 0.4, 0.1, 0.0],
+        [0.0, 0.2, 0.0, -0.1],
+        q1,
+        [0.0, 0.0, 0.0, 0.0],
     ];
+    let values = outputs.concat();
     b.animation(
         "spin",
         &[Channel {
@@ -444,6 +429,23 @@ fn cubic_spline_rotations_are_normalised_with_exact_derivatives() {
             );
         }
         assert!((forward.position(t).length() - 1.0).abs() < 1e-15);
+        // The spec: the Hermite cubic of the quaternions, then normalised.
+        let v = |k: usize| glam::DVec4::from(outputs[k].map(f64::from));
+        let (h, s) = (1.5f64, t / 1.5);
+        let p = v(1) * (2.0 * s.powi(3) - 3.0 * s * s + 1.0)
+            + v(2) * (h * (s.powi(3) - 2.0 * s * s + s))
+            + v(4).normalize() * (-2.0 * s.powi(3) + 3.0 * s * s)
+            + v(3) * (h * (s.powi(3) - s * s));
+        let q = DQuat::from_vec4(p.normalize());
+        assert!(
+            close(forward.position(t), z_up(q * DVec3::NEG_Z), 1e-12),
+            "{t}"
+        );
+        assert!(close(
+            arm.position(t),
+            z_up(q * DVec3::new(0.0, 0.0, -2.0)),
+            1e-12
+        ));
     }
 }
 
@@ -943,4 +945,28 @@ fn every_truncation_and_every_flipped_byte_is_an_error_or_a_shot_never_a_panic()
             }
         }
     }
+}
+
+#[test]
+fn scale_keys_scale_the_node_and_its_children() {
+    let mut b = Builder::default();
+    let child = b.node(json!({"name": "Tip", "translation": [0.0, 1.0, 0.0]}));
+    let node = b.node(json!({"name": "Grow", "children": [child]}));
+    b.animation(
+        "grow",
+        &[Channel {
+            node,
+            path: "scale",
+            interpolation: "LINEAR",
+            times: &[0.0, 2.0],
+            values: &[1.0, 1.0, 1.0, 3.0, 5.0, 1.0],
+        }],
+    );
+    let shot = read(&b.glb());
+    let (grow, tip) = (shot.node("Grow").unwrap(), shot.node("Tip").unwrap());
+    // At 0.5 s: scale (1.5, 2, 1) in glTF axes; timbre's order is x, −z, y.
+    assert_eq!(shot.scale(grow, 0.5), DVec3::new(1.5, 1.0, 2.0));
+    let kin = shot.position(tip).kinematics(0.5);
+    assert_eq!(kin.position, z_up(DVec3::new(0.0, 2.0, 0.0)));
+    assert_eq!(kin.velocity, z_up(DVec3::new(0.0, 2.0, 0.0)));
 }
