@@ -127,6 +127,38 @@ impl Trajectory for Difference {
     }
 }
 
+/// A trajectory that starts `.1` seconds later: at scene time t it is where `.0`
+/// is at t − `.1` (a motion file placed later on the scene's timeline).
+#[derive(Clone, Debug)]
+pub struct Shifted(pub Arc<dyn Trajectory>, pub f64);
+
+impl Trajectory for Shifted {
+    fn kinematics(&self, t: f64) -> Kinematics {
+        self.0.kinematics(t - self.1)
+    }
+
+    fn position(&self, t: f64) -> DVec3 {
+        self.0.position(t - self.1)
+    }
+
+    fn bounds(&self) -> (DVec3, DVec3) {
+        self.0.bounds()
+    }
+
+    fn max_speed(&self) -> f64 {
+        self.0.max_speed()
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.str("shifted").f64(self.1);
+        self.0.describe(d);
+    }
+
+    fn detail(&self) -> String {
+        format!("{} from {} s", self.0.detail(), self.1)
+    }
+}
+
 /// What a [`MotionKernel`] reads from its trajectory.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Quantity {
@@ -189,6 +221,8 @@ impl Quantity {
 /// A quantity of a trajectory as a signal. Argument: the scene time.
 #[derive(Debug)]
 pub struct MotionKernel {
+    /// The node's name in the language (`speed`, `angular-speed` …).
+    pub name: &'static str,
     pub trajectory: Arc<dyn Trajectory>,
     pub quantity: Quantity,
 }
@@ -197,11 +231,11 @@ impl StatefulKernel for MotionKernel {
     type State = ();
 
     fn name(&self) -> &'static str {
-        self.quantity.name()
+        self.name
     }
 
     fn describe(&self, d: &mut Description) {
-        d.str(self.quantity.name());
+        d.str(self.name).str(self.quantity.name());
         self.trajectory.describe(d);
     }
 

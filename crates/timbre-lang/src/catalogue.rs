@@ -29,7 +29,7 @@ use timbre_ir::dsp::tube::{Quantity, Tube, TubeError, ALUMINIUM, MATERIALS};
 use timbre_ir::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 use timbre_ir::NodeId;
 
-pub use crate::lower::FORMS;
+pub use crate::lower::{FORMS, MOTION_NODES};
 
 /// One parameter of a node: its keyword name and its default, if it has one.
 #[derive(Clone, Copy, Debug)]

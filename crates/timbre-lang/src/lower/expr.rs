@@ -265,6 +265,9 @@ impl Lowerer<'_> {
         {
             return self.lower_track_at(&call, origin, scope);
         }
+        if super::motion::MOTION_NODES.contains(&name) {
+            return self.lower_motion_node(&call, origin);
+        }
         if let Some(spec) = catalogue::lookup(name) {
             return self.lower_builtin(&call, spec, origin, scope);
         }
@@ -278,6 +281,7 @@ impl Lowerer<'_> {
         candidates.extend(self.names.definitions.keys().map(String::as_str));
         candidates.extend(self.options.registry.names());
         candidates.extend(super::FORMS);
+        candidates.extend(super::motion::MOTION_NODES);
         let help = match (catalogue::alias(name), super::did_you_mean(name, candidates)) {
             (Some((ours, how)), _) => format!("did you mean `{ours}`? {how}"),
             (None, Some(close)) => format!("did you mean `{close}`?"),

@@ -31,11 +31,12 @@ pub(crate) enum Form {
     Room,
     Box,
     Wall,
+    Motion,
 }
 
 impl Form {
     /// Every form, in the order of [`FORMS`].
-    const ALL: [Form; 17] = [
+    const ALL: [Form; 18] = [
         Form::Let,
         Form::Morph,
         Form::Define,
@@ -53,6 +54,7 @@ impl Form {
         Form::Room,
         Form::Box,
         Form::Wall,
+        Form::Motion,
     ];
 
     /// The form's name, as written.
@@ -75,6 +77,7 @@ impl Form {
             Form::Room => "room",
             Form::Box => "box",
             Form::Wall => "wall",
+            Form::Motion => "motion",
         }
     }
 
@@ -157,6 +160,7 @@ impl Lowerer<'_> {
             Some(Form::DefineSound) => self.read_define(&form, origin, true),
             Some(Form::Keyframes) => self.read_keyframes(&form, origin),
             Some(Form::Frames) => self.read_frames(&form, origin),
+            Some(Form::Motion) if included_at.is_none() => self.read_motion(&form, origin),
             Some(form_kind) if form_kind.is_instance() && included_at.is_none() => {
                 self.scene.instance_forms.push((form, origin.clone()));
                 Ok(())
@@ -185,6 +189,7 @@ impl Lowerer<'_> {
         if let Err(diag) = result {
             match head {
                 Some(Form::Include | Form::Frames) => self.names.incomplete = true,
+                Some(Form::Motion) => self.names.motion_failed = true,
                 Some(Form::Define | Form::DefineSound | Form::Keyframes) => {
                     self.names.failed.extend(defined);
                 }

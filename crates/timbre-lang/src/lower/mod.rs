@@ -22,12 +22,14 @@ mod forms;
 mod frames;
 mod library;
 mod morph;
+mod motion;
 mod scene;
 mod score;
 mod space;
 
 pub(crate) use forms::is_reserved;
 pub use forms::FORMS;
+pub use motion::MOTION_NODES;
 
 pub use library::{Instantiated, Library, ParamValue};
 pub(crate) use timbre_ir::{Instance, Program, Settings, DECLICK_IN, DECLICK_OUT, MAX_LANES};
@@ -211,6 +213,10 @@ struct Names {
     keyframes: HashMap<String, Arc<KeyframeTrack>>,
     /// Keyframed vectors (positions) by name, one track per coordinate.
     vector_keyframes: HashMap<String, Arc<[Arc<KeyframeTrack>]>>,
+    /// The `motion` forms' files.
+    motions: Vec<motion::MotionFile>,
+    /// Set when a `motion` form failed: an unknown node is then no error of its own.
+    motion_failed: bool,
     /// Names whose defining form failed (a `define` or `keyframes` with an error):
     /// their uses report nothing more, since the first error explains them.
     failed: HashSet<String>,

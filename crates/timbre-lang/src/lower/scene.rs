@@ -480,9 +480,7 @@ impl Lowerer<'_> {
     /// A keyframed variable read on the scene's timeline: in an instance, scene time
     /// is its local t plus its start.
     pub(crate) fn keyframe_node(&mut self, track: Arc<KeyframeTrack>) -> NodeId {
-        let t = self.graph.add(Op::Time, vec![]);
-        let offset = self.graph.constant(self.time_offset);
-        let scene_time = self.graph.add(Op::Binary(BinaryOp::Add), vec![t, offset]);
+        let scene_time = self.scene_time_node();
         self.graph.add(Op::Keyframe(track), vec![scene_time])
     }
 

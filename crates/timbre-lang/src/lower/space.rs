@@ -75,7 +75,9 @@ impl Space {
     }
 }
 
-const LISTENER_OPTIONS: &[&str] = &["position", "facing", "pair", "spacing", "angle", "pattern"];
+const LISTENER_OPTIONS: &[&str] = &[
+    "position", "facing", "object", "pair", "spacing", "angle", "pattern",
+];
 const MICROPHONE_OPTIONS: &[&str] = &["channel", "position", "facing", "pattern"];
 
 /// First-order patterns by name: a in a + (1 − a)·cos θ.
@@ -119,13 +121,16 @@ impl Lowerer<'_> {
                 .help("a scene has one listener; add receivers per channel with (microphone :channel k …)"));
         }
         let options = self.options(&items[1..], "listener", LISTENER_OPTIONS, origin)?;
-        let position = match options.get("position") {
-            Some(e) => self.position(e, "the listener's position", origin)?,
-            None => Path::Fixed(DVec3::ZERO),
+        let object = self.object_option(&options, "position", origin)?;
+        let position = match (options.get("position"), &object) {
+            (Some(e), _) => self.position(e, "the listener's position", origin)?,
+            (None, Some(node)) => Path::Moving(node.position()),
+            (None, None) => Path::Fixed(DVec3::ZERO),
         };
-        let facing = match options.get("facing") {
-            Some(e) => self.direction(e, "the listener's facing direction", origin)?,
-            None => Path::Fixed(DVec3::Y),
+        let facing = match (options.get("facing"), &object) {
+            (Some(e), _) => self.direction(e, "the listener's facing direction", origin)?,
+            (None, Some(node)) => Path::Moving(node.forward()),
+            (None, None) => Path::Fixed(DVec3::Y),
         };
         let pattern_value = match options.get("pattern") {
             Some(e) => self.pattern_option(e, origin)?,
@@ -308,18 +313,24 @@ impl Lowerer<'_> {
                 .label(*first, "first")
                 .help("give each source its own name"));
         }
-        let options = self.options(&items[2..], "source", &["position"], origin)?;
-        let Some(position) = options.get("position") else {
-            return Err(self
-                .diag(
-                    "timbre::bad-source",
-                    format!("source `{name}` has no position"),
-                    origin,
-                )
-                .label(form.span, "where is it?")
-                .help(format!("write {usage}, or a keyframed position")));
+        let options = self.options(&items[2..], "source", &["position", "object"], origin)?;
+        let object = self.object_option(&options, "position", origin)?;
+        let path = match (options.get("position"), object) {
+            (Some(position), _) => self.position(position, "the source's position", origin)?,
+            (None, Some(node)) => Path::Moving(node.position()),
+            (None, None) => {
+                return Err(self
+                    .diag(
+                        "timbre::bad-source",
+                        format!("source `{name}` has no position"),
+                        origin,
+                    )
+                    .label(form.span, "where is it?")
+                    .help(format!(
+                        "write {usage}, a keyframed position, or :object \"Car\" for a glTF node"
+                    )))
+            }
         };
-        let path = self.position(position, "the source's position", origin)?;
         self.scene.space.sources.push((name, path, name_expr.span));
         Ok(())
     }
@@ -540,13 +551,13 @@ impl Lowerer<'_> {
     fn vector(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<DVec3, Diag> {
         match self.position(e, what, origin)? {
             Path::Fixed(p) => Ok(p),
-            Path::Keyed(_) => Err(self
+            Path::Keyed(_) | Path::Moving(_) => Err(self
                 .diag(
                     "timbre::bad-position",
                     format!("{what} cannot move"),
                     origin,
                 )
-                .label(e.span, "keyframed")
+                .label(e.span, "moves")
                 .help("write (x y z), in metres")),
         }
     }
@@ -608,9 +619,33 @@ impl Lowerer<'_> {
         let options = self.options(
             &items[first..],
             "box",
-            &["size", "position", "material", "transmission-db", "cutoff"],
+            &[
+                "size",
+                "position",
+                "object",
+                "material",
+                "transmission-db",
+                "cutoff",
+            ],
             origin,
         )?;
+        if let Some(node) = self.object_option(&options, "size", origin)? {
+            let at = options.get("object").map_or(form.span, |e| e.span);
+            let (centre, half_size) = self.object_box(&node, at, origin)?;
+            let material = self.material(&options, origin)?;
+            self.scene.space.obstacles.push((
+                PlacedObstacle {
+                    name,
+                    shape: Shape::Box {
+                        centre: Path::Fixed(centre),
+                        half_size,
+                    },
+                    material,
+                },
+                form.span,
+            ));
+            return Ok(());
+        }
         let Some(size_expr) = options.get("size") else {
             return Err(self
                 .diag("timbre::bad-obstacle", "a box needs its `:size`", origin)
@@ -645,6 +680,68 @@ impl Lowerer<'_> {
             form.span,
         ));
         Ok(())
+    }
+
+    /// The glTF node of `:object "Name"`, if given; with `instead` (an option that
+    /// says the same) also given, an error.
+    fn object_option(
+        &self,
+        options: &Options<'_>,
+        instead: &str,
+        origin: &Origin,
+    ) -> Result<Option<super::motion::NodeRef>, Diag> {
+        let Some(e) = options.get("object") else {
+            return Ok(None);
+        };
+        if let Some(other) = options.get(instead) {
+            return Err(self
+                .diag(
+                    "timbre::conflicting-options",
+                    format!("`:object` and `:{instead}` both say where it is"),
+                    origin,
+                )
+                .label(e.span, "the node")
+                .label(other.span, format!("and :{instead}"))
+                .help(format!("keep one of :object and :{instead}")));
+        }
+        self.motion_node(e, origin).map(Some)
+    }
+
+    /// The box around a node's mesh, in the world at scene time 0: centre and half
+    /// size.
+    fn object_box(
+        &self,
+        node: &super::motion::NodeRef,
+        at: Span,
+        origin: &Origin,
+    ) -> Result<(DVec3, DVec3), Diag> {
+        let Some((lo, hi)) = node.shot.mesh_bounds(node.node, -node.start) else {
+            return Err(self
+                .diag(
+                    "timbre::no-mesh",
+                    format!("node \"{}\" has no mesh to be an obstacle", node.name),
+                    origin,
+                )
+                .label(at, "no mesh")
+                .help("name a node with a mesh, or write (box :size (x y z) :position (x y z))"));
+        };
+        let half_size = (hi - lo) / 2.0;
+        if !(half_size.min_element() > 0.0 && half_size.is_finite()) {
+            return Err(self
+                .diag(
+                    "timbre::bad-obstacle",
+                    format!(
+                        "the mesh of \"{}\" is flat: a box has a positive size in every direction",
+                        node.name
+                    ),
+                    origin,
+                )
+                .label(at, "flat")
+                .help(
+                    "use a wall for a flat obstacle: (wall :from (x y z) :to (x y z) :height h)",
+                ));
+        }
+        Ok(((lo + hi) / 2.0, half_size))
     }
 
     /// `(wall name :from (x y z) :to (x y z) :height h :openings ((s0 t0 s1 t1) …))`:
@@ -840,7 +937,7 @@ impl Lowerer<'_> {
         };
         let when = match path {
             Path::Fixed(_) => String::new(),
-            Path::Keyed(_) => format!(" at {time} s"),
+            Path::Keyed(_) | Path::Moving(_) => format!(" at {time} s"),
         };
         Err(self
             .diag(
@@ -853,7 +950,7 @@ impl Lowerer<'_> {
     }
 
     fn any_position(&mut self, e: &Expr, what: &str, origin: &Origin) -> Result<Path, Diag> {
-        let help = "write (x y z) in metres, a keyframed position's name, or (keyframes :interp linear (0 (x y z)) (1 (x y z)))";
+        let help = "write (x y z) in metres, a keyframed position's name, (keyframes :interp linear (0 (x y z)) (1 (x y z))), or a glTF node's name in quotes";
         let wrong_length = |l: &Self, n: usize, span: Span| {
             l.diag(
                 "timbre::bad-position",
@@ -863,6 +960,13 @@ impl Lowerer<'_> {
             .label(span, format!("{n} value{}", super::plural(n)))
             .help("a position is (x y z), in metres; z is up")
         };
+        let motion_track = e
+            .as_list()
+            .and_then(|items| items.first()?.as_symbol())
+            .is_some_and(|head| matches!(head, "position" | "forward" | "up" | "angular-velocity"));
+        if motion_track || matches!(e.kind, ExprKind::Str(_)) {
+            return Ok(Path::Moving(self.trajectory(e, origin)?));
+        }
         if let Some(items) = e.as_list() {
             if super::forms::Form::of(e) == Some(super::forms::Form::Keyframes) {
                 return match self.track(&items[1..], e.span, origin)? {
@@ -1147,6 +1251,8 @@ fn key_positions(path: &Path) -> Vec<(f64, DVec3)> {
     match path {
         Path::Fixed(p) => vec![(0.0, *p)],
         Path::Keyed(tracks) => tracks[0].times().iter().map(|&t| (t, path.at(t))).collect(),
+        // A trajectory has no keys of its own to visit: its start stands for it.
+        Path::Moving(_) => vec![(0.0, path.at(0.0))],
     }
 }
 

@@ -1,0 +1,387 @@
+//! Motion from animated glTF files and keyframed vectors: the `motion` form, and the
+//! nodes that read quantities of motion (`position`, `velocity`, `acceleration`,
+//! `speed`, `distance`, `approach`, `angular-velocity`, `angular-speed`, `forward`,
+//! `up`).
+//!
+//! `(motion shot "car-pass.glb" :animation "Drive" :start 0)` reads the file through
+//! the loader (and its external buffers the same way) with `timbre-motion`, and
+//! makes each of its nodes available by its glTF name in quotes: `(position "Ball")`.
+//! A quantity's argument is a *track*: a node's name, a keyframed vector variable, or
+//! `(position …)`, `(forward "N")`, `(up "N")`, `(angular-velocity "N")` of one.
+//! The quantities are exact derivatives of the interpolants (see
+//! `timbre_ir::motion`); they are not forms, so a class may still name a parameter
+//! `speed`.
+
+use std::sync::Arc;
+
+use timbre_diag::Diag;
+use timbre_ir::motion::{Difference, KeyedTrajectory, MotionKernel, Quantity, Shifted, Trajectory};
+use timbre_ir::op::{BinaryOp, Op};
+use timbre_ir::NodeId;
+use timbre_motion::{NodeIndex, Shot, ShotOptions};
+use timbre_syntax::{Expr, ExprKind, Span};
+
+use super::{Call, Lowerer, Origin};
+
+/// The nodes that read motion, for did-you-mean and completion.
+pub const MOTION_NODES: &[&str] = &[
+    "position",
+    "velocity",
+    "acceleration",
+    "speed",
+    "distance",
+    "approach",
+    "angular-velocity",
+    "angular-speed",
+    "forward",
+    "up",
+];
+
+const USAGE: &str = "(motion shot \"car-pass.glb\")";
+
+/// One `motion` form's file.
+pub(crate) struct MotionFile {
+    pub name: String,
+    pub span: Span,
+    pub shot: Arc<Shot>,
+    /// Scene time at the file's time 0.
+    pub start: f64,
+}
+
+/// A glTF node of one of the scene's motion files.
+pub(crate) struct NodeRef {
+    pub shot: Arc<Shot>,
+    pub node: NodeIndex,
+    pub start: f64,
+    pub name: String,
+}
+
+impl NodeRef {
+    fn shifted(&self, trajectory: Arc<dyn Trajectory>) -> Arc<dyn Trajectory> {
+        if self.start == 0.0 {
+            trajectory
+        } else {
+            Arc::new(Shifted(trajectory, self.start))
+        }
+    }
+
+    pub fn position(&self) -> Arc<dyn Trajectory> {
+        self.shifted(self.shot.position(self.node))
+    }
+
+    pub fn forward(&self) -> Arc<dyn Trajectory> {
+        self.shifted(self.shot.forward(self.node))
+    }
+}
+
+impl Lowerer<'_> {
+    /// `(motion NAME "file.glb" :animation "name" :start s)`.
+    pub(crate) fn read_motion(&mut self, form: &Expr, origin: &Origin) -> Result<(), Diag> {
+        let items = form.as_list().unwrap_or_default();
+        let name_expr = items.get(1).filter(|e| e.as_symbol().is_some());
+        let path_expr = items.get(2).and_then(|e| match &e.kind {
+            ExprKind::Str(path) => Some((e, path)),
+            _ => None,
+        });
+        let (Some(name_expr), Some((path_expr, path))) = (name_expr, path_expr) else {
+            return Err(self
+                .diag(
+                    "timbre::bad-motion",
+                    "`motion` needs a name and a glTF file",
+                    origin,
+                )
+                .label(form.span, "incomplete")
+                .help(format!("write {USAGE}")));
+        };
+        let name = name_expr.as_symbol().unwrap_or_default().to_owned();
+        if let Some(first) = self.names.motions.iter().find(|m| m.name == name) {
+            return Err(self
+                .diag(
+                    "timbre::duplicate-motion",
+                    format!("motion `{name}` is defined twice"),
+                    origin,
+                )
+                .label(name_expr.span, "again")
+                .label(first.span, "first")
+                .help("give each motion file its own name"));
+        }
+        let options = self.options(&items[3..], "motion", &["animation", "start"], origin)?;
+        let animation = match options.get("animation") {
+            Some(e) => match &e.kind {
+                ExprKind::Str(s) => Some(s.clone()),
+                _ => {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-motion",
+                            "`:animation` names one of the file's animations",
+                            origin,
+                        )
+                        .label(e.span, "expected a name in quotes")
+                        .help("write :animation \"Action\""))
+                }
+            },
+            None => None,
+        };
+        let start = match options.get("start") {
+            Some(e) => self.constant_option(e, "the start", origin)?,
+            None => 0.0,
+        };
+        let (resolved, bytes) = self
+            .options
+            .loader
+            .load(path, origin.dir.as_deref())
+            .map_err(|e| {
+                self.diag(
+                    "timbre::unreadable-file",
+                    format!("cannot read `{path}`: {e}"),
+                    origin,
+                )
+                .label(path_expr.span, "this file")
+                .help("give the path of a .glb or .gltf file, relative to this file")
+            })?;
+        let dir = resolved.parent().map(|d| d.to_path_buf());
+        let loader = self.options.loader;
+        let mut resource = |uri: &str| {
+            loader
+                .load(uri, dir.as_deref())
+                .map(|(_, bytes)| bytes)
+                .map_err(|e| e.to_string())
+        };
+        let shot = Shot::read(&bytes, &mut resource, &ShotOptions { animation })
+            .map_err(|e| e.diag(path_expr.span).in_source(&origin.source))?;
+        self.names.motions.push(MotionFile {
+            name,
+            span: name_expr.span,
+            shot: Arc::new(shot),
+            start,
+        });
+        Ok(())
+    }
+
+    /// The node named by a string, in whichever motion file has it.
+    pub(crate) fn motion_node(&self, name_expr: &Expr, origin: &Origin) -> Result<NodeRef, Diag> {
+        let ExprKind::Str(name) = &name_expr.kind else {
+            return Err(self
+                .diag(
+                    "timbre::bad-motion-node",
+                    format!(
+                        "expected a node's name in quotes, found {}",
+                        name_expr.describe()
+                    ),
+                    origin,
+                )
+                .label(name_expr.span, "not a name")
+                .help("write the glTF node's name in quotes, as in (position \"Ball\")"));
+        };
+        let found: Vec<(&MotionFile, NodeIndex)> = self
+            .names
+            .motions
+            .iter()
+            .filter_map(|m| Some((m, m.shot.node(name)?)))
+            .collect();
+        match found.as_slice() {
+            [(file, node)] => Ok(NodeRef {
+                shot: file.shot.clone(),
+                node: *node,
+                start: file.start,
+                name: name.clone(),
+            }),
+            [] if self.names.incomplete || self.names.motion_failed => {
+                Err(self.follow_on(name, name_expr.span, origin))
+            }
+            [] if self.names.motions.is_empty() => Err(self
+                .diag(
+                    "timbre::unknown-node",
+                    format!("no motion file to find node `{name}` in"),
+                    origin,
+                )
+                .label(name_expr.span, "which file?")
+                .help(format!("read an animated glTF file first: {USAGE}"))),
+            [] => {
+                let names = self.names.motions.iter().flat_map(|m| m.shot.node_names());
+                let help = match super::did_you_mean(name, names) {
+                    Some(close) => format!("did you mean \"{close}\"?"),
+                    None => {
+                        let all: Vec<String> = self
+                            .names
+                            .motions
+                            .iter()
+                            .flat_map(|m| m.shot.node_names())
+                            .take(12)
+                            .map(|n| format!("\"{n}\""))
+                            .collect();
+                        format!("the nodes are {}", all.join(", "))
+                    }
+                };
+                Err(self
+                    .diag(
+                        "timbre::unknown-node",
+                        format!("no node is named \"{name}\""),
+                        origin,
+                    )
+                    .label(name_expr.span, "not in the motion files")
+                    .help(help))
+            }
+            [(first, _), (second, _), ..] => Err(self
+                .diag(
+                    "timbre::ambiguous-node",
+                    format!(
+                        "node \"{name}\" is in both `{}` and `{}`",
+                        first.name, second.name
+                    ),
+                    origin,
+                )
+                .label(name_expr.span, "which one?")
+                .help("rename the node in one of the files")),
+        }
+    }
+
+    /// A track: a node's name (its position), a keyframed vector variable, or
+    /// `(position X)`, `(forward "N")`, `(up "N")`, `(angular-velocity "N")`.
+    pub(crate) fn trajectory(
+        &mut self,
+        e: &Expr,
+        origin: &Origin,
+    ) -> Result<Arc<dyn Trajectory>, Diag> {
+        let wrong = |l: &Self| {
+            l.diag(
+                "timbre::not-a-track",
+                format!("expected a track, found {}", e.describe()),
+                origin,
+            )
+            .label(e.span, "not a track")
+            .help("give a node's name in quotes (\"Ball\"), a keyframed vector, or (position …) of one")
+        };
+        match &e.kind {
+            ExprKind::Str(_) => Ok(self.motion_node(e, origin)?.position()),
+            ExprKind::Symbol(name) => match self.names.vector_keyframes.get(name.as_str()) {
+                Some(tracks) if tracks.len() == 3 => Ok(Arc::new(KeyedTrajectory(Arc::new([
+                    tracks[0].clone(),
+                    tracks[1].clone(),
+                    tracks[2].clone(),
+                ])))),
+                Some(tracks) => Err(self
+                    .diag(
+                        "timbre::not-a-track",
+                        format!("`{name}` has {} coordinates, not 3", tracks.len()),
+                        origin,
+                    )
+                    .label(e.span, "not a position")
+                    .help("a track of motion is keyed as (time (x y z)) triples")),
+                None if self.names.failed.contains(name.as_str()) => {
+                    Err(self.follow_on(name, e.span, origin))
+                }
+                None => Err(wrong(self)),
+            },
+            ExprKind::List(items) => {
+                let head = items.first().and_then(Expr::as_symbol);
+                let [_, arg] = items.as_slice() else {
+                    return Err(wrong(self));
+                };
+                match head {
+                    Some("position") => self.trajectory(arg, origin),
+                    Some("forward") => Ok(self.motion_node(arg, origin)?.forward()),
+                    Some("up") => {
+                        let node = self.motion_node(arg, origin)?;
+                        Ok(node.shifted(node.shot.up(node.node)))
+                    }
+                    Some("angular-velocity") => {
+                        let node = self.motion_node(arg, origin)?;
+                        Ok(node.shifted(node.shot.angular_velocity(node.node)))
+                    }
+                    _ => Err(wrong(self)),
+                }
+            }
+            _ => Err(wrong(self)),
+        }
+    }
+
+    /// A call of one of [`MOTION_NODES`].
+    pub(crate) fn lower_motion_node(
+        &mut self,
+        call: &Call<'_>,
+        origin: &Origin,
+    ) -> Result<NodeId, Diag> {
+        let (arity, usage) = match call.name {
+            "distance" | "approach" => (2, format!("({} \"Car\" \"Camera\")", call.name)),
+            _ => (1, format!("({} \"Ball\")", call.name)),
+        };
+        if call.args.len() != arity {
+            return Err(self
+                .diag(
+                    "timbre::wrong-arity",
+                    format!(
+                        "`{}` takes {arity} track{}, found {} argument{}",
+                        call.name,
+                        super::plural(arity),
+                        call.args.len(),
+                        super::plural(call.args.len())
+                    ),
+                    origin,
+                )
+                .label(call.span, "here")
+                .help(format!("write {usage}")));
+        }
+        let whole = || Expr {
+            kind: ExprKind::List(
+                std::iter::once(Expr {
+                    kind: ExprKind::Symbol(call.name.into()),
+                    span: call.span,
+                })
+                .chain(call.args.iter().cloned())
+                .collect(),
+            ),
+            span: call.span,
+        };
+        let (trajectory, quantity) = match call.name {
+            "position" => (self.trajectory(&call.args[0], origin)?, Quantity::Position),
+            "velocity" => (self.trajectory(&call.args[0], origin)?, Quantity::Velocity),
+            "acceleration" => (
+                self.trajectory(&call.args[0], origin)?,
+                Quantity::Acceleration,
+            ),
+            "speed" => (self.trajectory(&call.args[0], origin)?, Quantity::Speed),
+            "distance" | "approach" => {
+                let a = self.trajectory(&call.args[0], origin)?;
+                let b = self.trajectory(&call.args[1], origin)?;
+                let quantity = if call.name == "distance" {
+                    Quantity::Length
+                } else {
+                    Quantity::Approach
+                };
+                (Arc::new(Difference(a, b)) as Arc<dyn Trajectory>, quantity)
+            }
+            "angular-speed" => {
+                let node = self.motion_node(&call.args[0], origin)?;
+                let omega = node.shifted(node.shot.angular_velocity(node.node));
+                (omega, Quantity::Length)
+            }
+            // forward, up, angular-velocity: the vector itself.
+            _ => (self.trajectory(&whole(), origin)?, Quantity::Position),
+        };
+        let time = self.scene_time_node();
+        let kernel = MotionKernel {
+            name: motion_node_name(call.name),
+            trajectory,
+            quantity,
+        };
+        Ok(self.graph.add(Op::Stateful(Arc::new(kernel)), vec![time]))
+    }
+
+    /// `t` plus the scene time at the instance's start: what keyframes and motion
+    /// read.
+    pub(crate) fn scene_time_node(&mut self) -> NodeId {
+        let t = self.graph.add(Op::Time, vec![]);
+        let offset = self.graph.constant(self.time_offset);
+        self.graph.add(Op::Binary(BinaryOp::Add), vec![t, offset])
+    }
+}
+
+/// The `'static` name of a motion node (the kernel's name in pictures and dumps).
+fn motion_node_name(name: &str) -> &'static str {
+    MOTION_NODES
+        .iter()
+        .find(|n| **n == name)
+        .copied()
+        .unwrap_or("motion")
+}
