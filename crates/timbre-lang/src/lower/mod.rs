@@ -30,6 +30,7 @@ pub(crate) use forms::is_reserved;
 pub use forms::FORMS;
 
 pub use library::{Instantiated, Library, ParamValue};
+pub use space::DeclaredSpace;
 pub(crate) use timbre_ir::{Instance, Program, Settings, DECLICK_IN, DECLICK_OUT, MAX_LANES};
 
 use std::collections::{BTreeMap, HashMap, HashSet};
