@@ -1,7 +1,10 @@
 //! timbre as a library: load sound classes written as timbre trees, start instances
 //! of them from a motion-control loop with parameters bound to constants, keyframe
 //! tracks or variables you set as frames go by, and render offline or block by block
-//! in real time.
+//! in real time. A library may declare a listener, sources, a room and obstacles; an
+//! instance heard from a source ([`Play::source`]) reaches the listener with the
+//! exact propagation of a scene file, while the host moves the sources and the
+//! listener live ([`Scene::move_source`], [`Control::move_listener`]).
 //!
 //! The compiled artefact is separate from per-instance state (as in wasmtime): an
 //! [`Engine`] holds settings, a [`SoundLibrary`] the classes, and a [`Scene`] the
@@ -31,6 +34,7 @@ mod play;
 mod realtime;
 mod scene;
 mod scene_file;
+mod space;
 
 mod arguments;
 
@@ -42,6 +46,7 @@ pub use play::Play;
 pub use realtime::{Control, Renderer};
 pub use scene::Scene;
 pub use scene_file::SceneFile;
+pub use space::LIVE_REACH;
 
 pub use timbre_ir::keyframes::{Interpolation, KeyframeError, KeyframeTrack};
 pub use timbre_ir::limits::Limits;

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use timbre_lang::Library;
 use timbre_scene::SceneRenderer;
 
+use crate::space::LiveSpace;
 use crate::{Diagnostics, Engine, Error, KeyframeTrack, Scene, SourceFile};
 
 impl Engine {
@@ -77,11 +78,16 @@ impl Engine {
             }
             None => SceneRenderer::new_empty(self.config, self.backend, self.channels)?,
         };
+        let space = match library.0.space() {
+            Some(declared) => Some(Arc::new(LiveSpace::new(declared, self.channels)?)),
+            None => None,
+        };
         Ok(Scene {
             engine: self.clone(),
             library: library.clone(),
             renderer,
             file: None,
+            space,
         })
     }
 }

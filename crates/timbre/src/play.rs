@@ -1,7 +1,11 @@
-//! [`Play`]: when an instance plays and where it is heard; and the work of starting
-//! one, checked and lowered the same for a [`Scene`](crate::Scene) and for a split
-//! scene's [`Control`](crate::Control).
+//! [`Play`]: when an instance plays and where it is heard (among the channels, or at
+//! a source of the library's space); and the work of starting one, checked and
+//! lowered the same for a [`Scene`](crate::Scene) and for a split scene's
+//! [`Control`](crate::Control).
 
+use std::sync::Arc;
+
+use crate::space::LiveSpace;
 use crate::{
     arguments, Diag, Diagnostics, Engine, Error, Mix, ParamValue, Placement, SoundLibrary,
 };
@@ -19,13 +23,15 @@ use crate::{
 ///
 /// let play = Play::at(1.5).until(3.0).gain(0.5).pan(0.25);
 /// ```
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Play {
     pub(crate) at: f64,
     pub(crate) stop: Option<f64>,
     pub(crate) mix: Mix,
     /// The fade-in asked for, in seconds; `None`: the default declick.
     pub(crate) declick: Option<f64>,
+    /// The library's source it is heard from, if any.
+    pub(crate) source: Option<Arc<str>>,
 }
 
 impl Play {
@@ -48,7 +54,35 @@ impl Play {
             stop: None,
             mix: Mix::default(),
             declick: None,
+            source: None,
         }
+    }
+
+    /// Heard from the library's source `name`, through the space the library
+    /// declares: its sound is emitted there and reaches the listener (or each
+    /// microphone) with the delay, Doppler shift, distance law, air absorption,
+    /// obstacles and room of a scene file's `:source`. The source moves as the host
+    /// says ([`Scene::move_source`](crate::Scene::move_source)). An unknown name is
+    /// `timbre::unknown-source`; a library without a listener or microphones,
+    /// `timbre::no-listener`.
+    ///
+    /// ```
+    /// use timbre::{Engine, Play};
+    ///
+    /// let engine = Engine::new(8_000.0);
+    /// let library = engine
+    ///     .load_library("(listener :position (0 0 0)) (source bell :position (34.3 0 0))
+    ///                    (define-sound tone () (sine (* t 440)))")
+    ///     .unwrap();
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// scene.play("tone", &[], Play::at(0.0).source("bell")).unwrap();
+    /// let x = scene.render_offline(0.2).unwrap();
+    /// assert!(x[..795].iter().all(|v| v.abs() < 1e-6), "34.3 m away: silent for 0.1 s");
+    /// assert!(x[900..].iter().any(|v| v.abs() > 0.02), "then heard at 1/34.3");
+    /// ```
+    pub fn source(mut self, name: &str) -> Self {
+        self.source = Some(name.into());
+        self
     }
 
     /// Stopping at scene time `stop`, with the declick ramp.
@@ -195,9 +229,11 @@ impl Engine {
     /// `play` checked against a scene of `channels`, the parameters checked, `class`
     /// lowered with them and its state checked against the limits. A start already
     /// rendered (before `now`) starts at `now`.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn request(
         &self,
         library: &SoundLibrary,
+        space: Option<&LiveSpace>,
         channels: usize,
         class: &str,
         params: &[(&str, ParamValue)],
@@ -206,7 +242,8 @@ impl Engine {
     ) -> Result<Request, Error> {
         arguments::play(play, channels)?;
         arguments::parameters(params)?;
-        let tree = library.0.instantiate_with_fade_in(
+        let start = self.sample(play.at).max(now);
+        let mut tree = library.0.instantiate_with_fade_in(
             class,
             params,
             play.at,
@@ -214,10 +251,21 @@ impl Engine {
             play.fade_in(),
             &self.options(),
         )?;
+        // Sound on its way after the stop is still heard.
+        let mut tail = 0.0;
+        if let Some(name) = &play.source {
+            let Some(space) = space else {
+                return Err(no_space(name));
+            };
+            // Emitted from its first sample on.
+            tail = space.place(name, &mut tree, self.seconds(start))?;
+        }
         self.check_instance(&tree)?;
         Ok(Request {
-            start: self.sample(play.at).max(now),
-            end: play.stop.map(|s| self.sample(s + timbre_ir::DECLICK_OUT)),
+            start,
+            end: play
+                .stop
+                .map(|s| self.sample(s + timbre_ir::DECLICK_OUT + tail)),
             mix: play.mix,
             tree,
         })
@@ -260,5 +308,16 @@ pub(crate) fn too_many(limit: usize) -> Error {
             format!("more than {limit} instances at once"),
         )
         .help("stop instances, or relax Limits::instances"),
+    ))
+}
+
+/// An instance placed at a source of a library that declares no space.
+fn no_space(name: &str) -> Error {
+    Error::Script(Diagnostics::one(
+        Diag::new(
+            "timbre::no-listener",
+            format!("the instance is heard from source `{name}`, but the library declares no space"),
+        )
+        .help("declare a listener and the source in the library: (listener :position (0 0 1.6)) (source NAME :position (x y z))"),
     ))
 }

@@ -5,6 +5,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use timbre_scene::{Prepared, SceneRenderer, SharedJit};
 
+use crate::space::LiveSpace;
+
 use crate::play::too_many;
 use crate::{
     arguments, Diag, Diagnostics, Engine, Error, Fault, InstanceId, Mix, ParamValue, Play, Scene,
@@ -50,6 +52,7 @@ impl Scene {
                 library: self.library,
                 jit,
                 channels,
+                space: self.space.clone(),
             })),
         };
         Ok((
@@ -57,6 +60,7 @@ impl Scene {
             Renderer {
                 renderer,
                 sample_rate: self.engine.config.sample_rate,
+                space: self.space,
             },
         ))
     }
@@ -78,6 +82,7 @@ struct ControlSide {
     jit: Option<SharedJit>,
     /// The scene's output channels, for checking placements.
     channels: usize,
+    space: Option<Arc<LiveSpace>>,
 }
 
 /// A refusal of the control side as a diagnostic.
@@ -151,8 +156,16 @@ impl Control {
         let mut side = self.side();
         let side = &mut *side;
         let now = side.control.position();
-        let request =
-            (side.engine).request(&side.library, side.channels, class, params, &play, now)?;
+        let space = side.space.as_deref();
+        let request = (side.engine).request(
+            &side.library,
+            space,
+            side.channels,
+            class,
+            params,
+            &play,
+            now,
+        )?;
         let tree = &request.tree;
         let engine = &side.engine;
         let jit = side.jit.as_ref();
@@ -203,6 +216,62 @@ impl Control {
         let mut side = self.side();
         arguments::mix(&mix, side.channels)?;
         side.control.set_mix(id, mix).map_err(refused)
+    }
+
+    /// Moves the library's source `name` to `position` at scene time `time`, as
+    /// [`Scene::move_source`] does; the renderer takes the key at the start of its
+    /// next render call (so give keys a little ahead of [`Control::time`]: a key for
+    /// a time already rendered moves a sound that is already out).
+    ///
+    /// ```
+    /// use timbre::{Engine, Play};
+    ///
+    /// let engine = Engine::new(8_000.0);
+    /// let library = engine
+    ///     .load_library("(listener :position (0 0 0)) (source car :position (-50 10 0))
+    ///                    (define-sound horn () (* 0.5 (sine (* t 400))))")
+    ///     .unwrap();
+    /// let (control, mut renderer) = engine.scene(&library).unwrap().split(8).unwrap();
+    /// control.play("horn", &[], Play::at(0.0).source("car")).unwrap();
+    /// let mut block = vec![0.0; 400];
+    /// for frame in 0..20 {
+    ///     let t = frame as f64 / 20.0 + 0.05; // one frame ahead of the audio
+    ///     control.move_source("car", t, [-50.0 + 30.0 * t, 10.0, 0.0]).unwrap();
+    ///     renderer.render(&mut block).unwrap();
+    /// }
+    /// assert!(block.iter().any(|v| v.abs() > 0.01));
+    /// ```
+    pub fn move_source(&self, name: &str, time: f64, position: [f64; 3]) -> Result<(), Error> {
+        arguments::time("a key's time", time)?;
+        let side = self.side();
+        let space = crate::space::declared(side.space.as_deref())?;
+        let now = side.engine.seconds(side.control.position());
+        space.move_source(name, time, position, now)
+    }
+
+    /// Moves the library's listener to `position`, facing `facing`, at scene time
+    /// `time`, as [`Scene::move_listener`] does, taken by the renderer at its next
+    /// render call.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(8_000.0);
+    /// let library = engine.load_library("(listener :position (0 0 0)) (define-sound s () 0)").unwrap();
+    /// let (control, _renderer) = engine.scene(&library).unwrap().split(8).unwrap();
+    /// control.move_listener(0.5, [1.0, 2.0, 0.0], [0.0, 1.0, 0.0]).unwrap();
+    /// let error = control.move_listener(0.25, [1.0, 2.0, 0.0], [0.0, 1.0, 0.0]).unwrap_err();
+    /// assert!(error.report().contains("timbre::time-backwards"));
+    /// ```
+    pub fn move_listener(
+        &self,
+        time: f64,
+        position: [f64; 3],
+        facing: [f64; 3],
+    ) -> Result<(), Error> {
+        arguments::time("a key's time", time)?;
+        let side = self.side();
+        let space = crate::space::declared(side.space.as_deref())?;
+        let now = side.engine.seconds(side.control.position());
+        space.move_listener(time, position, facing, now)
     }
 
     /// Scene time the renderer has reached (as of its last block).
@@ -269,6 +338,8 @@ impl Control {
 pub struct Renderer {
     renderer: SceneRenderer,
     sample_rate: f64,
+    /// Its live points' keys are taken at the start of each render call.
+    space: Option<Arc<LiveSpace>>,
 }
 
 impl Renderer {
@@ -289,6 +360,7 @@ impl Renderer {
     /// ```
     pub fn render(&mut self, out: &mut [f64]) -> Result<(), Error> {
         arguments::interleaved(out.len(), self.channels())?;
+        self.take_keys();
         Ok(self.renderer.render(out)?)
     }
 
@@ -308,6 +380,7 @@ impl Renderer {
     /// ```
     pub fn render_f32(&mut self, out: &mut [f32]) -> Result<(), Error> {
         arguments::interleaved(out.len(), self.channels())?;
+        self.take_keys();
         Ok(self.renderer.render_f32(out)?)
     }
 
@@ -326,7 +399,15 @@ impl Renderer {
     /// ```
     pub fn render_planar(&mut self, out: &mut [&mut [f64]]) -> Result<(), Error> {
         arguments::planar(out, self.channels())?;
+        self.take_keys();
         Ok(self.renderer.render_planar(out)?)
+    }
+
+    /// Makes the keys the control side has pushed heard from this call on.
+    fn take_keys(&self) {
+        if let Some(space) = &self.space {
+            space.publish();
+        }
     }
 
     /// Output channels.

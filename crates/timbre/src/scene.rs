@@ -1,6 +1,10 @@
 //! [`Scene`]: instances playing and their state, rendered block by block or offline.
 
+use std::sync::Arc;
+
 use timbre_scene::SceneRenderer;
+
+use crate::space::LiveSpace;
 
 use crate::play::too_many;
 use crate::{
@@ -16,6 +20,8 @@ pub struct Scene {
     /// The file it plays, for a scene made of one: to name its instances and trace
     /// a fault to its node.
     pub(crate) file: Option<SceneFile>,
+    /// The library's space, its sources and listener moved by the host.
+    pub(crate) space: Option<Arc<LiveSpace>>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -97,8 +103,16 @@ impl Scene {
         play: Play,
     ) -> Result<InstanceId, Error> {
         let now = self.renderer.position();
-        let request =
-            (self.engine).request(&self.library, self.channels(), class, params, &play, now)?;
+        let space = self.space.as_deref();
+        let request = (self.engine).request(
+            &self.library,
+            space,
+            self.channels(),
+            class,
+            params,
+            &play,
+            now,
+        )?;
         let waiting = self.renderer.active_instances() + self.renderer.pending_instances();
         if waiting >= self.engine.limits.instances {
             return Err(too_many(self.engine.limits.instances));
@@ -111,6 +125,82 @@ impl Scene {
             request.end,
             request.mix,
         )?)
+    }
+
+    /// Moves the library's source `name` to `position` (metres, z up) at scene time
+    /// `time` (seconds), for the renders from now on. Between keys it moves in a
+    /// straight line at constant speed; before its first key it is at its first (and
+    /// before any, where the library declares it), after its last it stays there.
+    /// Instances heard from it follow it with the exact retarded time, so its Doppler
+    /// shift and delay come from the motion. Refused: an unknown source
+    /// (`timbre::unknown-source`), a source the library keyframes
+    /// (`timbre::not-live`), a time not after its last key (`timbre::time-backwards`),
+    /// a time or position that is not finite (`timbre::bad-time`,
+    /// `timbre::bad-position`), a move at half the speed of sound or faster
+    /// (`timbre::too-fast`), a place outside the room or [`LIVE_REACH`](crate::LIVE_REACH)
+    /// (`timbre::outside-space`), keys so close together that sound still on its way
+    /// would lose its (`timbre::too-many-keys`).
+    ///
+    /// ```
+    /// use timbre::{Engine, Play};
+    ///
+    /// let engine = Engine::new(8_000.0);
+    /// let library = engine
+    ///     .load_library("(listener :position (0 0 0)) (source car :position (-50 10 0))
+    ///                    (define-sound horn () (* 0.5 (sine (* t 400))))")
+    ///     .unwrap();
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// scene.play("horn", &[], Play::at(0.0).source("car")).unwrap();
+    /// for frame in 0..=60 {
+    ///     let t = frame as f64 / 60.0;
+    ///     scene.move_source("car", t, [-50.0 + 30.0 * t, 10.0, 0.0]).unwrap(); // 30 m/s
+    /// }
+    /// let x = scene.render_offline(1.0).unwrap();
+    /// assert!(x[4_000..].iter().any(|v| v.abs() > 0.01));
+    /// let error = scene.move_source("cra", 2.0, [0.0; 3]).unwrap_err();
+    /// assert!(error.report().contains("did you mean `car`?"));
+    /// ```
+    pub fn move_source(&mut self, name: &str, time: f64, position: [f64; 3]) -> Result<(), Error> {
+        arguments::time("a key's time", time)?;
+        let space = crate::space::declared(self.space.as_deref())?;
+        let now = self.engine.seconds(self.renderer.position());
+        space.move_source(name, time, position, now)?;
+        space.publish();
+        Ok(())
+    }
+
+    /// Moves the library's listener to `position` (metres, z up), facing `facing`
+    /// (any length but 0), at scene time `time`: the same rules as
+    /// [`Scene::move_source`]. A library with microphones instead is
+    /// `timbre::not-live`.
+    ///
+    /// ```
+    /// use timbre::{Engine, Play};
+    ///
+    /// let engine = Engine::new(8_000.0);
+    /// let library = engine
+    ///     .load_library("(listener :position (0 0 0)) (source bell :position (0 0 0))
+    ///                    (define-sound tone () (sine (* t 400)))")
+    ///     .unwrap();
+    /// let mut scene = engine.scene(&library).unwrap();
+    /// scene.move_listener(0.0, [34.3, 0.0, 0.0], [-1.0, 0.0, 0.0]).unwrap();
+    /// scene.play("tone", &[], Play::at(0.0).source("bell")).unwrap();
+    /// let x = scene.render_offline(0.2).unwrap();
+    /// assert!(x[..795].iter().all(|v| v.abs() < 1e-6), "34.3 m away now");
+    /// assert!(scene.move_listener(1.0, [0.0; 3], [0.0; 3]).is_err(), "facing nowhere");
+    /// ```
+    pub fn move_listener(
+        &mut self,
+        time: f64,
+        position: [f64; 3],
+        facing: [f64; 3],
+    ) -> Result<(), Error> {
+        arguments::time("a key's time", time)?;
+        let space = crate::space::declared(self.space.as_deref())?;
+        let now = self.engine.seconds(self.renderer.position());
+        space.move_listener(time, position, facing, now)?;
+        space.publish();
+        Ok(())
     }
 
     /// Stops an instance at scene time `at` (finite seconds ≥ 0, else

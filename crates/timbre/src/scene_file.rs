@@ -165,6 +165,7 @@ impl Engine {
             library: SoundLibrary(Arc::new(library)),
             renderer,
             file: Some(file.clone()),
+            space: None,
         })
     }
 }

@@ -1,8 +1,10 @@
 //! Sound in space: sources and receivers on paths in 3D, propagation with the
-//! emission (retarded) time, obstacles and rooms.
+//! emission (retarded) time, obstacles and rooms; points a host moves live
+//! ([`live`]).
 
 pub mod environment;
 pub mod geometry;
+pub mod live;
 pub mod path;
 pub mod propagate;
 
@@ -17,5 +19,6 @@ pub const MAX_COORDINATE: f64 = 1e6;
 pub const MAX_ROOM_SIDE: f64 = 1e4;
 
 pub use environment::{Acoustics, Environment, Late, Material, PlacedObstacle, Shape};
+pub use live::{LiveError, LivePoint};
 pub use path::Path;
 pub use propagate::{DistanceLaw, Medium, Propagation, Receiver};

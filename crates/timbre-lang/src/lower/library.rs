@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
+use super::space::DeclaredSpace;
 use super::{
     CompileOptions, Definition, Lowerer, Origin, Scope, Settings, DECLICK_IN, DECLICK_OUT,
 };
@@ -38,6 +39,8 @@ pub struct Library {
     keyframes: HashMap<String, Arc<KeyframeTrack>>,
     settings: Settings,
     classes: Vec<String>,
+    /// The forms of space it declares, read as a scene file's.
+    space: Option<DeclaredSpace>,
 }
 
 /// One instantiated class: its tree (timer at the root) and where it starts.
@@ -57,23 +60,19 @@ impl Library {
     ) -> Result<Library, Diagnostics> {
         let mut lowerer = Lowerer::new(options);
         lowerer.read_file(source, base_dir.map(Path::to_path_buf), None);
-        for (form, origin) in lowerer
-            .sounds
-            .iter()
-            .chain(&lowerer.scene.instance_forms)
-            .chain(&lowerer.scene.space_forms)
-        {
+        for (form, origin) in lowerer.sounds.iter().chain(&lowerer.scene.instance_forms) {
             let diag = Diag::new(
                 "timbre::library-not-definitions",
-                "a library of sound classes may hold only definitions",
+                "a library of sound classes may hold only definitions and the forms of space",
             )
             .label(form.span, "not a definition")
-            .help("remove it, or render the file as a scene")
+            .help("remove it, or render the file as a scene; a host starts instances")
             .in_source(&origin.source);
             lowerer.errors.push(diag);
         }
         // Every class is checked now, not at its first instance.
         lowerer.check_unused_definitions(true);
+        let space = lowerer.read_library_space();
         if let Some(errors) = lowerer.take_errors() {
             return Err(errors);
         }
@@ -89,7 +88,14 @@ impl Library {
             keyframes: lowerer.names.keyframes,
             settings: lowerer.settings,
             classes,
+            space,
         })
+    }
+
+    /// The listener, microphones, sources, room and obstacles the library declares
+    /// (`None` if it declares none), for a host to place and move instances in.
+    pub fn space(&self) -> Option<&DeclaredSpace> {
+        self.space.as_ref()
     }
 
     /// The sound classes and their parameter names, in definition order.
@@ -253,5 +259,31 @@ impl Library {
             graph: lowerer.graph,
             root,
         })
+    }
+}
+
+impl Lowerer<'_> {
+    /// Reads a library's forms of space (after its definitions, as a scene file's),
+    /// pushing their errors; the space they declare, if any.
+    fn read_library_space(&mut self) -> Option<DeclaredSpace> {
+        let forms = std::mem::take(&mut self.scene.space_forms);
+        let origin = forms.last()?.1.clone();
+        let mut failed = false;
+        for (form, origin) in &forms {
+            if let Err(diag) = self.read_space_form(form, origin) {
+                self.errors.push(diag);
+                failed = true;
+            }
+        }
+        if failed {
+            return None;
+        }
+        match self.declared_space(&origin) {
+            Ok(space) => space,
+            Err(diag) => {
+                self.errors.push(diag);
+                None
+            }
+        }
     }
 }

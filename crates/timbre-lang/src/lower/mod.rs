@@ -32,6 +32,7 @@ pub use forms::FORMS;
 pub use motion::MOTION_NODES;
 
 pub use library::{Instantiated, Library, ParamValue};
+pub use space::DeclaredSpace;
 pub(crate) use timbre_ir::{Instance, Program, Settings, DECLICK_IN, DECLICK_OUT, MAX_LANES};
 
 use std::collections::{BTreeMap, HashMap, HashSet};

@@ -1263,3 +1263,76 @@ fn keyed(tracks: &[Arc<timbre_ir::keyframes::KeyframeTrack>]) -> Path {
         tracks[2].clone(),
     ]))
 }
+
+/// The space a library declares, for a host that moves its sources and listener
+/// live (`timbre`'s `Scene::move_source`): its forms read and checked as a scene
+/// file's are.
+#[derive(Clone, Debug)]
+pub struct DeclaredSpace {
+    pub medium: Medium,
+    /// One per output channel, or one heard in every channel.
+    pub receivers: Arc<[Receiver]>,
+    /// Whether the receivers are the `listener`'s (not `microphone`s).
+    pub listener: bool,
+    pub environment: Arc<Environment>,
+    /// The sources by name, in the order declared.
+    pub sources: Vec<(String, Path)>,
+    /// How much longer than the direct sound the room's reflections and late part
+    /// may take to arrive, and how long the late part rings, seconds (0 without a
+    /// room).
+    pub room_delay: f64,
+    pub tail: f64,
+}
+
+impl Lowerer<'_> {
+    /// The space the forms read so far declare, if any: its receivers, room and
+    /// obstacles checked as for a placed instance.
+    pub(crate) fn declared_space(
+        &mut self,
+        origin: &Origin,
+    ) -> Result<Option<DeclaredSpace>, Diag> {
+        let space = &self.scene.space;
+        let declared = space.listener.is_some()
+            || !space.microphones.is_empty()
+            || !space.sources.is_empty()
+            || space.room.is_some()
+            || !space.obstacles.is_empty();
+        if !declared {
+            return Ok(None);
+        }
+        let at = (space.sources.first().map(|s| s.2))
+            .or(space.room.as_ref().map(|r| r.1))
+            .or(space.obstacles.first().map(|o| o.1))
+            .unwrap_or_default();
+        let listener = space.listener.is_some();
+        let receivers = self.receivers(at, origin)?;
+        let environment = self.environment(at, origin)?;
+        let medium = self.scene.space.medium.clone();
+        let (mut room_delay, mut tail) = (0.0, 0.0);
+        if let Some(room) = &environment.room {
+            let c = medium.speed_of_sound;
+            // As `propagate` reckons it: up to the order's images, then the late part.
+            let reach = room.room.size().length() * (room.order as f64 + 1.0);
+            room_delay = reach / c + room.late_onset(c);
+            tail = match &room.late {
+                Late::None => 0.0,
+                Late::Fdn { rt60, .. } => rt60.iter().fold(0.0, |m: f64, t| m.max(*t)),
+                Late::Convolution { response, .. } => {
+                    response.frames.len() as f64 / response.sample_rate
+                }
+            };
+        }
+        let sources = (self.scene.space.sources.iter())
+            .map(|(name, path, _)| (name.clone(), path.clone()))
+            .collect();
+        Ok(Some(DeclaredSpace {
+            medium,
+            receivers,
+            listener,
+            environment,
+            sources,
+            room_delay,
+            tail,
+        }))
+    }
+}
