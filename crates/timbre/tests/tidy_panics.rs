@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The library crates: what a host links, and what reads scripts and files.
-const CRATES: [&str; 9] = [
+const CRATES: [&str; 10] = [
     "timbre",
     "timbre-diag",
     "timbre-ir",
@@ -16,6 +16,7 @@ const CRATES: [&str; 9] = [
     "timbre-gen",
     "timbre-jit",
     "timbre-scene",
+    "timbre-motion",
     "timbre-syntax",
     "timbre-evolve",
 ];

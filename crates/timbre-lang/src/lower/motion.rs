@@ -132,7 +132,7 @@ impl Lowerer<'_> {
             .load(path, origin.dir.as_deref())
             .map_err(|e| {
                 self.diag(
-                    "timbre::unreadable-file",
+                    "timbre::motion-unreadable",
                     format!("cannot read `{path}`: {e}"),
                     origin,
                 )
@@ -309,7 +309,7 @@ impl Lowerer<'_> {
         if call.args.len() != arity {
             return Err(self
                 .diag(
-                    "timbre::wrong-arity",
+                    "timbre::arity",
                     format!(
                         "`{}` takes {arity} track{}, found {} argument{}",
                         call.name,
