@@ -31,8 +31,8 @@ pub const GRID_STEP: f64 = 0.001;
 pub const TIME_TOLERANCE: f64 = 1e-9;
 /// Default `:spacing`: events closer than this to the last one are dropped, seconds.
 pub const DEFAULT_SPACING: f64 = 0.01;
-/// Most grid points one search may sample (over 2.7 hours at [`GRID_STEP`]).
-const MAX_GRID_POINTS: f64 = 1e7;
+/// Most grid points one search may sample (an hour at [`GRID_STEP`]).
+const MAX_GRID_POINTS: f64 = 3.6e6;
 
 const USAGE: &str =
     "(events hit :when (index ball 2) :below 0.1 :class knock :bind (:v (speed ball)))";
