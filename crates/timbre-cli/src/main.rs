@@ -652,7 +652,34 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
         "ok: {what}, {}",
         plural(program.definitions.len(), "definition")
     );
+    for found in &program.events {
+        print!("{}", event_listing(found));
+    }
     Ok(())
+}
+
+/// What `timbre check` says of an `events` form: each event's instance, time, frame
+/// (with `:frame-rate`) and bound values.
+fn event_listing(found: &timbre_lang::FoundEvents) -> String {
+    let n = found.events.len();
+    let mut text = format!(
+        "events {} ({}): {n} event{}\n",
+        found.name,
+        found.class,
+        if n == 1 { "" } else { "s" }
+    );
+    for event in &found.events {
+        text += &format!("  {} at {:.6} s", event.instance, event.time);
+        if let Some(frame) = found.frame(event.time) {
+            text += &format!(", frame {frame:.3}");
+        }
+        for (param, lanes) in &event.bound {
+            let values: Vec<String> = lanes.iter().map(|x| format!("{x:.6}")).collect();
+            text += &format!(", {param} = {}", values.join(" "));
+        }
+        text.push('\n');
+    }
+    text
 }
 
 /// `--midi` and `--notes`: the scores of the scene, made before anything is rendered

@@ -178,7 +178,11 @@ impl Lowerer<'_> {
 
     /// How the start and stop columns count time: seconds, or frames with
     /// `:frame-rate` (and `:first-frame`).
-    fn frame_timing(&mut self, options: &Options<'_>, origin: &Origin) -> Result<Frames, Diag> {
+    pub(super) fn frame_timing(
+        &mut self,
+        options: &Options<'_>,
+        origin: &Origin,
+    ) -> Result<Frames, Diag> {
         let rate = match options.get("frame-rate") {
             Some(e) => {
                 let rate = self.constant_option(e, "the frame rate", origin)?;
@@ -306,11 +310,11 @@ impl Lowerer<'_> {
 }
 
 /// The timing of the start and stop columns.
-struct Frames {
+pub(super) struct Frames {
     /// Frames per second, or `None` for times in seconds.
-    rate: Option<f64>,
+    pub rate: Option<f64>,
     /// The frame at scene time 0.
-    first: f64,
+    pub first: f64,
 }
 
 impl Frames {

@@ -24,6 +24,7 @@ pub(crate) enum Form {
     Frames,
     Instance,
     Instances,
+    Events,
     Score,
     Listener,
     Microphone,
@@ -36,7 +37,7 @@ pub(crate) enum Form {
 
 impl Form {
     /// Every form, in the order of [`FORMS`].
-    const ALL: [Form; 18] = [
+    const ALL: [Form; 19] = [
         Form::Let,
         Form::Morph,
         Form::Define,
@@ -47,6 +48,7 @@ impl Form {
         Form::Frames,
         Form::Instance,
         Form::Instances,
+        Form::Events,
         Form::Score,
         Form::Listener,
         Form::Microphone,
@@ -70,6 +72,7 @@ impl Form {
             Form::Frames => "frames",
             Form::Instance => "instance",
             Form::Instances => "instances",
+            Form::Events => "events",
             Form::Score => "score",
             Form::Listener => "listener",
             Form::Microphone => "microphone",
@@ -92,7 +95,10 @@ impl Form {
 
     /// An instance form: lowered once all forms are read.
     pub(crate) fn is_instance(self) -> bool {
-        matches!(self, Form::Instance | Form::Instances | Form::Score)
+        matches!(
+            self,
+            Form::Instance | Form::Instances | Form::Events | Form::Score
+        )
     }
 
     /// A form of the scene in space: read once all other forms are.

@@ -9,7 +9,8 @@
 //!
 //! Files, one job each: this one holds the public types and [`compile`];
 //! `forms.rs` the top-level forms; `scene.rs` the scene forms and settings;
-//! `expr.rs` expressions; `args.rs` argument binding and width checks; `files.rs`
+//! `expr.rs` expressions; `motion_events.rs` the `events` form (`events.rs` is
+//! `instances`, from a table); `args.rs` argument binding and width checks; `files.rs`
 //! the file-backed nodes; `library.rs` classes kept for hosts.
 //! The lowerer's state is grouped by job: `Names` (what the file defines),
 //! `SceneForms`, `Includes` and `Expansion` (of named trees).
@@ -23,6 +24,7 @@ mod frames;
 mod library;
 mod morph;
 mod motion;
+mod motion_events;
 mod scene;
 mod score;
 mod space;
@@ -33,6 +35,7 @@ pub use motion::MOTION_NODES;
 
 pub use library::{Instantiated, Library, ParamValue};
 pub use space::DeclaredSpace;
+pub use motion_events::{FoundEvent, FoundEvents};
 pub(crate) use timbre_ir::{Instance, Program, Settings, DECLICK_IN, DECLICK_OUT, MAX_LANES};
 
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -114,6 +117,8 @@ pub struct Compiled {
     pub variables: Vec<(String, Arc<KeyframeTrack>)>,
     /// The notes of its `score` forms (each note is also an instance).
     pub scores: Vec<crate::music::Score>,
+    /// The events its `events` forms found (each event is also an instance).
+    pub events: Vec<FoundEvents>,
 }
 
 impl std::ops::Deref for Compiled {
@@ -247,6 +252,8 @@ struct SceneForms {
     instance_names: HashSet<String>,
     /// The `score` forms' notes, in the order written.
     scores: Vec<crate::music::Score>,
+    /// What the `events` forms found, in the order written.
+    found_events: Vec<FoundEvents>,
 }
 
 /// Files being read, to catch include cycles; and files read already.
@@ -390,6 +397,7 @@ impl<'a> Lowerer<'a> {
             let lowered = match Form::of(form) {
                 Some(Form::Instances) => self.lower_instances(form, origin),
                 Some(Form::Score) => self.lower_score(form, origin),
+                Some(Form::Events) => self.lower_motion_events(form, origin),
                 _ => self
                     .lower_instance(form, origin)
                     .map(|instance| self.scene.instances.push(instance)),
@@ -446,6 +454,7 @@ impl<'a> Lowerer<'a> {
             warnings: self.warnings,
             variables,
             scores: self.scene.scores,
+            events: self.scene.found_events,
         })
     }
 

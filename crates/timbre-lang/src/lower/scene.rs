@@ -636,23 +636,29 @@ impl Lowerer<'_> {
         );
         // What the timer lets out is emitted at the instance's place, or sent to the
         // channels as written.
-        let (root, tail) = match place {
-            Some((path, span)) => self.propagate(timed, path, span, start, origin)?,
-            None => (self.route(timed, &options, start, origin)?, 0.0),
+        // With `(scene :sync picture)`, a placed instance is advanced by its delay
+        // (`lead`), so that what it emits at its start is heard at its start.
+        let (root, tail, lead) = match place {
+            Some((path, span)) => {
+                let (path, lead) = self.picture_sync(path, start, span, origin)?;
+                let (root, tail) = self.propagate(timed, path, span, start - lead, origin)?;
+                (root, tail, lead)
+            }
+            None => (self.route(timed, &options, start, origin)?, 0.0, 0.0),
         };
         Ok(Instance {
             name: name.to_owned(),
             class: class.to_owned(),
             root,
-            start,
-            stop: stop.map(|(s, _)| s),
+            start: start - lead,
+            stop: stop.map(|(s, _)| s - lead),
             tail,
         })
     }
 
     /// The sound class an instance's call names, which must be declared with
     /// `define-sound`.
-    fn instance_class<'e>(
+    pub(super) fn instance_class<'e>(
         &self,
         call: &'e Expr,
         usage: &str,
@@ -1005,6 +1011,21 @@ impl Lowerer<'_> {
             });
             return Ok(());
         }
+        if key == "sync" {
+            self.scene.space.sync_picture = match value_expr.as_symbol() {
+                Some("picture") => true,
+                Some("physical") => false,
+                _ => {
+                    return Err(err(
+                        value_expr.span,
+                        format!("`:sync` is physical or picture, not {value_expr}"),
+                        "physical or picture",
+                        "write :sync picture to hear each placed instance's start at its start, its propagation delay taken off",
+                    ))
+                }
+            };
+            return Ok(());
+        }
         if key == "distance-law" {
             let law = value_expr
                 .as_symbol()
@@ -1142,7 +1163,7 @@ impl Lowerer<'_> {
 }
 
 /// The settings a `scene` form may give.
-const SCENE_SETTINGS: &str = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance, :air-absorption, :temperature, :humidity";
+const SCENE_SETTINGS: &str = ":sample-rate, :duration, :seed, :channels, :speed-of-sound, :distance-law, :reference-distance, :min-distance, :max-distance, :air-absorption, :temperature, :humidity, :sync";
 
 /// A `timbre::bad-scene` diagnostic.
 fn bad_scene(origin: &Origin, span: Span, message: String, label: &str, help: &str) -> Diag {

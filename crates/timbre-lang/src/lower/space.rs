@@ -16,6 +16,8 @@ use super::{Lowerer, Origin, MAX_BUFFER_SECONDS};
 use timbre_diag::Diag;
 use timbre_ir::dsp::air::Air;
 use timbre_ir::dsp::wav::resample;
+use timbre_ir::motion::{KeyedTrajectory, Kinematics, Trajectory};
+use timbre_ir::op::Description;
 use timbre_ir::op::Op;
 use timbre_ir::space::environment::{
     Acoustics, Environment, Late, Material, PlacedObstacle, Shape,
@@ -47,6 +49,8 @@ pub(crate) struct Space {
     /// first instance is placed).
     receivers: Option<Arc<[Receiver]>>,
     environment: Option<Arc<Environment>>,
+    /// `(scene :sync picture)`: placed instances are advanced by their delay.
+    pub sync_picture: bool,
 }
 
 impl Default for Space {
@@ -62,6 +66,7 @@ impl Default for Space {
             room: None,
             receivers: None,
             environment: None,
+            sync_picture: false,
         }
     }
 }
@@ -1174,6 +1179,41 @@ impl Lowerer<'_> {
         }
     }
 
+    /// With `(scene :sync picture)`, how far to advance an instance placed on
+    /// `source` and starting at `start`: the direct delay from the source to the
+    /// nearest receiver then (at most `start`, the scene starting at 0), and the source
+    /// read that much later, so that the advanced instance emits its start from where
+    /// the picture shows it, and it arrives at `start`. Otherwise `source` and 0.
+    pub(crate) fn picture_sync(
+        &mut self,
+        source: Path,
+        start: f64,
+        span: Span,
+        origin: &Origin,
+    ) -> Result<(Path, f64), Diag> {
+        if !self.scene.space.sync_picture {
+            return Ok((source, 0.0));
+        }
+        let receivers = self.receivers(span, origin)?;
+        let emitted = source.at(start);
+        let nearest = receivers
+            .iter()
+            .map(|r| (r.at(start) - emitted).length())
+            .fold(f64::INFINITY, f64::min);
+        let lead = (nearest / self.scene.space.medium.speed_of_sound).min(start);
+        if lead.is_nan() || lead <= 0.0 {
+            return Ok((source, 0.0));
+        }
+        let ahead =
+            |trajectory: Arc<dyn Trajectory>| Path::Moving(Arc::new(Leading { trajectory, lead }));
+        let source = match source {
+            Path::Fixed(_) => source,
+            Path::Keyed(tracks) => ahead(Arc::new(KeyedTrajectory(tracks))),
+            Path::Moving(trajectory) => ahead(trajectory),
+        };
+        Ok((source, lead))
+    }
+
     /// `sound` (an instance's tree under its timer, starting at scene time `start`)
     /// as heard by each receiver from `source`. Returns the node and how long it may
     /// still be heard after the sound stops, seconds (the longest delay, and the
@@ -1243,6 +1283,41 @@ impl Lowerer<'_> {
         };
         let node = self.graph.add(Op::Stateful(Arc::new(kernel)), vec![sound]);
         Ok((node, max_delay + tail))
+    }
+}
+
+/// A trajectory read `lead` seconds ahead: the source of an instance advanced by
+/// `lead` to sync with the picture.
+#[derive(Debug)]
+struct Leading {
+    trajectory: Arc<dyn Trajectory>,
+    lead: f64,
+}
+
+impl Trajectory for Leading {
+    fn kinematics(&self, t: f64) -> Kinematics {
+        self.trajectory.kinematics(t + self.lead)
+    }
+
+    fn position(&self, t: f64) -> DVec3 {
+        self.trajectory.position(t + self.lead)
+    }
+
+    fn bounds(&self) -> (DVec3, DVec3) {
+        self.trajectory.bounds()
+    }
+
+    fn max_speed(&self) -> f64 {
+        self.trajectory.max_speed()
+    }
+
+    fn describe(&self, d: &mut Description) {
+        d.str("leading").f64(self.lead);
+        self.trajectory.describe(d);
+    }
+
+    fn detail(&self) -> String {
+        format!("{}, {} s ahead", self.trajectory.detail(), self.lead)
     }
 }
 
