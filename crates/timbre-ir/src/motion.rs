@@ -50,6 +50,12 @@ pub trait Trajectory: fmt::Debug + Send + Sync {
     /// An upper bound of its speed, m/s.
     fn max_speed(&self) -> f64;
 
+    /// The times of its keys, sorted (where its motion may change course, so a
+    /// search for events in it looks there); none if it has no keys.
+    fn key_times(&self) -> Vec<f64> {
+        Vec::new()
+    }
+
     /// Its identity, by content (two trajectories with the same description are the
     /// same motion).
     fn describe(&self, d: &mut Description);
@@ -74,6 +80,10 @@ impl Trajectory for KeyedTrajectory {
 
     fn position(&self, t: f64) -> DVec3 {
         DVec3::new(self.0[0].value(t), self.0[1].value(t), self.0[2].value(t))
+    }
+
+    fn key_times(&self) -> Vec<f64> {
+        self.0[0].times().to_vec()
     }
 
     fn bounds(&self) -> (DVec3, DVec3) {
@@ -116,6 +126,14 @@ impl Trajectory for Difference {
         self.0.max_speed() + self.1.max_speed()
     }
 
+    fn key_times(&self) -> Vec<f64> {
+        let mut times = self.0.key_times();
+        times.extend(self.1.key_times());
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        times
+    }
+
     fn describe(&self, d: &mut Description) {
         d.str("difference");
         self.0.describe(d);
@@ -147,6 +165,10 @@ impl Trajectory for Shifted {
 
     fn max_speed(&self) -> f64 {
         self.0.max_speed()
+    }
+
+    fn key_times(&self) -> Vec<f64> {
+        self.0.key_times().iter().map(|t| t + self.1).collect()
     }
 
     fn describe(&self, d: &mut Description) {

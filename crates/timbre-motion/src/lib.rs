@@ -163,6 +163,23 @@ struct ShotData {
 }
 
 impl ShotData {
+    /// Sorted times of every key of every channel that moves node `node` or an
+    /// ancestor.
+    fn key_times(&self, node: usize) -> Vec<f64> {
+        let Some(data) = self.nodes.get(node) else {
+            return Vec::new();
+        };
+        let mut times: Vec<f64> = data
+            .chain
+            .iter()
+            .flat_map(|&k| self.nodes[k].channels.iter().flatten())
+            .flat_map(|s| s.keys.iter().map(|k| k.time))
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        times
+    }
+
     /// The world transform of a node (glTF axes) and its derivatives.
     fn world(&self, node: usize, t: f64) -> Jet<DMat4> {
         let mut world = Jet::constant(DMat4::IDENTITY);
@@ -337,18 +354,7 @@ impl Shot {
 
     /// Sorted times of every key of every channel that moves the node or an ancestor.
     pub fn key_times(&self, node: NodeIndex) -> Vec<f64> {
-        let Some(data) = self.0.nodes.get(node.0) else {
-            return Vec::new();
-        };
-        let mut times: Vec<f64> = data
-            .chain
-            .iter()
-            .flat_map(|&k| self.0.nodes[k].channels.iter().flatten())
-            .flat_map(|s| s.keys.iter().map(|k| k.time))
-            .collect();
-        times.sort_by(f64::total_cmp);
-        times.dedup();
-        times
+        self.0.key_times(node.0)
     }
 
     /// The last key time of the animations played (translation, rotation and scale

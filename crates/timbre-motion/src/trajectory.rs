@@ -56,6 +56,10 @@ fn kinematics(jet: Jet<DVec3>) -> Kinematics {
 }
 
 impl Trajectory for NodeTrajectory {
+    fn key_times(&self) -> Vec<f64> {
+        self.shot.key_times(self.node)
+    }
+
     fn kinematics(&self, t: f64) -> Kinematics {
         if self.node >= self.shot.nodes.len() {
             return Kinematics::default();

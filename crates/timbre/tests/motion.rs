@@ -181,3 +181,55 @@ fn both_engines_agree_on_every_quantity_of_motion() {
     assert!(jit.iter().any(|x| *x != 0.0));
     assert_eq!(jit, interpreted);
 }
+
+/// The ball's height, keyed by Blender and exported one LINEAR key per frame, falls
+/// through 0.12 m once per bounce: the crossing of that interpolant, computed here
+/// from Blender's positions at the frames around it, is where each event lands
+/// (within one sample), and the speed bound to it is the secant speed of Blender's
+/// positions over that frame.
+#[test]
+fn each_bounce_blender_keyed_is_one_event_on_the_crossing() {
+    let reference = reference();
+    let fps = reference["fps"].as_f64().unwrap();
+    let mut expected = vec![];
+    for frame in 1..120 {
+        let (a, b) = (frame as f64, frame as f64 + 1.0);
+        let (pa, pb) = (
+            blender(&reference, "Ball", a).0,
+            blender(&reference, "Ball", b).0,
+        );
+        if pa[2] >= 0.12 && pb[2] < 0.12 {
+            let s = (pa[2] - 0.12) / (pa[2] - pb[2]);
+            let speed = distance(pa, pb) * fps;
+            expected.push(((a + s) / fps, speed));
+        }
+    }
+    assert_eq!(expected.len(), 5, "the shot's ball bounces five times");
+    let engine = Engine::new(SR).with_file_access();
+    let file = engine
+        .read_scene(&format!(
+            "(scene :sample-rate 48000)
+             (motion shot \"{}\")
+             (listener :object \"Camera\")
+             (define-sound knock (v) (* 0.2 v (sine (* t 800)) (damp (* t 40))))
+             (events bounce :when (index (position \"Ball\") 2) :below 0.12
+                     :class knock :bind (:v (speed \"Ball\")))",
+            glb()
+        ))
+        .unwrap_or_else(|e| panic!("{e:?}"));
+    let found = &file.program().events[0];
+    assert_eq!(found.events.len(), expected.len());
+    for (k, (event, (time, speed))) in found.events.iter().zip(&expected).enumerate() {
+        assert_eq!(event.instance, format!("bounce-{}", k + 1));
+        assert!(
+            (event.time - time).abs() * SR < 1.0,
+            "bounce {k}: at {} s, Blender's keys cross at {time} s",
+            event.time
+        );
+        let v = event.bound[0].1[0];
+        assert!(
+            (v - speed).abs() / speed < 1e-4,
+            "bounce {k}: v = {v}, Blender's {speed}"
+        );
+    }
+}

@@ -34,8 +34,8 @@ pub use forms::FORMS;
 pub use motion::MOTION_NODES;
 
 pub use library::{Instantiated, Library, ParamValue};
-pub use space::DeclaredSpace;
 pub use motion_events::{FoundEvent, FoundEvents};
+pub use space::DeclaredSpace;
 pub(crate) use timbre_ir::{Instance, Program, Settings, DECLICK_IN, DECLICK_OUT, MAX_LANES};
 
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -392,6 +392,7 @@ impl<'a> Lowerer<'a> {
                 self.errors.push(diag);
             }
         }
+        self.default_motion_duration();
         let instance_forms = std::mem::take(&mut self.scene.instance_forms);
         for (form, origin) in &instance_forms {
             let lowered = match Form::of(form) {

@@ -158,6 +158,23 @@ impl Lowerer<'_> {
         Ok(())
     }
 
+    /// A scene with motion files and no `:duration` lasts as long as its motion: to
+    /// the last key of its files (each from its `:start`), the length of the shot.
+    pub(crate) fn default_motion_duration(&mut self) {
+        if self.settings.duration.is_some() {
+            return;
+        }
+        let end = self
+            .names
+            .motions
+            .iter()
+            .map(|m| m.start + m.shot.duration())
+            .fold(f64::NEG_INFINITY, f64::max);
+        if end > 0.0 {
+            self.settings.duration = Some(end);
+        }
+    }
+
     /// The node named by a string, in whichever motion file has it.
     pub(crate) fn motion_node(&self, name_expr: &Expr, origin: &Origin) -> Result<NodeRef, Diag> {
         let ExprKind::Str(name) = &name_expr.kind else {

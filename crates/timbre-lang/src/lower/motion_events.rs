@@ -143,8 +143,14 @@ impl TimeFunction {
     fn key_times(&self) -> Vec<f64> {
         let mut times = vec![];
         for id in &self.order {
-            if let Op::Keyframe(track) = &self.graph.node(*id).op {
-                times.extend_from_slice(track.times());
+            match &self.graph.node(*id).op {
+                Op::Keyframe(track) => times.extend_from_slice(track.times()),
+                Op::Stateful(kernel) => {
+                    if let Some(motion) = kernel.as_any().downcast_ref::<MotionKernel>() {
+                        times.extend(motion.trajectory.key_times());
+                    }
+                }
+                _ => {}
             }
         }
         times
@@ -420,6 +426,7 @@ impl Lowerer<'_> {
             values.extend(chunk.iter().map(|t| when.scalar(*t)));
         }
         let found = find_events(&when, &search, &times, &values);
+        let place = self.event_place(when_expr, &options);
         let mut events = vec![];
         for (k, &time) in found.iter().enumerate() {
             self.check_load_time(form.span, origin)?;
@@ -430,7 +437,15 @@ impl Lowerer<'_> {
                 })
                 .collect();
             let instance = format!("{name}-{}", k + 1);
-            let written = event_instance(&instance, class_expr, &values, time, &options, form.span);
+            let written = event_instance(
+                &instance,
+                class_expr,
+                &values,
+                time,
+                &options,
+                place.as_ref(),
+                form.span,
+            );
             let lowered = self.lower_instance(&written, origin)?;
             self.scene.instances.push(lowered);
             events.push(FoundEvent {
@@ -631,15 +646,39 @@ impl Lowerer<'_> {
     }
 }
 
+impl Lowerer<'_> {
+    /// Where an event sounds without `:source`: at the first glTF node its `:when`
+    /// names (the ball whose height crossed), written as `:at "Ball"`, when the scene
+    /// has a listener or microphones.
+    fn event_place(&self, when: &Expr, options: &Options<'_>) -> Option<Expr> {
+        if options.get("source").is_some() || !self.scene.space.has_receivers() {
+            return None;
+        }
+        fn first_node(l: &Lowerer<'_>, e: &Expr) -> Option<Expr> {
+            match &e.kind {
+                ExprKind::Str(name)
+                    if l.names.motions.iter().any(|m| m.shot.node(name).is_some()) =>
+                {
+                    Some(e.clone())
+                }
+                ExprKind::List(items) => items.iter().find_map(|i| first_node(l, i)),
+                _ => None,
+            }
+        }
+        first_node(self, when)
+    }
+}
+
 /// The written form of one event's instance: `(instance NAME (CLASS :p v …) :start t
 /// …)`, each parameter with its value at the event, and the form's `:gain`,
-/// `:source`, `:declick` and `:length`.
+/// `:source` (or `:at` the node `place` names), `:declick` and `:length`.
 fn event_instance(
     name: &str,
     class_expr: &Expr,
     values: &[(&str, Span, Vec<f64>)],
     time: f64,
     options: &Options<'_>,
+    place: Option<&Expr>,
     span: Span,
 ) -> Expr {
     let at = |kind: ExprKind| Expr { kind, span };
@@ -672,6 +711,10 @@ fn event_instance(
             instance.push(at(ExprKind::Keyword(option.into())));
             instance.push(e.clone());
         }
+    }
+    if let Some(node) = place {
+        instance.push(at(ExprKind::Keyword("at".into())));
+        instance.push(node.clone());
     }
     if let Some(length) = options.get("length") {
         // The stop, as an expression of the start and the length.

@@ -16,8 +16,7 @@ use super::{Lowerer, Origin, MAX_BUFFER_SECONDS};
 use timbre_diag::Diag;
 use timbre_ir::dsp::air::Air;
 use timbre_ir::dsp::wav::resample;
-use timbre_ir::motion::{KeyedTrajectory, Kinematics, Trajectory};
-use timbre_ir::op::Description;
+use timbre_ir::motion::{KeyedTrajectory, Shifted, Trajectory};
 use timbre_ir::op::Op;
 use timbre_ir::space::environment::{
     Acoustics, Environment, Late, Material, PlacedObstacle, Shape,
@@ -51,6 +50,13 @@ pub(crate) struct Space {
     environment: Option<Arc<Environment>>,
     /// `(scene :sync picture)`: placed instances are advanced by their delay.
     pub sync_picture: bool,
+}
+
+impl Space {
+    /// Whether the scene has receivers, so an instance can be placed in space.
+    pub fn has_receivers(&self) -> bool {
+        self.listener.is_some() || !self.microphones.is_empty()
+    }
 }
 
 impl Default for Space {
@@ -1204,8 +1210,9 @@ impl Lowerer<'_> {
         if lead.is_nan() || lead <= 0.0 {
             return Ok((source, 0.0));
         }
+        // Read `lead` seconds ahead: where the picture shows it when its sound arrives.
         let ahead =
-            |trajectory: Arc<dyn Trajectory>| Path::Moving(Arc::new(Leading { trajectory, lead }));
+            |trajectory: Arc<dyn Trajectory>| Path::Moving(Arc::new(Shifted(trajectory, -lead)));
         let source = match source {
             Path::Fixed(_) => source,
             Path::Keyed(tracks) => ahead(Arc::new(KeyedTrajectory(tracks))),
@@ -1283,41 +1290,6 @@ impl Lowerer<'_> {
         };
         let node = self.graph.add(Op::Stateful(Arc::new(kernel)), vec![sound]);
         Ok((node, max_delay + tail))
-    }
-}
-
-/// A trajectory read `lead` seconds ahead: the source of an instance advanced by
-/// `lead` to sync with the picture.
-#[derive(Debug)]
-struct Leading {
-    trajectory: Arc<dyn Trajectory>,
-    lead: f64,
-}
-
-impl Trajectory for Leading {
-    fn kinematics(&self, t: f64) -> Kinematics {
-        self.trajectory.kinematics(t + self.lead)
-    }
-
-    fn position(&self, t: f64) -> DVec3 {
-        self.trajectory.position(t + self.lead)
-    }
-
-    fn bounds(&self) -> (DVec3, DVec3) {
-        self.trajectory.bounds()
-    }
-
-    fn max_speed(&self) -> f64 {
-        self.trajectory.max_speed()
-    }
-
-    fn describe(&self, d: &mut Description) {
-        d.str("leading").f64(self.lead);
-        self.trajectory.describe(d);
-    }
-
-    fn detail(&self) -> String {
-        format!("{}, {} s ahead", self.trajectory.detail(), self.lead)
     }
 }
 
