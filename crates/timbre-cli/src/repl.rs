@@ -543,6 +543,7 @@ impl Completer for ReplHelper {
         } else {
             timbre_lang::catalogue::names()
                 .chain(timbre_lang::catalogue::FORMS.iter().copied())
+                .chain(timbre_lang::catalogue::MOTION_NODES.iter().copied())
                 .map(str::to_owned)
                 .chain(self.names.iter().cloned())
                 .collect()
