@@ -30,7 +30,11 @@ fn every_lisp_block_in_the_guide_checks() {
     // A block may read the example shot by its bare name, as the guide tells users
     // to run it beside the file.
     let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
-    std::fs::copy(examples.join("car-pass.glb"), dir.path().join("car-pass.glb")).unwrap();
+    std::fs::copy(
+        examples.join("car-pass.glb"),
+        dir.path().join("car-pass.glb"),
+    )
+    .unwrap();
     let mut checked = 0;
     let mut failures = vec![];
     for entry in std::fs::read_dir(&docs).unwrap() {

@@ -33,6 +33,11 @@ pub enum KernelOption<'a> {
     /// A tree of another graph the node replays, written after the positional
     /// arguments as an expression.
     Source(&'a Graph, NodeId),
+    /// The whole call as the language wrote it, for a node that names things outside
+    /// the tree (a glTF node, a keyframed vector), with the top-level forms it needs
+    /// (each written once, before the tree). Its one argument, the scene time it
+    /// reads, is written as `:time` where it is not `t`.
+    Written { call: &'a str, forms: &'a [String] },
 }
 
 /// The bytes of a kernel whose state is a few numbers per lane (filters,

@@ -240,6 +240,15 @@ impl Quantity {
     }
 }
 
+/// How a [`MotionKernel`] was written, for printing it back: the call (e.g.
+/// `(speed "Ball")`) and the top-level forms it needs (e.g. the `motion` form that
+/// reads the file the node is in).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Written {
+    pub call: String,
+    pub forms: Vec<String>,
+}
+
 /// A quantity of a trajectory as a signal. Argument: the scene time.
 #[derive(Debug)]
 pub struct MotionKernel {
@@ -247,6 +256,8 @@ pub struct MotionKernel {
     pub name: &'static str,
     pub trajectory: Arc<dyn Trajectory>,
     pub quantity: Quantity,
+    /// How it was written, if it can be written back.
+    pub written: Option<Written>,
 }
 
 impl StatefulKernel for MotionKernel {
@@ -275,10 +286,13 @@ impl StatefulKernel for MotionKernel {
         small_state_bytes(ctx)
     }
 
-    /// Written as the language's motion forms, which name nodes rather than
-    /// trajectories: no call of its own.
+    /// Written as it was called: a trajectory has no spelling of its own.
     fn options(&self) -> Option<Vec<crate::kernel::KernelOption<'_>>> {
-        None
+        let written = self.written.as_ref()?;
+        Some(vec![crate::kernel::KernelOption::Written {
+            call: &written.call,
+            forms: &written.forms,
+        }])
     }
 
     fn process(&self, _state: &mut (), inputs: &Inputs<'_>, out: &mut Outputs<'_>) {

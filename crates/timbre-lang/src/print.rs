@@ -74,6 +74,7 @@ pub fn print_tree(
     let mut printer = Printer {
         names,
         tracks: vec![],
+        forms: vec![],
         bindings: 0,
     };
     let expr = printer.expression(graph, root)?;
@@ -94,6 +95,7 @@ pub fn print_tree(
             .iter()
             .map(|(name, track)| keyframes_form(name, track)),
     );
+    forms.extend(printer.forms.iter().filter_map(|text| parse_one(text)));
     forms.push(expr);
     Ok(timbre_syntax::print(&forms))
 }
@@ -102,6 +104,9 @@ struct Printer<'n> {
     names: &'n [(String, Arc<KeyframeTrack>)],
     /// The tracks read so far, with the names they are written under.
     tracks: Vec<(String, Arc<KeyframeTrack>)>,
+    /// Top-level forms the written calls need (`motion`, vector `keyframes`), once
+    /// each, in the order first met.
+    forms: Vec<String>,
     /// `let` names handed out so far.
     bindings: usize,
 }
@@ -258,6 +263,9 @@ impl Printer<'_> {
         let Some(options) = kernel.options() else {
             return Ok(None);
         };
+        if let [KernelOption::Written { call, forms }] = options.as_slice() {
+            return self.written(node, kernel, call, forms, args).map(Some);
+        }
         let name = kernel.call_name();
         let files = options.iter().filter_map(|option| match option {
             KernelOption::File(path) => Some(string(path)),
@@ -268,7 +276,7 @@ impl Printer<'_> {
         let mut seeds = None;
         for option in options {
             match option {
-                KernelOption::File(_) => {}
+                KernelOption::File(_) | KernelOption::Written { .. } => {}
                 KernelOption::Number(key, x) => items.extend([keyword(key), number(x)]),
                 KernelOption::Source(source, root) => items.push(self.expression(source, root)?),
                 KernelOption::Seeds {
@@ -292,6 +300,40 @@ impl Printer<'_> {
             reason,
         })?;
         Ok(Some(expr))
+    }
+
+    /// A call written as the language wrote it, reading the scene time `args[0]`
+    /// (`:time` where it is not `t`), with the forms it needs noted.
+    fn written(
+        &mut self,
+        node: NodeId,
+        kernel: &dyn DynKernel,
+        call: &str,
+        forms: &[String],
+        args: Vec<Expr>,
+    ) -> Result<Expr, Unprintable> {
+        let Some(Expr {
+            kind: ExprKind::List(mut items),
+            ..
+        }) = parse_one(call)
+        else {
+            return Err(Unprintable {
+                node,
+                kind: kernel.call_name().into(),
+                reason: "its written call does not parse",
+            });
+        };
+        match args.as_slice() {
+            [time] if time.as_symbol() == Some("t") => {}
+            [time] => items.extend([keyword("time"), time.clone()]),
+            _ => {}
+        }
+        for form in forms {
+            if !self.forms.contains(form) {
+                self.forms.push(form.clone());
+            }
+        }
+        Ok(list(items))
     }
 
     /// The name a track is written under, defining it on first use.
@@ -319,6 +361,31 @@ impl Printer<'_> {
         self.tracks.push((name.clone(), track.clone()));
         name
     }
+}
+
+/// The one expression of `text`, if it parses to exactly one.
+fn parse_one(text: &str) -> Option<Expr> {
+    let parsed = timbre_syntax::parse(text);
+    match <[Expr; 1]>::try_from(parsed.exprs) {
+        Ok([expr]) if parsed.errors.is_empty() => Some(expr),
+        _ => None,
+    }
+}
+
+/// `(keyframes name :interp mode (time (x y z)) …)`: a keyframed vector, as the text
+/// `MotionKernel`s record for the calls that read one.
+pub(crate) fn vector_keyframes_text(name: &str, tracks: &[Arc<KeyframeTrack>]) -> String {
+    let mut items = vec![
+        symbol("keyframes"),
+        symbol(name),
+        keyword("interp"),
+        symbol(tracks[0].interpolation().name()),
+    ];
+    for (k, time) in tracks[0].times().iter().enumerate() {
+        let values = tracks.iter().map(|t| number(t.values()[k])).collect();
+        items.push(list(vec![number(*time), list(values)]));
+    }
+    timbre_syntax::print(&[list(items)])
 }
 
 /// `(keyframes name :interp mode (time value) …)`.

@@ -139,6 +139,21 @@ pub fn normalize<T: Inner>(p: Jet<T>) -> Jet<T> {
     }
 }
 
+/// `|p|` with its derivatives (r' and r'' as in [`normalize`]); 0 for a zero vector.
+pub fn length(p: Jet<DVec3>) -> Jet<f64> {
+    let r = p.value.length();
+    if r == 0.0 || !r.is_finite() {
+        return Jet::zero();
+    }
+    let r1 = p.value.dot(p.d1) / r;
+    let r2 = (p.d1.dot(p.d1) + p.value.dot(p.d2) - r1 * r1) / r;
+    Jet {
+        value: r,
+        d1: r1,
+        d2: r2,
+    }
+}
+
 /// The product of two transforms (the product rule, twice).
 pub fn mat_mul(a: &Jet<DMat4>, b: &Jet<DMat4>) -> Jet<DMat4> {
     Jet {

@@ -54,7 +54,7 @@ mod trajectory;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use glam::{DMat4, DVec3, DVec4};
+use glam::{DMat4, DVec3};
 use timbre_ir::motion::Trajectory;
 use timbre_ir::StableHasher;
 
@@ -315,16 +315,12 @@ impl Shot {
         self.trajectory(node, NodeQuantity::AngularVelocity)
     }
 
-    /// The world scale at `t` along the node's own axes, in timbre's order (local x,
-    /// local −z, local y: the lengths of the world transform's columns). Lossy where
-    /// the hierarchy shears (a rotated parent with unequal scales).
-    pub fn scale(&self, node: NodeIndex, t: f64) -> DVec3 {
-        if node.0 >= self.0.nodes.len() {
-            return DVec3::ONE;
-        }
-        let w = self.0.world(node.0, t).value;
-        let length = |c: DVec4| c.truncate().length();
-        DVec3::new(length(w.x_axis), length(w.z_axis), length(w.y_axis))
+    /// The world scale along the node's own axes, in timbre's order (local x,
+    /// local −z, local y: the lengths of the world transform's columns), with exact
+    /// derivatives. Lossy where the hierarchy shears (a rotated parent with unequal
+    /// scales).
+    pub fn scale(&self, node: NodeIndex) -> Arc<dyn Trajectory> {
+        self.trajectory(node, NodeQuantity::Scale)
     }
 
     /// Whether the node holds a camera.

@@ -6,7 +6,7 @@ use glam::{DVec3, DVec4};
 use timbre_ir::motion::{Kinematics, Trajectory};
 use timbre_ir::op::Description;
 
-use crate::jet::{cross, dot, normalize, transform, Jet};
+use crate::jet::{cross, dot, length, normalize, transform, Jet};
 use crate::{to_timbre, ShotData};
 
 /// What a [`NodeTrajectory`] follows.
@@ -16,6 +16,9 @@ pub enum NodeQuantity {
     Forward,
     Up,
     AngularVelocity,
+    /// The world scale along the node's own axes, in timbre's order (Blender's
+    /// x, y, z scale): the lengths of its world x, −z and y axes.
+    Scale,
 }
 
 impl NodeQuantity {
@@ -25,6 +28,7 @@ impl NodeQuantity {
             NodeQuantity::Forward => "forward",
             NodeQuantity::Up => "up",
             NodeQuantity::AngularVelocity => "angular-velocity",
+            NodeQuantity::Scale => "scale",
         }
     }
 }
@@ -70,6 +74,14 @@ impl Trajectory for NodeTrajectory {
             NodeQuantity::Position => kinematics(axis(DVec4::W)),
             NodeQuantity::Forward => kinematics(normalize(axis(DVec4::NEG_Z))),
             NodeQuantity::Up => kinematics(normalize(axis(DVec4::Y))),
+            NodeQuantity::Scale => {
+                let [x, y, z] = [DVec4::X, DVec4::NEG_Z, DVec4::Y].map(|a| length(axis(a)));
+                Kinematics {
+                    position: DVec3::new(x.value, y.value, z.value),
+                    velocity: DVec3::new(x.d1, y.d1, z.d1),
+                    acceleration: DVec3::new(x.d2, y.d2, z.d2),
+                }
+            }
             NodeQuantity::AngularVelocity => {
                 // The orthonormal frame of the world x and y axes (Gram–Schmidt);
                 // ω = ½ Σ eᵢ × eᵢ' and ω' = ½ Σ eᵢ × eᵢ'' (as eᵢ' × eᵢ' = 0).
@@ -104,6 +116,8 @@ impl Trajectory for NodeTrajectory {
                 (lo.min(hi), lo.max(hi))
             }
             NodeQuantity::Forward | NodeQuantity::Up => (-DVec3::ONE, DVec3::ONE),
+            // Not a place: no bound is computed.
+            NodeQuantity::Scale => (DVec3::ZERO, DVec3::INFINITY),
             NodeQuantity::AngularVelocity => {
                 let w = b.angular_speed();
                 (-DVec3::splat(w), DVec3::splat(w))
@@ -119,8 +133,9 @@ impl Trajectory for NodeTrajectory {
         match self.quantity {
             NodeQuantity::Position => b.speed,
             NodeQuantity::Forward | NodeQuantity::Up => b.turn_rate(),
-            // No bound of the angular acceleration is computed.
-            NodeQuantity::AngularVelocity => f64::INFINITY,
+            // No bound of the angular acceleration, or of how fast a scale changes, is
+            // computed.
+            NodeQuantity::AngularVelocity | NodeQuantity::Scale => f64::INFINITY,
         }
     }
 

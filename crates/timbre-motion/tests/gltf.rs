@@ -327,7 +327,7 @@ fn a_child_composes_with_its_rotating_translated_scaled_parent() {
             z_up(-(world - DVec3::new(1.0, 2.0, 3.0)) * speed * speed),
             1e-9
         ));
-        assert!(close(shot.scale(c, t), DVec3::splat(6.0), 1e-12));
+        assert!(close(shot.scale(c).position(t), DVec3::splat(6.0), 1e-12));
     }
     assert_eq!(shot.key_times(c), vec![0.0, 1.0]);
 }
@@ -965,7 +965,11 @@ fn scale_keys_scale_the_node_and_its_children() {
     let shot = read(&b.glb());
     let (grow, tip) = (shot.node("Grow").unwrap(), shot.node("Tip").unwrap());
     // At 0.5 s: scale (1.5, 2, 1) in glTF axes; timbre's order is x, −z, y.
-    assert_eq!(shot.scale(grow, 0.5), DVec3::new(1.5, 1.0, 2.0));
+    let scale = shot.scale(grow).kinematics(0.5);
+    assert_eq!(scale.position, DVec3::new(1.5, 1.0, 2.0));
+    // Linear keys: x grows by 2 and y by 4 over 2 s (glTF axes), z stays.
+    assert_eq!(scale.velocity, DVec3::new(1.0, 0.0, 2.0));
+    assert_eq!(scale.acceleration, DVec3::ZERO);
     let kin = shot.position(tip).kinematics(0.5);
     assert_eq!(kin.position, z_up(DVec3::new(0.0, 2.0, 0.0)));
     assert_eq!(kin.velocity, z_up(DVec3::new(0.0, 2.0, 0.0)));

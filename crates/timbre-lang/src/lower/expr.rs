@@ -266,7 +266,7 @@ impl Lowerer<'_> {
             return self.lower_track_at(&call, origin, scope);
         }
         if super::motion::MOTION_NODES.contains(&name) {
-            return self.lower_motion_node(&call, origin);
+            return self.lower_motion_node(&call, origin, scope);
         }
         if let Some(spec) = catalogue::lookup(name) {
             return self.lower_builtin(&call, spec, origin, scope);

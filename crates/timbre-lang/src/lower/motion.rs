@@ -1,7 +1,7 @@
 //! Motion from animated glTF files and keyframed vectors: the `motion` form, and the
 //! nodes that read quantities of motion (`position`, `velocity`, `acceleration`,
 //! `speed`, `distance`, `approach`, `angular-velocity`, `angular-speed`, `forward`,
-//! `up`).
+//! `up`, `scale`).
 //!
 //! `(motion shot "car-pass.glb" :animation "Drive" :start 0)` reads the file through
 //! the loader (and its external buffers the same way) with `timbre-motion`, and
@@ -15,13 +15,15 @@
 use std::sync::Arc;
 
 use timbre_diag::Diag;
-use timbre_ir::motion::{Difference, KeyedTrajectory, MotionKernel, Quantity, Shifted, Trajectory};
+use timbre_ir::motion::{
+    Difference, KeyedTrajectory, MotionKernel, Quantity, Shifted, Trajectory, Written,
+};
 use timbre_ir::op::{BinaryOp, Op};
 use timbre_ir::NodeId;
 use timbre_motion::{NodeIndex, Shot, ShotOptions};
 use timbre_syntax::{Expr, ExprKind, Span};
 
-use super::{Call, Lowerer, Origin};
+use super::{Arg, Call, Lowerer, Origin, Scope};
 
 /// The nodes that read motion, for did-you-mean and completion.
 pub const MOTION_NODES: &[&str] = &[
@@ -35,6 +37,7 @@ pub const MOTION_NODES: &[&str] = &[
     "angular-speed",
     "forward",
     "up",
+    "scale",
 ];
 
 const USAGE: &str = "(motion shot \"car-pass.glb\")";
@@ -46,6 +49,8 @@ pub(crate) struct MotionFile {
     pub shot: Arc<Shot>,
     /// Scene time at the file's time 0.
     pub start: f64,
+    /// The form as the printer writes it (the file by its resolved path).
+    pub form: String,
 }
 
 /// A glTF node of one of the scene's motion files.
@@ -149,11 +154,13 @@ impl Lowerer<'_> {
         };
         let shot = Shot::read(&bytes, &mut resource, &ShotOptions { animation })
             .map_err(|e| e.diag(path_expr.span).in_source(&origin.source))?;
+        let form = motion_form(&name, &resolved, options.get("animation"), start);
         self.names.motions.push(MotionFile {
             name,
             span: name_expr.span,
             shot: Arc::new(shot),
             start,
+            form,
         });
         Ok(())
     }
@@ -313,17 +320,25 @@ impl Lowerer<'_> {
         }
     }
 
-    /// A call of one of [`MOTION_NODES`].
+    /// A call of one of [`MOTION_NODES`]: its tracks, then `:time T` to read it at
+    /// scene time T instead of now.
     pub(crate) fn lower_motion_node(
         &mut self,
         call: &Call<'_>,
         origin: &Origin,
+        scope: &mut Scope,
     ) -> Result<NodeId, Diag> {
+        let (tracks, time_expr) = match call.args {
+            [tracks @ .., key, value] if matches!(&key.kind, ExprKind::Keyword(k) if k == "time") => {
+                (tracks, Some(value))
+            }
+            all => (all, None),
+        };
         let (arity, usage) = match call.name {
             "distance" | "approach" => (2, format!("({} \"Car\" \"Camera\")", call.name)),
             _ => (1, format!("({} \"Ball\")", call.name)),
         };
-        if call.args.len() != arity {
+        if tracks.len() != arity {
             return Err(self
                 .diag(
                     "timbre::arity",
@@ -331,36 +346,24 @@ impl Lowerer<'_> {
                         "`{}` takes {arity} track{}, found {} argument{}",
                         call.name,
                         super::plural(arity),
-                        call.args.len(),
-                        super::plural(call.args.len())
+                        tracks.len(),
+                        super::plural(tracks.len())
                     ),
                     origin,
                 )
                 .label(call.span, "here")
-                .help(format!("write {usage}")));
+                .help(format!(
+                    "write {usage}, and :time T to read it at scene time T"
+                )));
         }
-        let whole = || Expr {
-            kind: ExprKind::List(
-                std::iter::once(Expr {
-                    kind: ExprKind::Symbol(call.name.into()),
-                    span: call.span,
-                })
-                .chain(call.args.iter().cloned())
-                .collect(),
-            ),
-            span: call.span,
-        };
         let (trajectory, quantity) = match call.name {
-            "position" => (self.trajectory(&call.args[0], origin)?, Quantity::Position),
-            "velocity" => (self.trajectory(&call.args[0], origin)?, Quantity::Velocity),
-            "acceleration" => (
-                self.trajectory(&call.args[0], origin)?,
-                Quantity::Acceleration,
-            ),
-            "speed" => (self.trajectory(&call.args[0], origin)?, Quantity::Speed),
+            "position" => (self.trajectory(&tracks[0], origin)?, Quantity::Position),
+            "velocity" => (self.trajectory(&tracks[0], origin)?, Quantity::Velocity),
+            "acceleration" => (self.trajectory(&tracks[0], origin)?, Quantity::Acceleration),
+            "speed" => (self.trajectory(&tracks[0], origin)?, Quantity::Speed),
             "distance" | "approach" => {
-                let a = self.trajectory(&call.args[0], origin)?;
-                let b = self.trajectory(&call.args[1], origin)?;
+                let a = self.trajectory(&tracks[0], origin)?;
+                let b = self.trajectory(&tracks[1], origin)?;
                 let quantity = if call.name == "distance" {
                     Quantity::Length
                 } else {
@@ -369,20 +372,91 @@ impl Lowerer<'_> {
                 (Arc::new(Difference(a, b)) as Arc<dyn Trajectory>, quantity)
             }
             "angular-speed" => {
-                let node = self.motion_node(&call.args[0], origin)?;
+                let node = self.motion_node(&tracks[0], origin)?;
                 let omega = node.shifted(node.shot.angular_velocity(node.node));
                 (omega, Quantity::Length)
             }
+            "scale" => {
+                let node = self.motion_node(&tracks[0], origin)?;
+                (node.shifted(node.shot.scale(node.node)), Quantity::Position)
+            }
             // forward, up, angular-velocity: the vector itself.
-            _ => (self.trajectory(&whole(), origin)?, Quantity::Position),
+            _ => {
+                let whole = Expr {
+                    kind: ExprKind::List(
+                        std::iter::once(Expr {
+                            kind: ExprKind::Symbol(call.name.into()),
+                            span: call.span,
+                        })
+                        .chain(tracks.iter().cloned())
+                        .collect(),
+                    ),
+                    span: call.span,
+                };
+                (self.trajectory(&whole, origin)?, Quantity::Position)
+            }
         };
-        let time = self.scene_time_node();
+        let time = match time_expr {
+            Some(e) => {
+                let node = self.lower(e, origin, scope)?;
+                let arg = Arg {
+                    node,
+                    span: e.span,
+                    given: true,
+                };
+                self.check_one_lane(&arg, "the time motion is read at", origin)?;
+                node
+            }
+            None => self.scene_time_node(),
+        };
         let kernel = MotionKernel {
             name: motion_node_name(call.name),
             trajectory,
             quantity,
+            written: Some(self.written_motion(call.name, tracks)),
         };
         Ok(self.graph.add(Op::Stateful(Arc::new(kernel)), vec![time]))
+    }
+
+    /// How a motion node was written, for the printer: the call with its tracks, and
+    /// the `motion` and `keyframes` forms they name.
+    fn written_motion(&self, name: &str, tracks: &[Expr]) -> Written {
+        let mut forms = vec![];
+        let mut stack: Vec<&Expr> = tracks.iter().collect();
+        while let Some(e) = stack.pop() {
+            match &e.kind {
+                ExprKind::Str(node) => {
+                    if let Some(file) = self
+                        .names
+                        .motions
+                        .iter()
+                        .find(|m| m.shot.node(node).is_some())
+                    {
+                        forms.push(file.form.clone());
+                    }
+                }
+                ExprKind::Symbol(variable) => {
+                    if let Some(tracks) = self.names.vector_keyframes.get(variable.as_str()) {
+                        forms.push(crate::print::vector_keyframes_text(variable, tracks));
+                    }
+                }
+                ExprKind::List(items) => stack.extend(items),
+                _ => {}
+            }
+        }
+        forms.dedup();
+        let call = std::iter::once(name.to_owned())
+            .chain(tracks.iter().map(|e| {
+                timbre_syntax::print(std::slice::from_ref(e))
+                    .trim_end()
+                    .to_owned()
+            }))
+            .collect::<Vec<_>>()
+            .join(" ");
+        Written {
+            call: format!("({call})"),
+            forms,
+        }
     }
 
     /// `t` plus the scene time at the instance's start: what keyframes and motion
@@ -392,6 +466,30 @@ impl Lowerer<'_> {
         let offset = self.graph.constant(self.time_offset);
         self.graph.add(Op::Binary(BinaryOp::Add), vec![t, offset])
     }
+}
+
+/// `(motion NAME "PATH" :animation "A" :start S)` as text, the path resolved so that
+/// the printed form reads the same file from anywhere.
+fn motion_form(name: &str, path: &std::path::Path, animation: Option<&Expr>, start: f64) -> String {
+    let mut items = vec![
+        name.to_owned(),
+        timbre_syntax::print(&[Expr {
+            kind: ExprKind::Str(path.display().to_string()),
+            span: Span::default(),
+        }])
+        .trim_end()
+        .to_owned(),
+    ];
+    if let Some(animation) = animation {
+        items.push(format!(
+            ":animation {}",
+            timbre_syntax::print(std::slice::from_ref(animation)).trim_end()
+        ));
+    }
+    if start != 0.0 {
+        items.push(format!(":start {start:?}"));
+    }
+    format!("(motion {})", items.join(" "))
 }
 
 /// The `'static` name of a motion node (the kernel's name in pictures and dumps).

@@ -751,8 +751,10 @@ mod tests {
         let mut graph = Graph::new();
         let t = graph.add(Op::Time, vec![]);
         let kernel = MotionKernel {
+            name: "speed",
             trajectory: Arc::new(trajectory),
             quantity: Quantity::Speed,
+            written: None,
         };
         let root = graph.add(Op::Stateful(Arc::new(kernel)), vec![t]);
         TimeFunction::new(&graph, root).unwrap()
