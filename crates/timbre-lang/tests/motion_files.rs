@@ -94,7 +94,10 @@ fn a_quantity_needs_a_track() {
     let (code, message, _, help) = error(&text, &[]);
     assert_eq!(code, "timbre::arity");
     assert_eq!(message, "`distance` takes 2 tracks, found 1 argument");
-    assert_eq!(help, "write (distance \"Car\" \"Camera\")");
+    assert_eq!(
+        help,
+        "write (distance \"Car\" \"Camera\"), and :time T to read it at scene time T"
+    );
 }
 
 #[test]
