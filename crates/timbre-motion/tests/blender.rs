@@ -4,30 +4,10 @@
 //! `.ci/run` makes the shot afresh and points `TIMBRE_BLENDER_SHOT` at it; without
 //! that variable the committed copies are read.
 
-use std::path::PathBuf;
-
 use glam::{DQuat, DVec3};
 use serde_json::Value;
 use timbre_motion::{Shot, ShotOptions};
-
-fn shot_files() -> (PathBuf, PathBuf) {
-    match std::env::var_os("TIMBRE_BLENDER_SHOT") {
-        Some(dir) => {
-            let dir = PathBuf::from(dir);
-            (
-                dir.join("car-pass.glb"),
-                dir.join("car-pass.reference.json"),
-            )
-        }
-        None => {
-            let examples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples");
-            (
-                examples.join("car-pass.glb"),
-                examples.join("shots/car-pass.reference.json"),
-            )
-        }
-    }
-}
+use timbre_testkit::blender_shot;
 
 struct Reference {
     fps: f64,
@@ -35,7 +15,7 @@ struct Reference {
 }
 
 fn load() -> (Shot, Reference) {
-    let (glb, json) = shot_files();
+    let (glb, json) = blender_shot();
     let bytes = std::fs::read(&glb).unwrap_or_else(|e| panic!("{}: {e}", glb.display()));
     let shot = Shot::read(
         &bytes,

@@ -288,6 +288,28 @@ pub fn write_wav_f32(path: &Path, rate: u32, samples: &[f64]) {
     w.finalize().unwrap();
 }
 
+/// The shot Blender made (`examples/shots/make-car-pass.py`): the glTF file and
+/// Blender's own reference of it. `.ci/run` makes them afresh and points
+/// `TIMBRE_BLENDER_SHOT` at them; without that variable, the committed copies.
+pub fn blender_shot() -> (std::path::PathBuf, std::path::PathBuf) {
+    match std::env::var_os("TIMBRE_BLENDER_SHOT") {
+        Some(dir) => {
+            let dir = std::path::PathBuf::from(dir);
+            (
+                dir.join("car-pass.glb"),
+                dir.join("car-pass.reference.json"),
+            )
+        }
+        None => {
+            let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+            (
+                examples.join("car-pass.glb"),
+                examples.join("shots/car-pass.reference.json"),
+            )
+        }
+    }
+}
+
 /// The `.tt` files under `dir`, recursively, in name order.
 pub fn tt_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     let mut found = vec![];

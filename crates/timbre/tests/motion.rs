@@ -4,36 +4,15 @@
 //! and both engines give the same samples. `.ci/run` makes the shot afresh and points
 //! `TIMBRE_BLENDER_SHOT` at it; without that variable the committed copies are read.
 
-use std::path::PathBuf;
-
 use serde_json::Value;
 use timbre::{Backend, Engine};
-use timbre_testkit::zero_crossing_frequency;
+use timbre_testkit::{blender_shot, zero_crossing_frequency};
 
 const SR: f64 = 48_000.0;
 const C: f64 = 343.0;
 
-fn shot_dir() -> (PathBuf, PathBuf) {
-    match std::env::var_os("TIMBRE_BLENDER_SHOT") {
-        Some(dir) => {
-            let dir = PathBuf::from(dir);
-            (
-                dir.join("car-pass.glb"),
-                dir.join("car-pass.reference.json"),
-            )
-        }
-        None => {
-            let examples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples");
-            (
-                examples.join("car-pass.glb"),
-                examples.join("shots/car-pass.reference.json"),
-            )
-        }
-    }
-}
-
 fn reference() -> Value {
-    let text = std::fs::read_to_string(shot_dir().1).unwrap();
+    let text = std::fs::read_to_string(blender_shot().1).unwrap();
     serde_json::from_str(&text).unwrap()
 }
 
@@ -59,7 +38,7 @@ fn render(scene: &str, seconds: f64, backend: Backend) -> Vec<f64> {
 }
 
 fn glb() -> String {
-    shot_dir().0.display().to_string()
+    blender_shot().0.display().to_string()
 }
 
 const LISTENER: [f64; 3] = [0.0, -12.0, 1.6];
