@@ -235,44 +235,7 @@ impl Graph {
             .iter()
             .map(|a| self.const_value(*a))
             .collect::<Option<_>>()?;
-        let width = consts.iter().map(|c| c.len()).max().unwrap_or(1);
-        let lane = |c: &[f64], l: usize| if c.len() == 1 { c[0] } else { c[l] };
-        let values = match op {
-            Op::Unary(u) => consts[0].iter().map(|x| u.apply(*x)).collect(),
-            Op::Binary(b) => (0..width)
-                .map(|l| b.apply(lane(consts[0], l), lane(consts[1], l)))
-                .collect(),
-            Op::Ternary(t) => (0..width)
-                .map(|l| t.apply(lane(consts[0], l), lane(consts[1], l), lane(consts[2], l)))
-                .collect(),
-            Op::Noise { seeds } => (0..seeds.len())
-                .map(|l| crate::op::noise(seeds[l], lane(consts[0], l)))
-                .collect(),
-            Op::Env => (0..width)
-                .map(|l| crate::op::env(std::array::from_fn(|i| lane(consts[i], l))))
-                .collect(),
-            Op::Combine => vec![crate::op::combine(consts[0])],
-            Op::Index => {
-                let i = index_lane(consts[1][0], consts[0].len());
-                vec![consts[0][i]]
-            }
-            Op::Concat => consts.concat(),
-            Op::Keyframe(track) => consts[0].iter().map(|x| track.value(*x)).collect(),
-            Op::Timer {
-                length,
-                fade_in,
-                fade_out,
-            } => (0..width)
-                .map(|l| {
-                    // A constant sound's first sample is the constant.
-                    let x = lane(consts[0], l);
-                    let fade_in = fade_in.seconds(x);
-                    x * crate::op::timer_gain(lane(consts[1], l), *length, fade_in, *fade_out)
-                })
-                .collect(),
-            _ => return None,
-        };
-        Some(values)
+        evaluate_pure(op, &consts)
     }
 
     /// Exact algebraic identities: x+0, x*1, x-0, x/1, --x, (combine x) of one lane.
@@ -416,6 +379,51 @@ impl Graph {
             .map(|i| NodeId(i as u32))
             .collect()
     }
+}
+
+/// The lanes of a pure node from its arguments' lanes (one number broadcasting), as
+/// constant folding computes them and as the interpreter does sample by sample;
+/// `None` for a node with state or one that reads the time, the sample index or the
+/// host.
+pub fn evaluate_pure(op: &Op, consts: &[&[f64]]) -> Option<Vec<f64>> {
+    let width = consts.iter().map(|c| c.len()).max().unwrap_or(1);
+    let lane = |c: &[f64], l: usize| if c.len() == 1 { c[0] } else { c[l] };
+    let values = match op {
+        Op::Unary(u) => consts[0].iter().map(|x| u.apply(*x)).collect(),
+        Op::Binary(b) => (0..width)
+            .map(|l| b.apply(lane(consts[0], l), lane(consts[1], l)))
+            .collect(),
+        Op::Ternary(t) => (0..width)
+            .map(|l| t.apply(lane(consts[0], l), lane(consts[1], l), lane(consts[2], l)))
+            .collect(),
+        Op::Noise { seeds } => (0..seeds.len())
+            .map(|l| crate::op::noise(seeds[l], lane(consts[0], l)))
+            .collect(),
+        Op::Env => (0..width)
+            .map(|l| crate::op::env(std::array::from_fn(|i| lane(consts[i], l))))
+            .collect(),
+        Op::Combine => vec![crate::op::combine(consts[0])],
+        Op::Index => {
+            let i = index_lane(consts[1][0], consts[0].len());
+            vec![consts[0][i]]
+        }
+        Op::Concat => consts.concat(),
+        Op::Keyframe(track) => consts[0].iter().map(|x| track.value(*x)).collect(),
+        Op::Timer {
+            length,
+            fade_in,
+            fade_out,
+        } => (0..width)
+            .map(|l| {
+                // A constant sound's first sample is the constant.
+                let x = lane(consts[0], l);
+                let fade_in = fade_in.seconds(x);
+                x * crate::op::timer_gain(lane(consts[1], l), *length, fade_in, *fade_out)
+            })
+            .collect(),
+        _ => return None,
+    };
+    Some(values)
 }
 
 /// The lane selected by an `index` argument: floor(i), clamped to the lanes that exist.

@@ -178,48 +178,22 @@ impl TimeFunction {
     }
 }
 
-/// One node's lanes from its arguments' (`t` for the time node).
+/// One node's lanes from its arguments' (`t` for the time node): a pure node as
+/// constant folding computes it, a motion node from its exact kinematics.
 fn evaluate(op: &Op, args: &[&[f64]], width: usize, t: f64) -> Vec<f64> {
-    let lane = |c: &[f64], l: usize| if c.len() == 1 { c[0] } else { c[l] };
-    match op {
-        Op::Const(values) => values.to_vec(),
-        Op::Time => vec![t],
-        Op::Unary(u) => args[0].iter().map(|x| u.apply(*x)).collect(),
-        Op::Binary(b) => (0..width)
-            .map(|l| b.apply(lane(args[0], l), lane(args[1], l)))
-            .collect(),
-        Op::Ternary(op) => (0..width)
-            .map(|l| op.apply(lane(args[0], l), lane(args[1], l), lane(args[2], l)))
-            .collect(),
-        Op::Noise { seeds } => (0..seeds.len())
-            .map(|l| timbre_ir::op::noise(seeds[l], lane(args[0], l)))
-            .collect(),
-        Op::Env => (0..width)
-            .map(|l| timbre_ir::op::env(std::array::from_fn(|i| lane(args[i], l))))
-            .collect(),
-        Op::Combine => vec![timbre_ir::op::combine(args[0])],
-        Op::Index => {
-            let i = args[1][0];
-            let last = args[0].len() - 1;
-            let k = if i.is_nan() || i < 0.0 {
-                0
-            } else {
-                (i.floor() as usize).min(last)
-            };
-            vec![args[0][k]]
-        }
-        Op::Concat => args.concat(),
-        Op::Keyframe(track) => args[0].iter().map(|x| track.value(*x)).collect(),
-        Op::Stateful(kernel) => match kernel.as_any().downcast_ref::<MotionKernel>() {
-            Some(motion) => {
-                let k = motion.trajectory.kinematics(args[0][0]);
-                motion.quantity.of(&k)[..motion.quantity.width()].to_vec()
-            }
-            None => vec![f64::NAN; width],
-        },
-        // Refused by `TimeFunction::new`.
-        _ => vec![f64::NAN; width],
-    }
+    let motion = |kernel: &std::sync::Arc<dyn timbre_ir::kernel::DynKernel>| {
+        let motion = kernel.as_any().downcast_ref::<MotionKernel>()?;
+        let k = motion.trajectory.kinematics(args[0][0]);
+        Some(motion.quantity.of(&k)[..motion.quantity.width()].to_vec())
+    };
+    let values = match op {
+        Op::Const(values) => Some(values.to_vec()),
+        Op::Time => Some(vec![t]),
+        Op::Stateful(kernel) => motion(kernel),
+        // Refused by `TimeFunction::new` if it has state.
+        op => timbre_ir::evaluate_pure(op, args),
+    };
+    values.unwrap_or_else(|| vec![f64::NAN; width])
 }
 
 /// Where `f` passes `x` between `lo` (not yet) and `hi` (passed), to within
