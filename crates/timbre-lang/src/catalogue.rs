@@ -14,7 +14,7 @@
 
 use std::sync::Arc;
 
-use crate::lower::{Bound, Call, Lowerer, Origin, Scope, Seed, MAX_BUFFER_SECONDS, MAX_LANES};
+use crate::lower::{Bound, Call, Lowerer, Origin, Scope, MAX_BUFFER_SECONDS, MAX_LANES};
 use timbre_diag::Diag;
 use timbre_ir::dsp::blep::{BandLimited, Wave};
 use timbre_ir::dsp::control::{Lag, Latch};
@@ -25,11 +25,13 @@ use timbre_ir::dsp::expressive::{
 };
 use timbre_ir::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator};
 use timbre_ir::dsp::noise::{hash2, lane_seeds, MarkovNoise, PinkNoise};
-use timbre_ir::dsp::tube::{Quantity, Tube, TubeError, ALUMINIUM, MATERIALS};
+use timbre_ir::dsp::tube::ALUMINIUM;
 use timbre_ir::op::{BinaryOp, Op, TernaryOp, UnaryOp};
 use timbre_ir::NodeId;
 
 pub use crate::lower::{FORMS, MOTION_NODES};
+
+mod physical;
 
 /// One parameter of a node: its keyword name and its default, if it has one.
 #[derive(Clone, Copy, Debug)]
@@ -833,10 +835,19 @@ pub static NODES: &[NodeSpec] = &[
             opt("density", ALUMINIUM.density),
         ],
         PHYSICAL,
-        Build::Form(tube_modes_form),
+        Build::Form(physical::tube_modes_form),
         "(* 0.1 (combine (* (sine (* t (tube-modes 5 0.3 0.025 0.022))) (damp (* t 3)))))",
     )
     .constant()
+    .own_width(),
+    NodeSpec::new(
+        "impact",
+        physical::IMPACT_PARAMS,
+        PHYSICAL,
+        Build::Form(physical::impact_form),
+        "(resonator (impact :a steel :b oak :radius 0.01 :mass 0.03 :speed 1) 2000 20)",
+    )
+    .stateful()
     .own_width(),
 ];
 
@@ -1203,151 +1214,6 @@ fn sputter(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     };
     Ok(l.stateful(Sputter { curve }, b.nodes()[..3].to_vec()))
 }
-
-/// `tube-modes` with `:material NAME` written as that material's `:youngs` and
-/// `:density`, then bound as any call.
-fn tube_modes_form(
-    l: &mut Lowerer<'_>,
-    call: &Call<'_>,
-    origin: &Origin,
-    scope: &mut Scope,
-) -> Result<NodeId, Diag> {
-    use timbre_syntax::{Expr, ExprKind};
-    let names: Vec<&str> = MATERIALS.iter().map(|m| m.name).collect();
-    let mut args: Vec<Expr> = vec![];
-    let mut i = 0;
-    while i < call.args.len() {
-        let arg = &call.args[i];
-        let (ExprKind::Keyword(key), Some(value)) = (&arg.kind, call.args.get(i + 1)) else {
-            args.push(arg.clone());
-            i += 1;
-            continue;
-        };
-        if key != "material" {
-            args.extend([arg.clone(), value.clone()]);
-            i += 2;
-            continue;
-        }
-        let material = value
-            .as_symbol()
-            .and_then(|name| MATERIALS.iter().find(|m| m.name == name));
-        let Some(material) = material else {
-            return Err(l
-                .diag(
-                    "timbre::bad-tube",
-                    match value.as_symbol() {
-                        Some(name) => format!("unknown material `{name}`"),
-                        None => format!("a material is a name, not {}", value.describe()),
-                    },
-                    origin,
-                )
-                .label(value.span, "not a material")
-                .help(format!(
-                    "the materials are {}; or give :youngs and :density",
-                    names.join(", ")
-                )));
-        };
-        let explicit = call
-            .args
-            .iter()
-            .find(|a| matches!(&a.kind, ExprKind::Keyword(k) if k == "youngs" || k == "density"));
-        if let Some(explicit) = explicit {
-            return Err(l
-                .diag(
-                    "timbre::duplicate-argument",
-                    "the material is given twice",
-                    origin,
-                )
-                .label(value.span, "a named material")
-                .label(explicit.span, "and its own constants")
-                .help("give :material, or :youngs and :density"));
-        }
-        let at = |kind| Expr::new(kind, value.span);
-        args.extend([
-            at(ExprKind::Keyword("youngs".into())),
-            at(ExprKind::Number(material.youngs)),
-            at(ExprKind::Keyword("density".into())),
-            at(ExprKind::Number(material.density)),
-        ]);
-        i += 2;
-    }
-    let spec = lookup("tube-modes").expect("in the catalogue");
-    let call = Call {
-        args: &args,
-        ..*call
-    };
-    let bound = l.bind_args(&call, spec.params, false, false, origin, scope)?;
-    let bound = Bound {
-        call: &call,
-        args: bound.args.into_iter().flatten().collect(),
-        seed: Seed::Key(None),
-        origin,
-    };
-    tube_modes(l, &bound)
-}
-
-/// The modal frequencies of a tube (`dsp::tube`): `n` constant lanes, in Hz.
-fn tube_modes(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
-    let what = [
-        "the number of modes",
-        Quantity::Length.describe(),
-        Quantity::Outer.describe(),
-        Quantity::Inner.describe(),
-        Quantity::Youngs.describe(),
-        Quantity::Density.describe(),
-    ];
-    for (arg, what) in b.args.iter().zip(what) {
-        l.check_one_lane(arg, what, b.origin)?;
-    }
-    let n = l.const_count(&b.args[0], what[0], b.origin)?;
-    let mut values = [0.0; 5];
-    for (k, value) in values.iter_mut().enumerate() {
-        *value = l.const_number(&b.args[k + 1], what[k + 1], b.origin)?;
-    }
-    let [length, outer, inner, youngs, density] = values;
-    let tube = Tube {
-        length,
-        outer,
-        inner,
-        youngs,
-        density,
-    };
-    let error = match tube.modes(n) {
-        Ok(modes) => return Ok(l.graph.const_vector(modes)),
-        Err(error) => error,
-    };
-    let bad = |message: String| l.diag("timbre::bad-tube", message, b.origin);
-    Err(match error {
-        TubeError::OutOfRange(quantity, x) => {
-            let (arg, bound, label, help) = match quantity {
-                Quantity::Length => (1, "above 0", "not above 0", DIMENSIONS),
-                Quantity::Outer => (2, "above 0", "not above 0", DIMENSIONS),
-                Quantity::Inner => (3, "0 (a solid rod) or more", "below 0", DIMENSIONS),
-                Quantity::Youngs => (4, "above 0", "not above 0", MATERIAL),
-                Quantity::Density => (5, "above 0", "not above 0", MATERIAL),
-            };
-            bad(format!("{} must be {bound}, not {x}", quantity.describe()))
-                .label(b.args[arg].span, label)
-                .help(help)
-        }
-        TubeError::InnerNotBelowOuter { outer, inner } => bad(format!(
-            "the tube's inner diameter {inner} m is not less than its outer diameter {outer} m"
-        ))
-        .label(b.args[3].span, "the inner diameter")
-        .label(b.args[2].span, "the outer diameter")
-        .help("the inner diameter is the bore: less than the outer one, or 0 for a solid rod"),
-        TubeError::NotFinite { mode, hz } => bad(format!(
-            "the tube's mode {mode} is {hz} Hz: the quantities are out of range"
-        ))
-        .label(b.call.span, "no finite frequency above 0 Hz")
-        .help(format!("{DIMENSIONS}; {MATERIAL}")),
-    })
-}
-
-/// Help for a tube's dimensions, and for its material.
-const DIMENSIONS: &str = "lengths and diameters are in metres: (tube-modes 5 0.3 0.025 0.022)";
-const MATERIAL: &str =
-    "Young's modulus is in pascals and the density in kg/m³: aluminium is :youngs 69e9 :density 2700";
 
 /// The longest delay of a delay line, in seconds: the `max` argument (at `max`) if
 /// given, else the longest of a constant delay time (at `time`).

@@ -37,6 +37,11 @@ fn arities() -> &'static [(&'static str, usize)] {
     })
 }
 
+/// The most arguments any node of [`arities`] takes.
+fn most_arguments() -> usize {
+    arities().iter().map(|(_, n)| *n).max().unwrap_or(0)
+}
+
 /// Well-formed calls with random nodes and arguments: gets past the parser and arity
 /// checks so that lowering, folding, width checks and the interpreter are exercised.
 fn call() -> impl Strategy<Value = String> {
@@ -47,7 +52,8 @@ fn call() -> impl Strategy<Value = String> {
     leaf.prop_recursive(5, 60, 5, |inner| {
         (
             proptest::sample::select(arities()),
-            proptest::collection::vec(inner, 6),
+            // As many arguments as the node that takes the most (`impact`, 9).
+            proptest::collection::vec(inner, most_arguments()),
         )
             .prop_map(|((head, arity), args)| format!("({head} {})", args[..arity].join(" ")))
     })

@@ -73,6 +73,7 @@ enum Leaf {
     Noise,
     Env,
     Damp,
+    Impact,
     Var(usize),
 }
 
@@ -159,6 +160,9 @@ impl<R: Rng> Gen<'_, R> {
                 choices.push((1.0, Leaf::White));
                 if self.stateful {
                     choices.push((0.6, Leaf::Pink));
+                    if w == 1 {
+                        choices.push((0.3, Leaf::Impact));
+                    }
                 }
             }
         }
@@ -230,6 +234,10 @@ impl<R: Rng> Gen<'_, R> {
                 self.spend(2);
                 let rate = self.const_freq(w, 2.0, 80.0);
                 Ex::new(format!("(damp (* t {rate}))"), 1.0, false)
+            }
+            Leaf::Impact => {
+                self.spend(1);
+                self.impact()
             }
             Leaf::Var(i) => {
                 let b = &self.scope[i];

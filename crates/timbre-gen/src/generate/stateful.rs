@@ -1,10 +1,13 @@
 //! Filters, delays and the other nodes that remember their input: filters, `markov`,
 //! `delay` (and a feedforward through a `let`), `conv` with its impulse response,
 //! `comb` and `allpass` with their loop delays and gains, `latch` with its triggers,
-//! `lag` and `energetic`. (`adsr`, `sputter`, `phasor`, `pink` and the band-limited
+//! `lag`, `energetic` and `impact`. (`adsr`, `sputter`, `phasor`, `pink` and the band-limited
 //! waves are stateful too; they live with the envelopes, oscillators and leaves.)
 
 use rand::Rng;
+
+use timbre_ir::dsp::impact::Bodies;
+use timbre_ir::dsp::materials::MATERIALS;
 
 use super::{norm, num, Ex, Gen};
 
@@ -359,5 +362,33 @@ impl<R: Rng> Gen<'_, R> {
         );
         // Cubic interpolation overshoots a little between samples.
         Ex::new(s, source.b * 1.25, false)
+    }
+
+    /// One `impact` of two random materials, a radius of 2 mm to 10 cm, a mass of 5 g to
+    /// 5 kg and a speed of 0.1 to 10 m/s, on a flat immovable body b; bounded by its
+    /// peak force (in newtons: the caller tames it).
+    pub(super) fn impact(&mut self) -> Ex {
+        let (a, b) = (self.pick(&MATERIALS), self.pick(&MATERIALS));
+        let radius = self.logu(0.002, 0.1);
+        let mass = self.logu(0.005, 5.0);
+        let speed = self.logu(0.1, 10.0);
+        let (r, m, v) = (num(radius), num(mass), num(speed));
+        let bodies = Bodies {
+            youngs_a: a.youngs,
+            poisson_a: a.poisson,
+            youngs_b: b.youngs,
+            poisson_b: b.poisson,
+            radius_a: r.parse().unwrap_or(radius),
+            radius_b: f64::INFINITY,
+            mass_a: m.parse().unwrap_or(mass),
+            mass_b: f64::INFINITY,
+            speed: v.parse().unwrap_or(speed),
+        };
+        let peak = bodies.impact().map_or(1.0, |i| i.peak_force());
+        let s = format!(
+            "(impact :a {} :b {} :radius {r} :mass {m} :speed {v})",
+            a.name, b.name
+        );
+        Ex::new(s, peak, false)
     }
 }

@@ -40,6 +40,8 @@ pub mod envelope;
 pub mod expressive;
 pub mod fdn;
 pub mod filter;
+pub mod impact;
+pub mod materials;
 pub mod noise;
 pub mod rotator;
 pub mod sample;

@@ -18,58 +18,11 @@
 //! (r_o² + r_i²)/4.) The paper's text garbles K as "the square of the tube's outer
 //! diameter over the inner diameter"; the node uses Fletcher and Rossing's K.
 
-/// A material of a tube: Young's modulus (Pa) and density (kg/m³).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Material {
-    pub name: &'static str,
-    /// Young's modulus along the tube, Pa.
-    pub youngs: f64,
-    /// Density, kg/m³.
-    pub density: f64,
-}
+pub use super::materials::{Material, ALUMINIUM, BAMBOO, BRASS, STEEL};
 
-impl Material {
-    /// The speed of longitudinal waves in a thin bar, √(E/ρ), m/s.
-    pub fn bar_speed(&self) -> f64 {
-        (self.youngs / self.density).sqrt()
-    }
-}
-
-/// Aluminium, the usual chime tube and the node's default (alloy 6061-T6: 68.9 GPa,
-/// 2710 kg/m³; Halliday, Resnick and Walker, *Fundamentals of Physics*, Table 13-1:
-/// 70 GPa, 2710 kg/m³).
-pub const ALUMINIUM: Material = Material {
-    name: "aluminium",
-    youngs: 69e9,
-    density: 2700.0,
-};
-
-/// Steel (structural steel ASTM A36: 200 GPa, 7850 kg/m³; Halliday, Resnick and
-/// Walker: 200 GPa, 7860 kg/m³).
-pub const STEEL: Material = Material {
-    name: "steel",
-    youngs: 200e9,
-    density: 7850.0,
-};
-
-/// Brass (typical brasses: 96–110 GPa, 8400–8600 kg/m³; red brass C83400: 101 GPa,
-/// 8740 kg/m³).
-pub const BRASS: Material = Material {
-    name: "brass",
-    youngs: 100e9,
-    density: 8500.0,
-};
-
-/// Bamboo along the culm. A natural composite: its stiffness and density vary with
-/// species, age, moisture and the position in the culm wall, by a factor of two or
-/// so; these are mid-range values, not one measurement.
-pub const BAMBOO: Material = Material {
-    name: "bamboo",
-    youngs: 18e9,
-    density: 700.0,
-};
-
-/// The materials documented in `lang-spec/nodes.md`, in its table's order.
+/// The materials `tube-modes` takes by name (`:material steel`), documented in
+/// `lang-spec/nodes.md` in this order: rows of the shared table
+/// ([`super::materials`]) that make chimes.
 pub const MATERIALS: [Material; 4] = [ALUMINIUM, STEEL, BRASS, BAMBOO];
 
 /// m₁ of the formula: the first free–free mode, 2β₁L/π = 3.01124… (Fletcher and
