@@ -141,3 +141,21 @@ fn bad_impacts_are_diagnosed_at_the_form() {
         assert!(error.contains(message), "{text}: {error}");
     }
 }
+
+#[test]
+fn an_impact_prints_back_as_its_constants_and_reads_the_same() {
+    let registry = Registry::new();
+    let options = CompileOptions::new(&registry, &NoFiles);
+    let text = "(impact :a glass :b stone :radius 0.004 :mass 0.002 :speed 3)";
+    let program = compile_str(text, &options).unwrap();
+    let printed = timbre_lang::print_tree(&program.graph, program.root.unwrap(), &[]).unwrap();
+    println!("{printed}");
+    assert!(
+        printed.contains(":youngs 70000000000 :poisson 0.22"),
+        "{printed}"
+    );
+    assert!(!printed.contains("radius-b"), "{printed}");
+    let again = render(&printed, 480, 48_000.0, 64);
+    assert_eq!(again, render(text, 480, 48_000.0, 64));
+    assert!(again.iter().any(|y| *y > 0.0));
+}

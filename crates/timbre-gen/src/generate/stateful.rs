@@ -364,30 +364,37 @@ impl<R: Rng> Gen<'_, R> {
         Ex::new(s, source.b * 1.25, false)
     }
 
-    /// One `impact` of two random materials, a radius of 2 mm to 10 cm, a mass of 5 g to
-    /// 5 kg and a speed of 0.1 to 10 m/s, on a flat immovable body b; bounded by its
-    /// peak force (in newtons: the caller tames it).
+    /// One `impact` of two random materials (written as their constants: the trees hold
+    /// no names), a radius of 2 mm to 10 cm, a mass of 5 g to 5 kg and a speed of 0.1
+    /// to 10 m/s, on a flat immovable body b; bounded by its peak force (in newtons:
+    /// the caller tames it).
     pub(super) fn impact(&mut self) -> Ex {
         let (a, b) = (self.pick(&MATERIALS), self.pick(&MATERIALS));
         let radius = self.logu(0.002, 0.1);
         let mass = self.logu(0.005, 5.0);
         let speed = self.logu(0.1, 10.0);
-        let (r, m, v) = (num(radius), num(mass), num(speed));
+        // Each quantity as written, and read back, so the bound is the tree's own.
+        let written = [
+            a.youngs, a.poisson, b.youngs, b.poisson, radius, mass, speed,
+        ]
+        .map(num);
+        let [ea, na, eb, nb, r, m, v] = written.clone().map(|x| x.parse().unwrap_or(0.0));
         let bodies = Bodies {
-            youngs_a: a.youngs,
-            poisson_a: a.poisson,
-            youngs_b: b.youngs,
-            poisson_b: b.poisson,
-            radius_a: r.parse().unwrap_or(radius),
+            youngs_a: ea,
+            poisson_a: na,
+            youngs_b: eb,
+            poisson_b: nb,
+            radius_a: r,
             radius_b: f64::INFINITY,
-            mass_a: m.parse().unwrap_or(mass),
+            mass_a: m,
             mass_b: f64::INFINITY,
-            speed: v.parse().unwrap_or(speed),
+            speed: v,
         };
         let peak = bodies.impact().map_or(1.0, |i| i.peak_force());
+        let [ea, na, eb, nb, r, m, v] = written;
         let s = format!(
-            "(impact :a {} :b {} :radius {r} :mass {m} :speed {v})",
-            a.name, b.name
+            "(impact :youngs {ea} :poisson {na} :youngs-b {eb} :poisson-b {nb} \
+             :radius {r} :mass {m} :speed {v})"
         );
         Ex::new(s, peak, false)
     }

@@ -24,8 +24,11 @@
 //! - [`blep`]: band-limited sawtooth, square and triangle (minBLEP / minBLAMP).
 //! - [`rotator`]: damped sines as complex rotators, and banks of them summed (made by
 //!   `optimise`).
+//! - [`materials`]: the table of materials (Young's modulus, Poisson's ratio, density,
+//!   loss factor) the physical nodes name.
 //! - [`tube`]: the modal frequencies of a hollow tube or a rod with free ends (a wind
-//!   chime), and a small table of materials (`tube-modes`).
+//!   chime, `tube-modes`).
+//! - [`impact`]: the Hertz contact force of one impact between two bodies (`impact`).
 //!
 //! The stateful nodes' kernels ([`crate::kernel::StatefulKernel`]) live beside
 //! the building blocks they use.
