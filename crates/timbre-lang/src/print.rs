@@ -93,7 +93,7 @@ pub fn print_tree(
         printer
             .tracks
             .iter()
-            .map(|(name, track)| keyframes_form(name, track)),
+            .map(|(name, track)| keyframes_form(name, &[track.as_ref()])),
     );
     forms.extend(printer.forms.iter().filter_map(|text| parse_one(text)));
     forms.push(expr);
@@ -375,6 +375,13 @@ fn parse_one(text: &str) -> Option<Expr> {
 /// `(keyframes name :interp mode (time (x y z)) …)`: a keyframed vector, as the text
 /// `MotionKernel`s record for the calls that read one.
 pub(crate) fn vector_keyframes_text(name: &str, tracks: &[Arc<KeyframeTrack>]) -> String {
+    let tracks: Vec<&KeyframeTrack> = tracks.iter().map(|t| t.as_ref()).collect();
+    timbre_syntax::print(&[keyframes_form(name, &tracks)])
+}
+
+/// `(keyframes name :interp mode (time value) …)` of one track, `(time (x y z))` of
+/// several keyed at the same times.
+fn keyframes_form(name: &str, tracks: &[&KeyframeTrack]) -> Expr {
     let mut items = vec![
         symbol("keyframes"),
         symbol(name),
@@ -382,22 +389,12 @@ pub(crate) fn vector_keyframes_text(name: &str, tracks: &[Arc<KeyframeTrack>]) -
         symbol(tracks[0].interpolation().name()),
     ];
     for (k, time) in tracks[0].times().iter().enumerate() {
-        let values = tracks.iter().map(|t| number(t.values()[k])).collect();
-        items.push(list(vec![number(*time), list(values)]));
+        let value = match tracks {
+            [track] => number(track.values()[k]),
+            _ => list(tracks.iter().map(|t| number(t.values()[k])).collect()),
+        };
+        items.push(list(vec![number(*time), value]));
     }
-    timbre_syntax::print(&[list(items)])
-}
-
-/// `(keyframes name :interp mode (time value) …)`.
-fn keyframes_form(name: &str, track: &KeyframeTrack) -> Expr {
-    let mut items = vec![
-        symbol("keyframes"),
-        symbol(name),
-        keyword("interp"),
-        symbol(track.interpolation().name()),
-    ];
-    let keys = track.times().iter().zip(track.values());
-    items.extend(keys.map(|(time, value)| list(vec![number(*time), number(*value)])));
     list(items)
 }
 

@@ -192,6 +192,21 @@ impl Acoustics {
         (self.order as f64 + 1.0) * self.mean_free_time(c)
     }
 
+    /// How much later than the direct sound the room's sound may still arrive,
+    /// seconds (reflections travel up to the order's images of the room, and the
+    /// late part begins later still), and how long the late part rings after that.
+    pub fn reach(&self, c: f64) -> (f64, f64) {
+        let distance = self.room.size().length() * (self.order as f64 + 1.0);
+        let tail = match &self.late {
+            Late::None => 0.0,
+            Late::Fdn { rt60, .. } => rt60.iter().fold(0.0, |m: f64, t| m.max(*t)),
+            Late::Convolution { response, .. } => {
+                response.frames.len() as f64 / response.sample_rate
+            }
+        };
+        (distance / c + self.late_onset(c), tail)
+    }
+
     /// The late part's network (before its gain) at `sample_rate`: decaying in the
     /// RT60s of the 250 Hz, 1 kHz and 4 kHz bands, its delays set by the room's
     /// largest dimension.

@@ -62,7 +62,10 @@ pub(crate) struct NodeRef {
 }
 
 impl NodeRef {
-    fn shifted(&self, trajectory: Arc<dyn Trajectory>) -> Arc<dyn Trajectory> {
+    /// One of the node's tracks (`Shot::position`, `Shot::forward` …) on the scene's
+    /// timeline.
+    fn track(&self, of: fn(&Shot, NodeIndex) -> Arc<dyn Trajectory>) -> Arc<dyn Trajectory> {
+        let trajectory = of(&self.shot, self.node);
         if self.start == 0.0 {
             trajectory
         } else {
@@ -71,11 +74,11 @@ impl NodeRef {
     }
 
     pub fn position(&self) -> Arc<dyn Trajectory> {
-        self.shifted(self.shot.position(self.node))
+        self.track(Shot::position)
     }
 
     pub fn forward(&self) -> Arc<dyn Trajectory> {
-        self.shifted(self.shot.forward(self.node))
+        self.track(Shot::forward)
     }
 }
 
@@ -307,11 +310,11 @@ impl Lowerer<'_> {
                     Some("forward") => Ok(self.motion_node(arg, origin)?.forward()),
                     Some("up") => {
                         let node = self.motion_node(arg, origin)?;
-                        Ok(node.shifted(node.shot.up(node.node)))
+                        Ok(node.track(Shot::up))
                     }
                     Some("angular-velocity") => {
                         let node = self.motion_node(arg, origin)?;
-                        Ok(node.shifted(node.shot.angular_velocity(node.node)))
+                        Ok(node.track(Shot::angular_velocity))
                     }
                     _ => Err(wrong(self)),
                 }
@@ -373,12 +376,12 @@ impl Lowerer<'_> {
             }
             "angular-speed" => {
                 let node = self.motion_node(&tracks[0], origin)?;
-                let omega = node.shifted(node.shot.angular_velocity(node.node));
+                let omega = node.track(Shot::angular_velocity);
                 (omega, Quantity::Length)
             }
             "scale" => {
                 let node = self.motion_node(&tracks[0], origin)?;
-                (node.shifted(node.shot.scale(node.node)), Quantity::Position)
+                (node.track(Shot::scale), Quantity::Position)
             }
             // forward, up, angular-velocity: the vector itself.
             _ => {

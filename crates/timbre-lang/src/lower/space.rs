@@ -1256,10 +1256,9 @@ impl Lowerer<'_> {
         self.check_source(&source, span, origin)?;
         let mut tail = 0.0;
         if let Some(room) = &environment.room {
-            // Reflections travel farther: up to the order's images of the room, and
-            // the late part begins later still.
-            let reach = room.room.size().length() * (room.order as f64 + 1.0);
-            max_delay += reach / medium.speed_of_sound + room.late_onset(medium.speed_of_sound);
+            let (later, late_tail) = room.reach(medium.speed_of_sound);
+            max_delay += later;
+            tail = late_tail;
             if max_delay > MAX_BUFFER_SECONDS {
                 return Err(self
                     .diag(
@@ -1272,13 +1271,6 @@ impl Lowerer<'_> {
                     .label(span, "placed here")
                     .help("use a smaller room, a lower :order, or a higher :speed-of-sound"));
             }
-            tail = match &room.late {
-                Late::None => 0.0,
-                Late::Fdn { rt60, .. } => rt60.iter().fold(0.0, |m: f64, t| m.max(*t)),
-                Late::Convolution { response, .. } => {
-                    response.frames.len() as f64 / response.sample_rate
-                }
-            };
         }
         let kernel = Propagation {
             source,
@@ -1355,20 +1347,10 @@ impl Lowerer<'_> {
         let receivers = self.receivers(at, origin)?;
         let environment = self.environment(at, origin)?;
         let medium = self.scene.space.medium.clone();
-        let (mut room_delay, mut tail) = (0.0, 0.0);
-        if let Some(room) = &environment.room {
-            let c = medium.speed_of_sound;
-            // As `propagate` reckons it: up to the order's images, then the late part.
-            let reach = room.room.size().length() * (room.order as f64 + 1.0);
-            room_delay = reach / c + room.late_onset(c);
-            tail = match &room.late {
-                Late::None => 0.0,
-                Late::Fdn { rt60, .. } => rt60.iter().fold(0.0, |m: f64, t| m.max(*t)),
-                Late::Convolution { response, .. } => {
-                    response.frames.len() as f64 / response.sample_rate
-                }
-            };
-        }
+        let (room_delay, tail) = environment
+            .room
+            .as_ref()
+            .map_or((0.0, 0.0), |room| room.reach(medium.speed_of_sound));
         let sources = (self.scene.space.sources.iter())
             .map(|(name, path, _)| (name.clone(), path.clone()))
             .collect();
