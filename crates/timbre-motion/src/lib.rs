@@ -45,6 +45,7 @@
 //!   nodes, animation keys, vertices and triangles; more is an error, not a long load.
 
 mod bounds;
+pub mod contacts;
 mod error;
 pub mod jet;
 mod read;
@@ -54,7 +55,7 @@ mod trajectory;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use glam::{DMat4, DVec3};
+use glam::{DMat3, DMat4, DQuat, DVec3};
 use timbre_ir::motion::Trajectory;
 use timbre_ir::StableHasher;
 
@@ -106,6 +107,17 @@ pub struct Mesh {
     pub vertices: Vec<DVec3>,
     /// Indices into `vertices`, counter-clockwise seen from outside (glTF's winding).
     pub triangles: Vec<[u32; 3]>,
+    /// The names of its primitives' materials, in file order, each once.
+    pub materials: Vec<String>,
+}
+
+/// Where a node is at one instant: its world transform in timbre axes, as a rotation
+/// and a translation (a point `v` of its mesh is at `translation + rotation·(scale·v)`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    pub translation: DVec3,
+    pub rotation: DQuat,
+    pub scale: DVec3,
 }
 
 /// glTF axes (Y up) to timbre's (Z up): (x, y, z) → (x, −z, y).
@@ -346,6 +358,31 @@ impl Shot {
             hi = hi.max(p);
         }
         Some((lo, hi))
+    }
+
+    /// The node's world pose at `t` (timbre axes). Lossy where the hierarchy shears.
+    pub fn pose(&self, node: NodeIndex, t: f64) -> Pose {
+        if node.0 >= self.0.nodes.len() {
+            return Pose {
+                translation: DVec3::ZERO,
+                rotation: DQuat::IDENTITY,
+                scale: DVec3::ONE,
+            };
+        }
+        // C·M·C⁻¹ with C the change of axes, so the matrix maps timbre-local points
+        // to timbre world points.
+        let axes = DMat4::from_mat3(DMat3::from_cols(
+            to_timbre(DVec3::X),
+            to_timbre(DVec3::Y),
+            to_timbre(DVec3::Z),
+        ));
+        let world = axes * self.0.world(node.0, t).value * axes.transpose();
+        let (scale, rotation, translation) = world.to_scale_rotation_translation();
+        Pose {
+            translation,
+            rotation: rotation.normalize(),
+            scale,
+        }
     }
 
     /// Sorted times of every key of every channel that moves the node or an ancestor.

@@ -467,6 +467,11 @@ pub fn meshes(document: &gltf::Document, buffers: &Buffers) -> Result<Vec<Arc<Me
             let Some(positions) = primitive.get(&gltf::Semantic::Positions) else {
                 continue;
             };
+            if let Some(name) = primitive.material().name() {
+                if !out.materials.iter().any(|m| m == name) {
+                    out.materials.push(name.to_string());
+                }
+            }
             check_accessor(&positions, buffers, Dimensions::Vec3, &[DataType::F32])?;
             vertices_total += positions.count() as u64;
             check_size("vertices", vertices_total, LIMITS.vertices)?;
