@@ -310,6 +310,23 @@ pub fn blender_shot() -> (std::path::PathBuf, std::path::PathBuf) {
     }
 }
 
+/// A rigid-body contact shot Blender simulated (`examples/shots/make-contacts.py`):
+/// `name` is `cube-drop`, `stairs`, `dominoes` or `can`. Returns the glTF file and its
+/// reference (`NAME.reference.json`: Blender's `matrix_world` of every body at every
+/// frame and the contacts `examples/shots/contact_reference.py` derives from them).
+/// `.ci/run` makes them afresh and points `TIMBRE_BLENDER_SHOT` at them; without that
+/// variable, the committed copies in `examples/shots/`.
+pub fn blender_contact_shot(name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = match std::env::var_os("TIMBRE_BLENDER_SHOT") {
+        Some(dir) => std::path::PathBuf::from(dir),
+        None => std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/shots"),
+    };
+    (
+        dir.join(format!("{name}.glb")),
+        dir.join(format!("{name}.reference.json")),
+    )
+}
+
 /// The `.tt` files under `dir`, recursively, in name order.
 pub fn tt_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
     let mut found = vec![];
@@ -333,6 +350,21 @@ mod tests {
         (0..n)
             .map(|i| (std::f64::consts::TAU * f * i as f64 / rate).sin())
             .collect()
+    }
+
+    #[test]
+    fn every_contact_shot_has_its_glb_and_reference() {
+        for name in ["cube-drop", "stairs", "dominoes", "can"] {
+            let (glb, json) = blender_contact_shot(name);
+            let bytes = std::fs::read(&glb).unwrap_or_else(|e| panic!("{}: {e}", glb.display()));
+            assert_eq!(&bytes[..4], b"glTF", "{}", glb.display());
+            let text = std::fs::read_to_string(&json).unwrap();
+            assert!(
+                text.contains(&format!("\"shot\": \"{name}\"")),
+                "{}",
+                json.display()
+            );
+        }
     }
 
     #[test]
