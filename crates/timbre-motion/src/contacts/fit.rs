@@ -144,11 +144,10 @@ impl PosePath {
     }
 }
 
-/// How far key `key` is from where the keys before it (up to three, from `start`)
-/// predict, in metres: the change of position, and of rotation times the body's
-/// reach.
-fn surprise(keys: &[Key], start: usize, key: usize, reach: f64, gravity: DVec3) -> f64 {
-    let from = start.max(key.saturating_sub(3));
+/// How far key `key` is from where the keys `from..key` predict (a quadratic through
+/// three, a free flight under `gravity` through two), in metres: the change of
+/// position, and of rotation times the body's reach.
+fn surprise(keys: &[Key], from: usize, key: usize, reach: f64, gravity: DVec3) -> f64 {
     let path = PosePath::fit(&keys[from..key], gravity);
     let k = &keys[key];
     let moved = (path.position(k.time) - k.position).length();
@@ -156,18 +155,37 @@ fn surprise(keys: &[Key], start: usize, key: usize, reach: f64, gravity: DVec3) 
     moved.max(turned * reach)
 }
 
-/// The first key of each flight: a key starts a new flight when the three keys before
-/// it (of the same flight) predict it worse than `tolerance` metres. A flight's first
-/// three keys are always taken (three are needed to see a change), so a flight of
-/// fewer keys is not told apart from its neighbours.
+/// How much more a key must surprise than the key before it to start a flight.
+const JUMP: f64 = 4.0;
+
+/// The first key of each flight. A change of velocity between two keys makes the
+/// second a surprise (its distance from the quadratic through the three before it)
+/// while the key before it was none, so a key starts a new flight when it surprises
+/// by more than `tolerance` metres and by more than [`JUMP`] times the key before
+/// it. Motion that is smooth but not a free flight (a domino pivoting on its edge)
+/// surprises each key about as much as the last, and stays one flight.
+///
+/// The two keys after a start are not tested (their predictions reach back across
+/// it), so a flight has at least three keys and changes closer together are one. The
+/// first key tested in a new flight is measured against the surprise of the key
+/// before it as a free flight from the two before that: none for a body in flight,
+/// much for one that pivots or rolls.
 pub(crate) fn flights(keys: &[Key], reach: f64, gravity: DVec3, tolerance: f64) -> Vec<usize> {
     let mut starts = vec![0];
-    let mut start = 0;
+    let mut before = 0.0;
     for key in 3..keys.len() {
-        if key - start >= 3 && surprise(keys, start, key, reach, gravity) > tolerance {
-            starts.push(key);
-            start = key;
+        let start = *starts.last().unwrap_or(&0);
+        if key - start < 3 {
+            continue;
         }
+        if key - start == 3 && start > 0 {
+            before = surprise(keys, start, key - 1, reach, gravity);
+        }
+        let surprise = surprise(keys, key - 3, key, reach, gravity);
+        if surprise > tolerance && surprise > JUMP * before {
+            starts.push(key);
+        }
+        before = surprise;
     }
     starts
 }
@@ -205,7 +223,6 @@ mod tests {
 
     #[test]
     fn a_bounce_starts_a_new_flight_at_the_first_key_after_it() {
-        let g = DVec3::new(0.0, 0.0, -9.81);
         // Dropped from 1 m, bouncing at t_b with restitution 0.8.
         let t_b = (2.0f64 / 9.81).sqrt();
         let v_b = 0.8 * 9.81 * t_b;
@@ -221,6 +238,7 @@ mod tests {
             .map(|k| key(k as f64 / 24.0, DVec3::new(0.0, 0.0, z(k as f64 / 24.0))))
             .collect();
         let first_after = (t_b * 24.0).ceil() as usize;
+        let g = DVec3::new(0.0, 0.0, -9.81);
         assert_eq!(flights(&keys, 0.1, g, 1e-4), vec![0, first_after]);
     }
 }

@@ -231,15 +231,17 @@ impl State {
     }
 
     /// The path of the flight the body is in at `t`, from the last (up to three) of
-    /// its keys at or before `t`.
+    /// its keys at or before `t`, never another flight's: a flight of two keys is a
+    /// free flight under gravity, of one a body at rest.
     fn path_before(&self, t: f64, gravity: DVec3) -> PosePath {
         match self.key_at_or_before(t) {
             Some(key) if self.moves() => {
-                // A flight's own keys; a flight seen at one key only is taken to go
-                // on smoothly from the keys before it.
-                let flight = self.flights[self.flight_of(key)];
-                let start = if flight < key { flight } else { 0 };
-                PosePath::fit(&self.keys[start.max(key.saturating_sub(2))..=key], gravity)
+                // Where the flight has fewer keys so far, its next ones: keys of
+                // the same flight, so no change of motion lies between them.
+                let flight = self.flight_of(key);
+                let (first, end) = (self.flights[flight], self.flight_end(flight));
+                let start = first.max(key.saturating_sub(2));
+                PosePath::fit(&self.keys[start..(start + 3).min(end)], gravity)
             }
             Some(key) => PosePath::still(self.keys[key].position, self.keys[key].rotation),
             None => self.path_after(t, gravity),

@@ -7,6 +7,10 @@ use parry3d_f64::shape::{ConvexPolyhedron, SharedShape, TriMesh};
 /// How a mesh is used for contacts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ShapeKind {
+    /// A closed mesh whose vertices all lie on one sphere (to 1 % of its radius)
+    /// and that holds at least 80 % of its volume (a cylinder whose rims lie on one holds at most 58 %): that sphere, as the solid the mesh
+    /// stands for.
+    Sphere,
     /// A closed convex mesh: its convex hull, exact.
     Convex,
     /// A closed mesh that is not convex (stairs, a bowl): its triangles.
@@ -20,6 +24,7 @@ pub enum ShapeKind {
 impl ShapeKind {
     pub fn name(self) -> &'static str {
         match self {
+            ShapeKind::Sphere => "sphere",
             ShapeKind::Convex => "convex",
             ShapeKind::Mesh => "mesh",
             ShapeKind::Hull => "hull",
@@ -40,6 +45,8 @@ pub(crate) struct BodyShape {
     pub(crate) thickness: f64,
     /// The farthest vertex from the frame's origin, metres.
     pub(crate) reach: f64,
+    /// The radius, for a sphere.
+    sphere: Option<f64>,
 }
 
 /// Why a mesh cannot be used.
@@ -135,6 +142,24 @@ impl BodyShape {
                 .map(SharedShape::new)
                 .map_err(|_| ShapeError::Degenerate)
         };
+        // A cylinder's rims lie on a sphere too: the volume tells them apart.
+        let round = |&(_, r): &(DVec3, f64)| {
+            closed && volume >= 0.8 * 4.0 / 3.0 * std::f64::consts::PI * r.powi(3)
+        };
+        if let Some((centre, radius)) = sphere(&vertices).filter(round) {
+            let ball = parry3d_f64::shape::Ball::new(radius);
+            let shape = SharedShape::new(ball);
+            let offset = parry3d_f64::math::Pose::from_translation(parry(centre));
+            return Ok(BodyShape {
+                shape: SharedShape::compound(vec![(offset, shape)]),
+                kind: ShapeKind::Sphere,
+                volume: 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3),
+                vertices,
+                thickness,
+                reach,
+                sphere: Some(radius),
+            });
+        }
         let (shape, kind, volume) = match hull {
             // Convex when the hull holds no more than the mesh (to a part in a thousand).
             Some(hull) if closed && hull_volume <= volume * 1.001 => {
@@ -153,6 +178,7 @@ impl BodyShape {
             vertices,
             thickness,
             reach,
+            sphere: None,
         })
     }
 
@@ -162,6 +188,9 @@ impl BodyShape {
     /// Flat, it is +∞.
     pub(crate) fn radius_at(&self, point: DVec3, normal: DVec3) -> f64 {
         const NEAREST: usize = 16;
+        if let Some(radius) = self.sphere {
+            return radius;
+        }
         let mut near: Vec<(f64, DVec3)> = self
             .vertices
             .iter()
@@ -189,4 +218,22 @@ impl BodyShape {
             f64::INFINITY
         }
     }
+}
+
+/// The sphere a mesh's vertices lie on, if they do: centred at the middle of their
+/// box, every vertex within 1 % of the mean distance, and enough vertices to tell.
+fn sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
+    if vertices.len() < 24 {
+        return None;
+    }
+    let (lo, hi) = vertices.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &v| (lo.min(v), hi.max(v)),
+    );
+    let centre = 0.5 * (lo + hi);
+    let radius = vertices.iter().map(|v| v.distance(centre)).sum::<f64>() / vertices.len() as f64;
+    let round = vertices
+        .iter()
+        .all(|v| (v.distance(centre) - radius).abs() <= 0.01 * radius);
+    (round && radius > 0.0).then_some((centre, radius))
 }
