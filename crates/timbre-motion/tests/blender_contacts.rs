@@ -45,7 +45,7 @@ fn contacts(name: &str) -> (Contacts, Value) {
     (find_contacts(&shot, &bodies, &options).unwrap(), reference)
 }
 
-fn names<'c>(found: &'c Contacts, a: usize, b: usize) -> (&'c str, &'c str) {
+fn names(found: &Contacts, a: usize, b: usize) -> (&str, &str) {
     (&found.bodies[a].name, &found.bodies[b].name)
 }
 
