@@ -156,6 +156,15 @@ fn the_duration_goes_as_the_speed_to_the_minus_one_fifth() {
                 material.name
             );
         }
+        // The exponent fitted by least squares to log τ over log v, all five speeds.
+        let points: Vec<(f64, f64)> = speeds
+            .iter()
+            .zip(&durations)
+            .map(|(v, tau)| (v.ln(), tau.ln()))
+            .collect();
+        let fitted = timbre_testkit::slope(&points);
+        println!("{}: τ ∝ v^{fitted:.5}", material.name);
+        assert!((fitted + 0.2).abs() < 0.001, "{} {fitted}", material.name);
     }
 }
 

@@ -849,6 +849,26 @@ pub static NODES: &[NodeSpec] = &[
     )
     .stateful()
     .own_width(),
+    NodeSpec::new(
+        "scrape",
+        physical::SCRAPE_PARAMS,
+        PHYSICAL,
+        Build::Args(physical::scrape),
+        "(resonator (scrape (* 0.3 (min 1 (* 4 t))) 2 :period 0.002 :seed 1) 1200 30)",
+    )
+    .random()
+    .stateful()
+    .own_width(),
+    NodeSpec::new(
+        "roll",
+        physical::ROLL_PARAMS,
+        PHYSICAL,
+        Build::Form(physical::roll_form),
+        "(resonator (roll 0.5 5 :radius 0.02 :a steel :b oak :grain 0.001) 800 20)",
+    )
+    .random()
+    .stateful()
+    .own_width(),
 ];
 
 // ------------------------------------------------------------------ builders

@@ -74,6 +74,8 @@ enum Leaf {
     Env,
     Damp,
     Impact,
+    Scrape,
+    Roll,
     Var(usize),
 }
 
@@ -162,6 +164,8 @@ impl<R: Rng> Gen<'_, R> {
                     choices.push((0.6, Leaf::Pink));
                     if w == 1 {
                         choices.push((0.3, Leaf::Impact));
+                        choices.push((0.15, Leaf::Scrape));
+                        choices.push((0.15, Leaf::Roll));
                     }
                 }
             }
@@ -238,6 +242,14 @@ impl<R: Rng> Gen<'_, R> {
             Leaf::Impact => {
                 self.spend(1);
                 self.impact()
+            }
+            Leaf::Scrape => {
+                self.spend(1);
+                self.contact(false)
+            }
+            Leaf::Roll => {
+                self.spend(1);
+                self.contact(true)
             }
             Leaf::Var(i) => {
                 let b = &self.scope[i];

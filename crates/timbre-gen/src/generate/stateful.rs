@@ -1,7 +1,7 @@
 //! Filters, delays and the other nodes that remember their input: filters, `markov`,
 //! `delay` (and a feedforward through a `let`), `conv` with its impulse response,
 //! `comb` and `allpass` with their loop delays and gains, `latch` with its triggers,
-//! `lag`, `energetic` and `impact`. (`adsr`, `sputter`, `phasor`, `pink` and the band-limited
+//! `lag`, `energetic`, `impact`, `scrape` and `roll`. (`adsr`, `sputter`, `phasor`, `pink` and the band-limited
 //! waves are stateful too; they live with the envelopes, oscillators and leaves.)
 
 use rand::Rng;
@@ -397,5 +397,36 @@ impl<R: Rng> Gen<'_, R> {
              :radius {r} :mass {m} :speed {v})"
         );
         Ex::new(s, peak, false)
+    }
+
+    /// One `scrape` or `roll` at a speed of 0.05 to 1.5 m/s (ramped in over a quarter
+    /// second) under 0.1 to 10 N, on a surface of 0.1 to 10 µm rms and a grain of 20 µm to
+    /// 1 mm, sometimes with a groove; a roll of a 2 mm to 10 cm body of two random
+    /// materials (as their constants). Bounded by the normal force (`scrape`'s
+    /// micro-impacts add at most about twice it).
+    pub(super) fn contact(&mut self, rolling: bool) -> Ex {
+        let speed = num(self.logu(0.05, 1.5));
+        let force_value = self.logu(0.1, 10.0);
+        let force = num(force_value);
+        let roughness = num(self.logu(1e-7, 1e-5));
+        let grain = num(self.logu(2e-5, 1e-3));
+        let mut options = format!(":roughness {roughness} :grain {grain}");
+        if self.p(0.3) {
+            options.push_str(&format!(" :period {}", num(self.logu(1e-4, 1e-2))));
+        }
+        let seed = self.seed();
+        let speed = format!("(* {speed} (min 1 (* 4 t)))");
+        if !rolling {
+            let s = format!("(scrape {speed} {force} {options}{seed})");
+            return Ex::new(s, 3.0 * force_value, false);
+        }
+        let (a, b) = (self.pick(&MATERIALS), self.pick(&MATERIALS));
+        let radius = num(self.logu(0.002, 0.1));
+        let [ea, na, eb, nb] = [a.youngs, a.poisson, b.youngs, b.poisson].map(num);
+        let s = format!(
+            "(roll {speed} {force} {options} :radius {radius} :youngs {ea} :poisson {na} \
+             :youngs-b {eb} :poisson-b {nb}{seed})"
+        );
+        Ex::new(s, force_value, false)
     }
 }

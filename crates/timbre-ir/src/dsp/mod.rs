@@ -29,6 +29,8 @@
 //! - [`tube`]: the modal frequencies of a hollow tube or a rod with free ends (a wind
 //!   chime, `tube-modes`).
 //! - [`impact`]: the Hertz contact force of one impact between two bodies (`impact`).
+//! - [`contact_force`]: the force of a probe sliding or rolling on a rough surface,
+//!   with micro-impacts (`scrape`, `roll`).
 //!
 //! The stateful nodes' kernels ([`crate::kernel::StatefulKernel`]) live beside
 //! the building blocks they use.
@@ -36,6 +38,7 @@
 pub mod air;
 pub mod analysis;
 pub mod blep;
+pub mod contact_force;
 pub mod control;
 pub mod conv;
 pub mod delay;

@@ -1,8 +1,11 @@
-//! The builders of the physical models (`tube-modes`, `impact`): nodes whose
+//! The builders of the physical models (`tube-modes`, `impact`, `scrape`, `roll`): nodes whose
 //! arguments may name a material of [`timbre_ir::dsp::materials`], written as that
 //! material's constants before the call is bound.
 
 use timbre_diag::Diag;
+use timbre_ir::dsp::contact_force::{
+    ContactForce, Motion, OutOfRange, Quantity as ContactQuantity, Roller, Surface,
+};
 use timbre_ir::dsp::impact::{Bodies, ImpactError, Quantity as ImpactQuantity};
 use timbre_ir::dsp::materials;
 use timbre_ir::dsp::tube::{Quantity, Tube, TubeError, MATERIALS};
@@ -196,18 +199,14 @@ const IMPACT_REQUIRED: [(&str, &str); 5] = [
     ),
 ];
 
-/// `impact` with `:a NAME` and `:b NAME` written as the materials' moduli and
-/// Poisson's ratios, then bound as any call.
-pub(super) fn impact_form(
-    l: &mut Lowerer<'_>,
+/// A call's arguments with each material keyword of `materials` (`:a NAME`) written
+/// as the material's modulus and Poisson's ratio under their own keywords.
+fn expand_materials(
+    l: &Lowerer<'_>,
     call: &Call<'_>,
     origin: &Origin,
-    scope: &mut Scope,
-) -> Result<NodeId, Diag> {
-    let keyword_of = |arg: &Expr| match &arg.kind {
-        ExprKind::Keyword(key) => Some(key.clone()),
-        _ => None,
-    };
+    materials: &[(&str, &str, &str)],
+) -> Result<Vec<Expr>, Diag> {
     let mut args: Vec<Expr> = vec![];
     let mut i = 0;
     while i < call.args.len() {
@@ -218,7 +217,7 @@ pub(super) fn impact_form(
             continue;
         };
         i += 2;
-        let Some(&(_, youngs, poisson)) = IMPACT_MATERIALS.iter().find(|m| m.0 == key) else {
+        let Some(&(_, youngs, poisson)) = materials.iter().find(|m| m.0 == key) else {
             args.extend([arg.clone(), value.clone()]);
             continue;
         };
@@ -246,6 +245,25 @@ pub(super) fn impact_form(
             at(ExprKind::Number(material.poisson)),
         ]);
     }
+    Ok(args)
+}
+
+fn keyword_of(arg: &Expr) -> Option<String> {
+    match &arg.kind {
+        ExprKind::Keyword(key) => Some(key.clone()),
+        _ => None,
+    }
+}
+
+/// `impact` with `:a NAME` and `:b NAME` written as the materials' moduli and
+/// Poisson's ratios, then bound as any call.
+pub(super) fn impact_form(
+    l: &mut Lowerer<'_>,
+    call: &Call<'_>,
+    origin: &Origin,
+    scope: &mut Scope,
+) -> Result<NodeId, Diag> {
+    let args = expand_materials(l, call, origin, &IMPACT_MATERIALS)?;
     let positional = args.iter().any(|a| keyword_of(a).is_none())
         && !args.iter().any(|a| keyword_of(a).is_some());
     let given = |name: &str| args.iter().any(|a| keyword_of(a).as_deref() == Some(name));
@@ -370,5 +388,192 @@ fn impact(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
         )
         .label(b.call.span, "this impact")
         .help("radii are in metres, masses in kilograms, moduli in pascals and the speed in m/s")),
+    }
+}
+
+/// The parameters `scrape` and `roll` share after `speed` and `force`: the surface,
+/// in the order of [`Surface::quantities`]. `impacts` is the node's own.
+const fn surface_params(impacts: f64) -> [Param<'static>; 5] {
+    [
+        opt("roughness", DEFAULT_ROUGHNESS),
+        opt("grain", DEFAULT_GRAIN),
+        opt("period", 0.0),
+        opt("impacts", impacts),
+        opt("hold", DEFAULT_HOLD),
+    ]
+}
+
+/// The documented defaults: a fine machined or sanded surface (1 µm rms, features down
+/// to 0.1 mm), a probe held down at about 10 g.
+const DEFAULT_ROUGHNESS: f64 = 1e-6;
+const DEFAULT_GRAIN: f64 = 1e-4;
+const DEFAULT_HOLD: f64 = 100.0;
+
+/// Micro-impacts per metre slid, and rolled (none: a rolling body does not chatter).
+const SCRAPE_IMPACTS: f64 = 200.0;
+const ROLL_IMPACTS: f64 = 0.0;
+
+const SURFACE_SCRAPE: [Param<'static>; 5] = surface_params(SCRAPE_IMPACTS);
+const SURFACE_ROLL: [Param<'static>; 5] = surface_params(ROLL_IMPACTS);
+
+/// `scrape`'s parameters: speed, force, then the surface.
+pub(super) const SCRAPE_PARAMS: &[Param<'static>] = &[
+    p("speed"),
+    p("force"),
+    SURFACE_SCRAPE[0],
+    SURFACE_SCRAPE[1],
+    SURFACE_SCRAPE[2],
+    SURFACE_SCRAPE[3],
+    SURFACE_SCRAPE[4],
+];
+
+/// `roll`'s parameters: speed, force, the surface, then the rolling body's radius and
+/// the materials (steel on steel unless given).
+pub(super) const ROLL_PARAMS: &[Param<'static>] = &[
+    p("speed"),
+    p("force"),
+    SURFACE_ROLL[0],
+    SURFACE_ROLL[1],
+    SURFACE_ROLL[2],
+    SURFACE_ROLL[3],
+    SURFACE_ROLL[4],
+    p("radius"),
+    opt("youngs", materials::STEEL.youngs),
+    opt("poisson", materials::STEEL.poisson),
+    opt("youngs-b", materials::STEEL.youngs),
+    opt("poisson-b", materials::STEEL.poisson),
+];
+
+/// `scrape`: a probe sliding on a rough surface (`dsp::contact_force`).
+pub(super) fn scrape(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    contact_force(l, b, None)
+}
+
+/// `roll` with `:a NAME` and `:b NAME` written as the materials' constants, then
+/// bound as any call (with `:seed`).
+pub(super) fn roll_form(
+    l: &mut Lowerer<'_>,
+    call: &Call<'_>,
+    origin: &Origin,
+    scope: &mut Scope,
+) -> Result<NodeId, Diag> {
+    let args = expand_materials(l, call, origin, &IMPACT_MATERIALS)?;
+    let call = Call {
+        args: &args,
+        ..*call
+    };
+    let bound = l.bind_args(&call, ROLL_PARAMS, false, true, origin, scope)?;
+    let seed = match (&bound.keyword_seed, bound.seed_bits) {
+        (_, Some(bits)) => Seed::Bits(bits),
+        (Some(arg), None) => Seed::Key(Some(l.const_integer(arg, "seed", origin)?)),
+        (None, None) => Seed::Key(None),
+    };
+    let bound = Bound {
+        call: &call,
+        args: bound.args.into_iter().flatten().collect(),
+        seed,
+        origin,
+    };
+    let values = contact_constants(l, &bound, 7, 5)?;
+    let roller = Roller {
+        radius: values[0],
+        youngs_a: values[1],
+        poisson_a: values[2],
+        youngs_b: values[3],
+        poisson_b: values[4],
+    };
+    contact_force(l, &bound, Some(roller))
+}
+
+/// The constants of `count` arguments from `first` on, each of one lane (any number,
+/// finite or not: `ContactForce::new` says which are in range).
+fn contact_constants(
+    l: &mut Lowerer<'_>,
+    b: &Bound<'_>,
+    first: usize,
+    count: usize,
+) -> Result<Vec<f64>, Diag> {
+    let mut values = vec![];
+    for arg in &b.args[first..first + count] {
+        let what = "a constant of the contact";
+        l.check_one_lane(arg, what, b.origin)?;
+        let value = match l.graph.scalar(arg.node) {
+            Some(x) => x,
+            None => l.const_number(arg, what, b.origin)?,
+        };
+        values.push(value);
+    }
+    Ok(values)
+}
+
+/// The `scrape` (no roller) or `roll` node of bound arguments: speed, force, the
+/// surface's five constants, then the roller's.
+fn contact_force(
+    l: &mut Lowerer<'_>,
+    b: &Bound<'_>,
+    roller: Option<Roller>,
+) -> Result<NodeId, Diag> {
+    let name = if roller.is_some() { "roll" } else { "scrape" };
+    l.check_one_lane(&b.args[0], "the slip speed", b.origin)?;
+    l.check_one_lane(&b.args[1], "the normal force", b.origin)?;
+    let values = contact_constants(l, b, 2, 5)?;
+    let seed = l.random_seed(name, b, &[]);
+    let surface = Surface {
+        roughness: values[0],
+        grain: values[1],
+        period: values[2],
+        impacts: values[3],
+        hold: values[4],
+        seed,
+    };
+    let motion = match roller {
+        Some(roller) => Motion::Roll(roller),
+        None => Motion::Scrape,
+    };
+    match ContactForce::new(surface, motion) {
+        Ok(kernel) => Ok(l.stateful(kernel, vec![b.args[0].node, b.args[1].node])),
+        Err(OutOfRange(quantity, x)) => {
+            use ContactQuantity::*;
+            let k = match quantity {
+                Roughness => 2,
+                Grain => 3,
+                Period => 4,
+                Impacts => 5,
+                Hold => 6,
+                Radius => 7,
+                YoungsA => 8,
+                PoissonA => 9,
+                YoungsB => 10,
+                PoissonB => 11,
+            };
+            let help = match quantity {
+                Roughness | Grain | Period => {
+                    "lengths are in metres: a fine surface is :roughness 1e-6 :grain 1e-4; \
+                     :period 0 is no groove"
+                }
+                Impacts => "micro-impacts are counted per metre slid: :impacts 200, or 0 for none",
+                Hold => "the hold is the acceleration in m/s² the normal force gives the probe: :hold 100",
+                Radius => "the rolling body's radius of curvature at the contact is in metres: :radius 0.01",
+                PoissonA | PoissonB => {
+                    "Poisson's ratio of a solid is between −1 and 0.5 (steel 0.29, rubber 0.49)"
+                }
+                YoungsA | YoungsB => {
+                    "Young's modulus is in pascals (steel 200e9); or name a material with :a or :b"
+                }
+            };
+            let span = b.args.get(k).map_or(b.call.span, |arg| arg.span);
+            Err(l
+                .diag(
+                    "timbre::bad-contact-force",
+                    format!(
+                        "`{name}`: {} must be {}, not {x}",
+                        quantity.describe(),
+                        quantity.range()
+                    ),
+                    b.origin,
+                )
+                .label(span, format!(":{} {x}", quantity.keyword()))
+                .help(help))
+        }
     }
 }
