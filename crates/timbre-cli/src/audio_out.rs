@@ -34,6 +34,18 @@ impl SampleFormat {
             SampleFormat::S24 => 3,
         }
     }
+
+    /// Steps per full scale of a grid whose points in [-1, 1] the format holds
+    /// exactly, and whose sums of points stay points: 2^24 for f32 (every multiple of
+    /// 2^-24 up to 1 has at most 24 significant bits), the integer's full scale for
+    /// s16 and s24 (a sample y is written as round(y · full scale)).
+    pub fn steps(self) -> f64 {
+        match self {
+            SampleFormat::F32 => (1u32 << 24) as f64,
+            SampleFormat::S16 => ((1i64 << 15) - 1) as f64,
+            SampleFormat::S24 => ((1i64 << 23) - 1) as f64,
+        }
+    }
 }
 
 /// The kind of file written.
@@ -129,54 +141,71 @@ pub fn write_audio(
             out.flush().map_err(io)?;
             Ok(summary)
         }
-        Destination::File(mut output) => {
-            let summary = match job.container {
-                Container::Wav => {
-                    // The header says `job.frames`; if the sound ends sooner it is
-                    // written again with the frames there are.
-                    let mut out = BufWriter::new(output.file());
-                    write_wav_header(&mut out, job, job.frames).map_err(io)?;
-                    let summary = pump(
-                        job,
-                        &path,
-                        &mut render,
-                        &mut Writer::Stream(&mut out),
-                        false,
-                    )?;
-                    let file = out.into_inner().map_err(|e| io(e.into_error()))?;
-                    if summary.frames != job.frames {
-                        file.seek(SeekFrom::Start(0)).map_err(io)?;
-                        write_wav_header(file, job, summary.frames).map_err(io)?;
-                    }
-                    summary
-                }
-                Container::Flac => {
-                    let bits = if job.format == SampleFormat::S16 {
-                        16
-                    } else {
-                        24
-                    };
-                    let flac = FlacStream::new(output.file(), job.channels, bits, job.sample_rate)
-                        .map_err(|message| WriteError::Encode {
-                            path: path.clone(),
-                            message,
-                        })?;
-                    let mut writer = Writer::Flac(Box::new(flac));
-                    let summary = pump(job, &path, &mut render, &mut writer, false)?;
-                    let Writer::Flac(flac) = writer else {
-                        unreachable!("the writer made above")
-                    };
-                    flac.finish().map_err(|message| WriteError::Encode {
-                        path: path.clone(),
-                        message,
-                    })?;
-                    summary
-                }
-            };
+        Destination::File(output) => {
+            let (summary, output) = write_held(output, job, render)?;
             output.commit().map_err(WriteError::Commit)?;
             Ok(summary)
         }
     }
+}
+
+/// [`write_audio`] into a file, left uncommitted: the caller commits the output it
+/// gets back (or drops it, and the target is left as it was). Several files that
+/// stand or fall together (stems and their mix) are committed once all are written.
+pub fn write_held(
+    mut output: Output,
+    job: &OutputJob<'_>,
+    mut render: impl FnMut(&mut [f64]) -> Result<Option<usize>, String>,
+) -> Result<(Summary, Output), WriteError> {
+    let path = output.path().to_path_buf();
+    let io = |source| WriteError::Io {
+        path: path.clone(),
+        source,
+    };
+    let summary = match job.container {
+        Container::Wav => {
+            // The header says `job.frames`; if the sound ends sooner it is
+            // written again with the frames there are.
+            let mut out = BufWriter::new(output.file());
+            write_wav_header(&mut out, job, job.frames).map_err(io)?;
+            let summary = pump(
+                job,
+                &path,
+                &mut render,
+                &mut Writer::Stream(&mut out),
+                false,
+            )?;
+            let file = out.into_inner().map_err(|e| io(e.into_error()))?;
+            if summary.frames != job.frames {
+                file.seek(SeekFrom::Start(0)).map_err(io)?;
+                write_wav_header(file, job, summary.frames).map_err(io)?;
+            }
+            summary
+        }
+        Container::Flac => {
+            let bits = if job.format == SampleFormat::S16 {
+                16
+            } else {
+                24
+            };
+            let flac = FlacStream::new(output.file(), job.channels, bits, job.sample_rate)
+                .map_err(|message| WriteError::Encode {
+                    path: path.clone(),
+                    message,
+                })?;
+            let mut writer = Writer::Flac(Box::new(flac));
+            let summary = pump(job, &path, &mut render, &mut writer, false)?;
+            let Writer::Flac(flac) = writer else {
+                unreachable!("the writer made above")
+            };
+            flac.finish().map_err(|message| WriteError::Encode {
+                path: path.clone(),
+                message,
+            })?;
+            summary
+        }
+    };
+    Ok((summary, output))
 }
 
 /// A FLAC file written a block at a time (memory stays flat whatever the length):

@@ -18,6 +18,7 @@ mod rendering;
 mod repl;
 mod score;
 mod sonify;
+mod stems;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -254,6 +255,15 @@ struct RenderArgs {
     /// Also write the scene's scores as a listing of their notes (`-`: standard output).
     #[arg(long, value_name = "FILE")]
     notes: Option<PathBuf>,
+
+    /// Also write stems into DIR: one file per object (DIR/objects/NAME.wav) and one
+    /// per kind of sound (DIR/kinds/NAME.wav: impacts, sliding, rolling), unlabelled
+    /// instances in `other`, in the mix's format. Each family sums to the mix bit for
+    /// bit while no sample passes full scale (parts are rendered apart and rounded to
+    /// the format's grid, 2^-24 for f32). An instance's object is its `:stem`, or the
+    /// glTF node its source rides.
+    #[arg(long, value_name = "DIR")]
+    stems: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -314,6 +324,7 @@ fn sonify(args: SonifyArgs) -> Result<(), Failure> {
         pictures: args.pictures,
         midi: args.midi,
         notes: None,
+        stems: None,
     })
 }
 
@@ -745,12 +756,15 @@ struct RenderOutputs {
     midi: Option<output::Output>,
     /// None for `--notes -` (or no listing).
     notes: Option<output::Output>,
+    /// The stems of `--stems`, in the order of `stems::Layout::paths`.
+    stems: Vec<output::Output>,
 }
 
 impl RenderOutputs {
     fn prepare(
         args: &RenderArgs,
         container: Container,
+        stems: &[PathBuf],
         reads: &[PathBuf],
     ) -> Result<RenderOutputs, Failure> {
         let is_stdout = |p: &Path| p.as_os_str() == "-";
@@ -769,22 +783,28 @@ impl RenderOutputs {
                 "pictures are drawn from the WAV file the render writes: give `-o FILE.wav` (or draw a FLAC's with `timbre plot` after converting it)".into(),
             ));
         }
-        let [sound, spectrogram, wave, midi, notes] = output::prepare_asked(
-            [
-                Some(args.output.as_path()).filter(|p| !is_stdout(p)),
-                args.pictures.spectrogram.as_deref(),
-                args.pictures.wave.as_deref(),
-                args.midi.as_deref(),
-                args.notes.as_deref().filter(|p| !is_stdout(p)),
-            ],
-            reads,
-        )
-        .map_err(Failure::Message)?;
+        let asked = [
+            Some(args.output.as_path()).filter(|p| !is_stdout(p)),
+            args.pictures.spectrogram.as_deref(),
+            args.pictures.wave.as_deref(),
+            args.midi.as_deref(),
+            args.notes.as_deref().filter(|p| !is_stdout(p)),
+        ];
+        // Every output is checked against the others, the stems included.
+        let paths: Vec<&Path> = (asked.iter().flatten().copied())
+            .chain(stems.iter().map(PathBuf::as_path))
+            .collect();
+        let mut prepared = output::prepare_all(&paths, reads)
+            .map_err(Failure::Message)?
+            .into_iter();
+        let [sound, spectrogram, wave, midi, notes] =
+            asked.map(|path| path.and_then(|_| prepared.next()));
         Ok(RenderOutputs {
             sound,
             pictures: plot::PictureOutputs { spectrogram, wave },
             midi,
             notes,
+            stems: prepared.collect(),
         })
     }
 }
@@ -920,8 +940,31 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         args.midi.as_deref(),
         args.notes.as_deref(),
     )?;
-    let mut outputs = RenderOutputs::prepare(&args, container, &source.inputs)?;
-    let (length, scale) = measured(&plan, &args.sound, to_stdout, &interrupted)?;
+    let layout = match &args.stems {
+        Some(_) if to_stdout => {
+            return Err(Failure::Message(
+                "--stems writes files beside the mix: give `-o FILE` rather than `-o -`".into(),
+            ))
+        }
+        Some(dir) => {
+            let extension = if container == Container::Flac {
+                "flac"
+            } else {
+                "wav"
+            };
+            stems::make_dirs(dir)?;
+            Some(stems::Layout::new(&source.file, dir, extension))
+        }
+        None => None,
+    };
+    let stem_paths = layout
+        .as_ref()
+        .map(stems::Layout::paths)
+        .unwrap_or_default();
+    let mut outputs = RenderOutputs::prepare(&args, container, &stem_paths, &source.inputs)?;
+    // Stems are rendered in parts, each as long as the whole.
+    let length_first = to_stdout || layout.is_some();
+    let (length, scale) = measured(&plan, &args.sound, length_first, &interrupted)?;
     let destination = match outputs.sound.take() {
         Some(output) => Destination::File(output),
         None => Destination::Stdout,
@@ -934,19 +977,13 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         frames: length,
         interrupted: &interrupted,
     };
-    let mut pass = Pass::new(&plan, length, scale)?;
-    let summary = write_audio(destination, &job, |out| pass.next(out)).map_err(|e| match e {
-        audio_out::WriteError::Interrupted => Failure::Interrupted,
-        // `-o - | head`: the reader took what it wanted.
-        audio_out::WriteError::Io { source, .. }
-            if to_stdout && source.kind() == std::io::ErrorKind::BrokenPipe =>
-        {
-            Failure::ReaderGone
+    let summary = match (&layout, destination) {
+        (Some(layout), Destination::File(mix)) => {
+            let stems = std::mem::take(&mut outputs.stems);
+            stems::render(&plan, layout, mix, stems, &job, scale)?
         }
-        other => pass.failure(other.to_string()),
-    })?;
-    report_faults(&plan, &pass.scene);
-    drop(pass);
+        (_, destination) => render_whole(&plan, destination, &job, scale, to_stdout)?,
+    };
     let format_name = args
         .format
         .unwrap_or(match format {
@@ -963,6 +1000,9 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         &format_name,
         &args.output.display().to_string(),
     );
+    if let (Some(layout), Some(dir), false) = (&layout, &args.stems, plan.quiet) {
+        eprintln!("{}", layout.report(dir));
+    }
     if outputs.pictures.any() {
         plot::draw_pictures(&args.output, &args.pictures, outputs.pictures, plan.quiet)
             .map_err(Failure::Message)?;
@@ -986,6 +1026,29 @@ fn render(args: RenderArgs) -> Result<(), Failure> {
         }
     }
     Ok(())
+}
+
+/// Renders the plan in one pass into `destination`.
+fn render_whole(
+    plan: &Plan<'_>,
+    destination: Destination,
+    job: &OutputJob<'_>,
+    scale: f64,
+    to_stdout: bool,
+) -> Result<audio_out::Summary, Failure> {
+    let mut pass = Pass::new(plan, job.frames, scale)?;
+    let summary = write_audio(destination, job, |out| pass.next(out)).map_err(|e| match e {
+        audio_out::WriteError::Interrupted => Failure::Interrupted,
+        // `-o - | head`: the reader took what it wanted.
+        audio_out::WriteError::Io { source, .. }
+            if to_stdout && source.kind() == std::io::ErrorKind::BrokenPipe =>
+        {
+            Failure::ReaderGone
+        }
+        other => pass.failure(other.to_string()),
+    })?;
+    report_faults(plan, &pass.scene);
+    Ok(summary)
 }
 
 /// Warns of each instance (or the sound) that produced samples that were not finite:

@@ -35,7 +35,7 @@ pub(crate) struct Plan<'p> {
     pub(crate) quiet: bool,
     pub(crate) sanitize: bool,
     /// The scene made while checking the plan, for the first pass to render.
-    pub(crate) first_scene: std::cell::Cell<Option<timbre::Scene>>,
+    pub(crate) first_scene: std::sync::Mutex<Option<timbre::Scene>>,
 }
 
 /// A scene failure as the command line reports it.
@@ -107,7 +107,7 @@ pub(crate) fn plan<'p>(source: &'p Source, args: &SoundArgs) -> Result<Plan<'p>,
         ),
         quiet: args.quiet,
         sanitize: args.sanitize,
-        first_scene: std::cell::Cell::new(Some(first_scene)),
+        first_scene: std::sync::Mutex::new(Some(first_scene)),
     })
 }
 
@@ -130,22 +130,51 @@ pub(crate) struct Pass<'p> {
 
 impl<'p> Pass<'p> {
     pub(crate) fn new(plan: &'p Plan<'p>, length: u64, scale: f64) -> Result<Self, Failure> {
-        let mut scene = match plan.first_scene.take() {
+        let first = plan.first_scene.lock().ok().and_then(|mut s| s.take());
+        let scene = match first {
             Some(scene) => scene,
             None => (plan.engine)
                 .scene_from(plan.file, plan.duration)
                 .map_err(scene_failure)?,
         };
+        Self::of_scene(plan, scene, length, scale, plan.threads, plan.quiet)
+    }
+
+    /// A pass of `file`, a part of the plan's file (`timbre::SceneFile::with_instances`),
+    /// rendered as the plan renders the whole, on `threads` threads; `quiet`: without
+    /// a progress bar.
+    pub(crate) fn of_part(
+        plan: &'p Plan<'p>,
+        file: &timbre::SceneFile,
+        length: u64,
+        scale: f64,
+        threads: usize,
+        quiet: bool,
+    ) -> Result<Self, Failure> {
+        let scene = (plan.engine)
+            .scene_from(file, plan.duration)
+            .map_err(scene_failure)?;
+        Self::of_scene(plan, scene, length, scale, threads, quiet)
+    }
+
+    fn of_scene(
+        plan: &'p Plan<'p>,
+        mut scene: timbre::Scene,
+        length: u64,
+        scale: f64,
+        threads: usize,
+        quiet: bool,
+    ) -> Result<Self, Failure> {
         scene
-            .set_threads(plan.threads)
-            .map_err(|e| Failure::Message(format!("cannot start {} threads: {e}", plan.threads)))?;
+            .set_threads(threads)
+            .map_err(|e| Failure::Message(format!("cannot start {threads} threads: {e}")))?;
         Ok(Pass {
             plan,
             scene,
             rendered: vec![],
             length,
             scale,
-            progress: Progress::new(length, plan.sample_rate, plan.quiet, plan.open_ended),
+            progress: Progress::new(length, plan.sample_rate, quiet, plan.open_ended),
             failed: None,
         })
     }
@@ -241,15 +270,16 @@ fn measure(
 }
 
 /// The length to render and the normalising gain: from a measuring pass when
-/// normalising, or when the length must be known first (a fade, or a stream whose
-/// header comes first) but a scene decides it.
+/// normalising, or when the length must be known first (a fade, a stream whose
+/// header comes first, stems rendered in parts: `length_first`) but a scene decides
+/// it.
 pub(crate) fn measured(
     plan: &Plan<'_>,
     args: &SoundArgs,
-    to_stdout: bool,
+    length_first: bool,
     interrupted: &AtomicBool,
 ) -> Result<(u64, f64), Failure> {
-    let needs_length = plan.open_ended && (plan.fade_frames > 0 || to_stdout);
+    let needs_length = plan.open_ended && (plan.fade_frames > 0 || length_first);
     if args.normalize.is_none() && !needs_length {
         return Ok((plan.frames, 1.0));
     }

@@ -42,5 +42,7 @@ pub use custom::{BlockContext, CustomNode, Lanes};
 pub use dump::dump;
 pub use graph::{evaluate_pure, Graph, Node, NodeId, NodeOrigin, StableHasher};
 pub use interp::{steps, trace_non_finite, Interpreter, NonFiniteOrigin, RenderConfig, Step};
-pub use program::{Instance, Program, Settings, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES};
+pub use program::{
+    Instance, Program, Settings, Stem, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
+};
 pub use timbre_diag::{Diag, Diagnostics, SourceFile, Span};

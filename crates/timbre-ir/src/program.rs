@@ -61,6 +61,17 @@ pub struct Instance {
     /// Seconds it may still be heard after its stop: the sound's longest way from
     /// its source to a receiver, and its room's reverberation.
     pub tail: f64,
+    /// The stems it is heard in (`timbre render --stems`).
+    pub stem: Stem,
+}
+
+/// Which stems an instance is heard in: the object that sounds and the kind of sound
+/// (`"impacts"`, `"sliding"`, `"rolling"` for contacts), each `None` when unlabelled.
+/// Whoever makes an instance sets it; it changes nothing that is rendered.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Stem {
+    pub object: Option<Arc<str>>,
+    pub kind: Option<Arc<str>>,
 }
 
 impl Instance {

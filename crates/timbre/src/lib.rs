@@ -50,7 +50,9 @@ pub use space::LIVE_REACH;
 
 pub use timbre_ir::keyframes::{Interpolation, KeyframeError, KeyframeTrack};
 pub use timbre_ir::limits::Limits;
-pub use timbre_ir::{BlockContext, CustomNode, Diag, Diagnostics, Lanes, SourceFile, Variable};
+pub use timbre_ir::{
+    BlockContext, CustomNode, Diag, Diagnostics, Instance, Lanes, SourceFile, Stem, Variable,
+};
 pub use timbre_lang::csv_table::CsvTime;
 pub use timbre_lang::{FsLoader, Loader, NoFiles, ParamValue, Registry, SandboxLoader};
 pub use timbre_scene::{Fault, InstanceId, Mix, Placement};

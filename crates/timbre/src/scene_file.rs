@@ -5,6 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use timbre_ir::Instance;
 use timbre_lang::Compiled;
 use timbre_lang::Library;
 use timbre_scene::SceneRenderer;
@@ -249,6 +250,32 @@ impl SceneFile {
     /// ```
     pub fn instances(&self) -> impl Iterator<Item = (&str, f64)> + '_ {
         (self.program.instances.iter()).map(|i| (i.name.as_str(), i.start))
+    }
+
+    /// The same file with only the instances that `keep` keeps, in their order (a
+    /// file's one sound, not an instance, stays): each plays as it does in the whole
+    /// file, so the samples of a scene are the sum of those of files that share its
+    /// instances out (up to the rounding of the sum). `timbre render --stems` renders
+    /// each stem so.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(8_000.0);
+    /// let file = engine
+    ///     .read_scene("(define-sound s (f) (* 0.25 (sine (* t f))))
+    ///                  (instance a (s :f 440) :stop 0.5) (instance b (s :f 660) :stop 0.5)")
+    ///     .unwrap();
+    /// let only_b = file.with_instances(|i| i.name == "b");
+    /// assert_eq!(only_b.instances().collect::<Vec<_>>(), [("b", 0.0)]);
+    /// let render = |f: &timbre::SceneFile| engine.scene_from(f, 0.5).unwrap().render_offline(0.5).unwrap();
+    /// let (whole, a, b) = (render(&file), render(&file.with_instances(|i| i.name == "a")), render(&only_b));
+    /// assert!(whole.iter().zip(a.iter().zip(&b)).all(|(w, (a, b))| (w - (a + b)).abs() < 1e-15));
+    /// ```
+    pub fn with_instances(&self, mut keep: impl FnMut(&Instance) -> bool) -> SceneFile {
+        let mut program = Compiled::clone(&self.program);
+        program.instances.retain(|instance| keep(instance));
+        SceneFile {
+            program: Arc::new(program),
+        }
     }
 
     /// What lowering warned of (each a diagnostic with its span and hint).

@@ -28,6 +28,7 @@ mod motion_events;
 mod scene;
 mod score;
 mod space;
+mod stem;
 
 pub(crate) use forms::is_reserved;
 pub use forms::FORMS;

@@ -542,7 +542,7 @@ impl Lowerer<'_> {
             &items[3..],
             "instance",
             &[
-                "start", "stop", "gain", "pan", "channel", "source", "at", "declick",
+                "start", "stop", "gain", "pan", "channel", "source", "at", "declick", "stem",
             ],
             origin,
         )?;
@@ -551,6 +551,8 @@ impl Lowerer<'_> {
             None => FadeIn::IfNotZero(DECLICK_IN),
         };
         let place = self.placement(options.get("source"), options.get("at"), origin)?;
+        let (source, at) = (options.get("source"), options.get("at"));
+        let stem = self.instance_stem(options.get("stem"), source, at, origin)?;
         if let (Some((_, place_span)), Some(route)) =
             (&place, options.get("pan").or(options.get("channel")))
         {
@@ -653,6 +655,7 @@ impl Lowerer<'_> {
             start: start - lead,
             stop: stop.map(|(s, _)| s - lead),
             tail,
+            stem,
         })
     }
 

@@ -42,6 +42,8 @@ pub(crate) struct Space {
     /// Microphones by output channel.
     microphones: Vec<(usize, Receiver, Span)>,
     sources: Vec<(String, Path, Span)>,
+    /// The glTF node each source riding one (`:object "Car"`) rides, by source name.
+    source_objects: Vec<(String, Arc<str>)>,
     obstacles: Vec<(PlacedObstacle, Span)>,
     room: Option<(Acoustics, Span)>,
     /// The receivers and the environment, once worked out and checked (when the
@@ -57,6 +59,15 @@ impl Space {
     pub fn has_receivers(&self) -> bool {
         self.listener.is_some() || !self.microphones.is_empty()
     }
+
+    /// The glTF node the source `name` rides, if it rides one.
+    pub fn source_object(&self, name: &str) -> Option<Arc<str>> {
+        let found = self
+            .source_objects
+            .iter()
+            .find(|(source, _)| source == name);
+        found.map(|(_, object)| object.clone())
+    }
 }
 
 impl Default for Space {
@@ -68,6 +79,7 @@ impl Default for Space {
             listener: None,
             microphones: vec![],
             sources: vec![],
+            source_objects: vec![],
             obstacles: vec![],
             room: None,
             receivers: None,
@@ -326,6 +338,10 @@ impl Lowerer<'_> {
         }
         let options = self.options(&items[2..], "source", &["position", "object"], origin)?;
         let object = self.object_option(&options, "position", origin)?;
+        if let Some(node) = &object {
+            let ridden = (name.clone(), Arc::from(node.name.as_str()));
+            self.scene.space.source_objects.push(ridden);
+        }
         let path = match (options.get("position"), object) {
             (Some(position), _) => self.position(position, "the source's position", origin)?,
             (None, Some(node)) => Path::Moving(node.position()),
