@@ -220,6 +220,13 @@ struct CheckArgs {
     /// Print the notes of the file's scores (what `render --notes` writes).
     #[arg(long, conflicts_with = "ir")]
     notes: bool,
+
+    /// Write the contact score of the file's `contacts` forms to FILE (`-`: standard
+    /// output) as tab-separated values with a header line: shot, time (s), frame,
+    /// kind (impact, slide, roll), objects a and b, speeds (m/s), impulse (N·s),
+    /// force (N), length (s) and the world point (m).
+    #[arg(long, value_name = "FILE")]
+    contacts: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -648,6 +655,13 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     if args.notes {
         return Scores::prepare(program, None, Some(Path::new("-")))?.write(None, None);
     }
+    if let Some(path) = &args.contacts {
+        let tsv = timbre_lang::contact_score(&program.contacts);
+        if path.as_os_str() == "-" {
+            return write_stdout(&tsv);
+        }
+        return output::replace_file(path, tsv.as_bytes(), &[]).map_err(Failure::Message);
+    }
     let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let what = match program.root {
         Some(root) => format!(
@@ -665,6 +679,9 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     );
     for found in &program.events {
         print!("{}", event_listing(found));
+    }
+    for found in &program.contacts {
+        print!("{}", contact_listing(found));
     }
     Ok(())
 }
@@ -689,6 +706,45 @@ fn event_listing(found: &timbre_lang::FoundEvents) -> String {
             text += &format!(", {param} = {}", values.join(" "));
         }
         text.push('\n');
+    }
+    text
+}
+
+/// What `timbre check` says of a `contacts` form: how many of each kind, and each
+/// contact's time, frame, objects, speeds, force and point.
+fn contact_listing(found: &timbre_lang::FoundContacts) -> String {
+    let count = |kind: &str| found.rows.iter().filter(|r| r.kind == kind).count();
+    let mut text = format!(
+        "contacts {}: {} impacts, {} slides, {} rolls, {} instances\n",
+        found.shot,
+        count("impact"),
+        count("slide"),
+        count("roll"),
+        found.instances
+    );
+    for r in &found.rows {
+        text += &format!(
+            "  {:<6} {:>9.6} s (frame {:>8.3})  {} / {}",
+            r.kind,
+            r.time,
+            r.time * found.frame_rate,
+            r.a,
+            r.b
+        );
+        text += &match r.kind {
+            "impact" => format!(
+                "  {:.3} m/s normal, {:.3} m/s across, {:.4} N·s, {:.0} N peak",
+                r.normal_speed, r.slip_speed, r.impulse, r.force
+            ),
+            _ => format!(
+                "  {:.3} s, slip {:.3} m/s, rolling {:.3} m/s, {:.1} N",
+                r.length, r.slip_speed, r.rolling_speed, r.force
+            ),
+        };
+        text += &format!(
+            "  at ({:.3}, {:.3}, {:.3})\n",
+            r.point.x, r.point.y, r.point.z
+        );
     }
     text
 }

@@ -31,7 +31,7 @@ use timbre_ir::NodeId;
 
 pub use crate::lower::{FORMS, MOTION_NODES};
 
-mod physical;
+pub(crate) mod physical;
 
 /// One parameter of a node: its keyword name and its default, if it has one.
 #[derive(Clone, Copy, Debug)]

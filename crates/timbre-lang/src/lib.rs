@@ -32,8 +32,9 @@ pub use loader::{
     open_regular, read_bounded, FsLoader, Loader, NoFiles, SandboxLoader, MAX_FILE_BYTES,
 };
 pub use lower::{
-    compile, compile_after, did_you_mean, CompileOptions, Compiled, DeclaredSpace, FoundEvent,
-    FoundEvents, Instantiated, Library, ParamValue, Registry,
+    compile, compile_after, contact_score, did_you_mean, CompileOptions, Compiled, ContactRow,
+    DeclaredSpace, FoundContacts, FoundEvent, FoundEvents, Instantiated, Library, ParamValue,
+    Registry,
 };
 pub use print::{print_tree, same_tree, Unprintable, MAX_INLINE_DEPTH};
 pub use timbre_diag::{Diag, Diagnostics, SourceFile, Span};

@@ -294,7 +294,7 @@ pub(super) fn impact_form(
 }
 
 /// The material `value` names, or a diagnostic with the closest name.
-fn named_material(
+pub(crate) fn named_material(
     l: &Lowerer<'_>,
     value: &Expr,
     origin: &Origin,

@@ -25,6 +25,7 @@ pub(crate) enum Form {
     Instance,
     Instances,
     Events,
+    Contacts,
     Score,
     Listener,
     Microphone,
@@ -37,7 +38,7 @@ pub(crate) enum Form {
 
 impl Form {
     /// Every form, in the order of [`FORMS`].
-    const ALL: [Form; 19] = [
+    const ALL: [Form; 20] = [
         Form::Let,
         Form::Morph,
         Form::Define,
@@ -49,6 +50,7 @@ impl Form {
         Form::Instance,
         Form::Instances,
         Form::Events,
+        Form::Contacts,
         Form::Score,
         Form::Listener,
         Form::Microphone,
@@ -73,6 +75,7 @@ impl Form {
             Form::Instance => "instance",
             Form::Instances => "instances",
             Form::Events => "events",
+            Form::Contacts => "contacts",
             Form::Score => "score",
             Form::Listener => "listener",
             Form::Microphone => "microphone",
@@ -97,7 +100,7 @@ impl Form {
     pub(crate) fn is_instance(self) -> bool {
         matches!(
             self,
-            Form::Instance | Form::Instances | Form::Events | Form::Score
+            Form::Instance | Form::Instances | Form::Events | Form::Contacts | Form::Score
         )
     }
 

@@ -16,6 +16,7 @@
 //! `SceneForms`, `Includes` and `Expansion` (of named trees).
 
 mod args;
+mod contacts;
 mod events;
 mod expr;
 mod files;
@@ -34,6 +35,7 @@ pub(crate) use forms::is_reserved;
 pub use forms::FORMS;
 pub use motion::MOTION_NODES;
 
+pub use contacts::{contact_score, ContactRow, FoundContacts};
 pub use library::{Instantiated, Library, ParamValue};
 pub use motion_events::{FoundEvent, FoundEvents};
 pub use space::DeclaredSpace;
@@ -120,6 +122,8 @@ pub struct Compiled {
     pub scores: Vec<crate::music::Score>,
     /// The events its `events` forms found (each event is also an instance).
     pub events: Vec<FoundEvents>,
+    /// The contacts its `contacts` forms found (each sounds through instances).
+    pub contacts: Vec<FoundContacts>,
 }
 
 impl std::ops::Deref for Compiled {
@@ -255,6 +259,8 @@ struct SceneForms {
     scores: Vec<crate::music::Score>,
     /// What the `events` forms found, in the order written.
     found_events: Vec<FoundEvents>,
+    /// What the `contacts` forms found, in the order written.
+    found_contacts: Vec<FoundContacts>,
 }
 
 /// Files being read, to catch include cycles; and files read already.
@@ -400,6 +406,7 @@ impl<'a> Lowerer<'a> {
                 Some(Form::Instances) => self.lower_instances(form, origin),
                 Some(Form::Score) => self.lower_score(form, origin),
                 Some(Form::Events) => self.lower_motion_events(form, origin),
+                Some(Form::Contacts) => self.lower_contacts(form, origin),
                 _ => self
                     .lower_instance(form, origin)
                     .map(|instance| self.scene.instances.push(instance)),
@@ -457,6 +464,7 @@ impl<'a> Lowerer<'a> {
             variables,
             scores: self.scene.scores,
             events: self.scene.found_events,
+            contacts: self.scene.found_contacts,
         })
     }
 

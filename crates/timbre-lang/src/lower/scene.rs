@@ -24,7 +24,8 @@ use crate::csv_table::{keyframes_from_csv, CsvTime};
 use timbre_diag::Diag;
 use timbre_ir::keyframes::{Interpolation, KeyframeError, KeyframeTrack};
 use timbre_ir::op::{BinaryOp, FadeIn, Op, TernaryOp, UnaryOp};
-use timbre_ir::{Instance, NodeId, DECLICK_IN, DECLICK_OUT};
+use timbre_ir::space::Path;
+use timbre_ir::{Instance, NodeId, Stem, DECLICK_IN, DECLICK_OUT};
 
 const KEYFRAMES_USAGE: &str = "(keyframes name :interp linear (0 0.2) (1 0.9)) or (keyframes name :csv \"motion.csv\" :column \"force\" :frame-rate 24)";
 
@@ -82,7 +83,28 @@ pub(crate) struct Options<'e> {
     pairs: Vec<(&'e str, Span, &'e Expr)>,
 }
 
+/// What an instance is called: its name, its class, its stems.
+pub(crate) struct Names<'n> {
+    pub name: &'n str,
+    pub class: &'n str,
+    pub stem: Stem,
+}
+
+/// When an instance plays: its start and stop (scene time, seconds) and how its
+/// sound is let in.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Timing {
+    pub start: f64,
+    pub stop: Option<f64>,
+    pub fade_in: FadeIn,
+}
+
 impl<'e> Options<'e> {
+    /// No options.
+    pub(crate) fn none() -> Self {
+        Options { pairs: vec![] }
+    }
+
     pub(crate) fn get(&self, key: &str) -> Option<&'e Expr> {
         self.pairs
             .iter()
@@ -626,36 +648,58 @@ impl Lowerer<'_> {
                     .help("leave the option out (the class places itself, e.g. with `pan`), or make the class one lane"));
             }
         }
+        let timing = Timing {
+            start,
+            stop: stop.map(|(stop, _)| stop),
+            fade_in,
+        };
+        let names = Names { name, class, stem };
+        self.finish_instance(names, sound, timing, place, &options, origin)
+    }
+
+    /// An instance of a one-lane `sound` (its parameters bound, its gain applied):
+    /// under its timer, emitted at its place, or sent to the channels as `options`
+    /// route it. With `(scene :sync picture)`, a placed instance is advanced by its
+    /// delay (`lead`), so that what it emits at its start is heard at its start.
+    pub(crate) fn finish_instance(
+        &mut self,
+        names: Names<'_>,
+        sound: NodeId,
+        timing: Timing,
+        place: Option<(Path, Span)>,
+        options: &Options<'_>,
+        origin: &Origin,
+    ) -> Result<Instance, Diag> {
+        let Timing {
+            start,
+            stop,
+            fade_in,
+        } = timing;
         let t = self.graph.add(Op::Time, vec![]);
-        let length = stop.map(|(stop, _)| stop - start);
         let timed = self.graph.add(
             Op::Timer {
-                length,
+                length: stop.map(|stop| stop - start),
                 fade_in,
                 fade_out: DECLICK_OUT,
             },
             vec![sound, t],
         );
-        // What the timer lets out is emitted at the instance's place, or sent to the
-        // channels as written.
-        // With `(scene :sync picture)`, a placed instance is advanced by its delay
-        // (`lead`), so that what it emits at its start is heard at its start.
         let (root, tail, lead) = match place {
             Some((path, span)) => {
                 let (path, lead) = self.picture_sync(path, start, span, origin)?;
                 let (root, tail) = self.propagate(timed, path, span, start - lead, origin)?;
                 (root, tail, lead)
             }
-            None => (self.route(timed, &options, start, origin)?, 0.0, 0.0),
+            None => (self.route(timed, options, start, origin)?, 0.0, 0.0),
         };
         Ok(Instance {
-            name: name.to_owned(),
-            class: class.to_owned(),
+            name: names.name.to_owned(),
+            class: names.class.to_owned(),
             root,
             start: start - lead,
-            stop: stop.map(|(s, _)| s - lead),
+            stop: stop.map(|s| s - lead),
             tail,
-            stem,
+            stem: names.stem,
         })
     }
 

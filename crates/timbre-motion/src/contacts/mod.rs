@@ -162,6 +162,9 @@ pub struct ContactSample {
     pub point_b: DVec3,
     /// From a toward b.
     pub normal: DVec3,
+    /// Local radii of curvature at the point (m).
+    pub radius_a: f64,
+    pub radius_b: f64,
 }
 
 /// Bodies `a` and `b` touching at consecutive keys.
@@ -276,6 +279,15 @@ impl State {
         }
         let start = key.saturating_sub(1).min(self.keys.len().saturating_sub(3));
         PosePath::fit(&self.keys[start..(start + 3).min(self.keys.len())], gravity)
+    }
+
+    /// The local radius of curvature at `local` (own frame) where the outward normal
+    /// is `outward` (world) and the body turned by `rotation`: at most half the body's
+    /// thickness, so flat faces meet as the body's bulk allows.
+    fn radius(&self, local: DVec3, rotation: DQuat, outward: DVec3) -> f64 {
+        self.shape
+            .radius_at(local * self.scale, rotation.inverse() * outward)
+            .min(0.5 * self.shape.thickness.max(1e-6))
     }
 
     /// A world point in the body's own (unscaled mesh) frame.
@@ -598,12 +610,6 @@ impl Pair<'_> {
         };
         let point_a = a.local_point(point, pose_a.0, pose_a.1);
         let point_b = b.local_point(point, pose_b.0, pose_b.1);
-        // Each body's outward normal at the point, in its own frame.
-        let radius = |s: &State, local: DVec3, rotation: DQuat, outward: DVec3| {
-            s.shape
-                .radius_at(local * s.scale, rotation.inverse() * outward)
-                .min(0.5 * s.shape.thickness.max(1e-6))
-        };
         Some(Impact {
             time,
             a: self.a,
@@ -616,8 +622,8 @@ impl Pair<'_> {
             tangential_speed: (relative - normal_speed * normal).length(),
             rebound_speed: -after.dot(normal),
             impulse,
-            radius_a: radius(a, point_a, pose_a.1, normal),
-            radius_b: radius(b, point_b, pose_b.1, -normal),
+            radius_a: a.radius(point_a, pose_a.1, normal),
+            radius_b: b.radius(point_b, pose_b.1, -normal),
         })
     }
 
@@ -667,6 +673,9 @@ impl Pair<'_> {
         } else {
             ContactKind::Slide
         };
+        let (rotation_a, rotation_b) = (path_a.rotation(t), path_b.rotation(t));
+        let point_a = a.local_point(point, path_a.position(t), rotation_a);
+        let point_b = b.local_point(point, path_b.position(t), rotation_b);
         ContactSample {
             time: t,
             kind,
@@ -674,9 +683,11 @@ impl Pair<'_> {
             rolling_speed,
             normal_force: 0.0,
             point,
-            point_a: a.local_point(point, path_a.position(t), path_a.rotation(t)),
-            point_b: b.local_point(point, path_b.position(t), path_b.rotation(t)),
+            point_a,
+            point_b,
             normal,
+            radius_a: a.radius(point_a, rotation_a, normal),
+            radius_b: b.radius(point_b, rotation_b, -normal),
         }
     }
 }
