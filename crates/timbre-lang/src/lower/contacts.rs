@@ -151,9 +151,9 @@ pub(crate) fn preset(
     let c = material.bar_speed();
     let size = size.max(DVec3::splat(1e-4));
     let mut freqs = Vec::new();
-    for l in 0..6 {
-        for m in 0..6 {
-            for n in 0..6 {
+    for l in 0..16 {
+        for m in 0..16 {
+            for n in 0..16 {
                 if l + m + n == 0 {
                     continue;
                 }
@@ -510,8 +510,9 @@ fn mesh_size(shot: &Shot, node: NodeIndex) -> (DVec3, f64) {
     (hi - lo, area)
 }
 
-/// The Hertz force of an impact as a call of `impact`, and its peak in newtons. The
-/// movable (or lighter) body is body a of the call: the force is the same on both.
+/// The Hertz force of an impact as a call of `impact` scaled to the impulse found,
+/// and its peak in newtons. The movable (or lighter) body is body a of the call: the
+/// force is the same on both.
 fn impact_force(
     a: &Object,
     b: &Object,
@@ -555,7 +556,19 @@ fn impact_force(
     let v = impact.normal_speed;
     let delta = (15.0 * m_star * v * v / (16.0 * e_star * r_star.sqrt())).powf(0.4);
     let peak = 4.0 / 3.0 * e_star * r_star.sqrt() * delta.powf(1.5);
-    (list(call, span), peak)
+    // The Hertz pulse carries 2·m*·v, as an elastic contact does; scaled to the
+    // impulse the motion shows, (1 + e)·m*·v, it carries what the bodies exchanged.
+    let elastic = 2.0 * m_star * v;
+    let share = (impact.impulse / elastic).clamp(0.0, 1.0);
+    let force = if impact.impulse > 0.0 && elastic > 0.0 {
+        list(
+            vec![symbol("*", span), number(share, span), list(call, span)],
+            span,
+        )
+    } else {
+        list(call, span)
+    };
+    (force, share * peak)
 }
 
 /// The runs of one kind (slide or roll) of a sustained contact's keys.
