@@ -9,10 +9,18 @@ use timbre_ir::dsp::materials::OAK;
 use timbre_ir::{Diagnostics, SourceFile};
 use timbre_lang::{compile, CompileOptions, Compiled, Registry, SandboxLoader};
 
-fn compile_shot(text: &str) -> Result<Compiled, Diagnostics> {
-    let dir = tempfile::tempdir().unwrap();
+fn cube_drop() -> Vec<u8> {
     let shot = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/shots/cube-drop.glb");
-    std::fs::copy(shot, dir.path().join("drop.glb")).unwrap();
+    std::fs::read(shot).unwrap()
+}
+
+fn compile_shot(text: &str) -> Result<Compiled, Diagnostics> {
+    compile_with_shot(text, &cube_drop())
+}
+
+fn compile_with_shot(text: &str, glb: &[u8]) -> Result<Compiled, Diagnostics> {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("drop.glb"), glb).unwrap();
     let sandbox = SandboxLoader::new([dir.path()]).unwrap();
     let registry = Registry::new();
     let options = CompileOptions::new(&registry, &sandbox);
@@ -163,4 +171,50 @@ fn a_suppressed_pair_makes_no_sound_and_an_unknown_shot_is_named() {
     assert_eq!(code, "timbre::bad-contacts");
     assert_eq!(message, "no motion file is named `drop`");
     assert_eq!(underlined, "drop");
+}
+
+/// The shot with the glTF material "Wood" on the cube's mesh: a GLB's JSON chunk
+/// rewritten, its binary chunk kept.
+fn with_wood(glb: &[u8]) -> Vec<u8> {
+    let length = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + length]).unwrap();
+    let cube = json["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["name"] == "Cube")
+        .unwrap()["mesh"]
+        .as_u64()
+        .unwrap() as usize;
+    json["materials"] = serde_json::json!([{"name": "Wood"}]);
+    for primitive in json["meshes"][cube]["primitives"].as_array_mut().unwrap() {
+        primitive["material"] = serde_json::json!(0);
+    }
+    let mut text = json.to_string().into_bytes();
+    while text.len() % 4 != 0 {
+        text.push(b' ');
+    }
+    let bin = &glb[20 + length..];
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + text.len() + bin.len()) as u32).to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(text);
+    out.extend(bin);
+    out
+}
+
+#[test]
+fn an_object_is_bound_by_its_gltf_material() {
+    let text = format!("{HEAD}(contacts shot :materials ((\"Wood\" oak) (\"Floor\" concrete)))");
+    let program =
+        compile_with_shot(&text, &with_wood(&cube_drop())).unwrap_or_else(|e| panic!("{e:?}"));
+    let rows = &program.contacts[0].rows;
+    assert!(!rows.is_empty());
+    assert!(
+        rows.iter().all(|r| r.a == "Cube" && r.b == "Floor"),
+        "{rows:?}"
+    );
 }

@@ -378,3 +378,39 @@ fn a_node_without_a_mesh_and_a_mass_that_is_not_positive_are_errors() {
         "\"Floor\" has a mass of -1 kg; a mass must be above 0 and finite"
     );
 }
+
+#[test]
+fn an_open_mesh_stands_in_by_its_hull_with_a_warning_and_materials_are_read() {
+    let mut scene = Scene::new();
+    scene.floor();
+    // A box without its top: two triangles short of closed.
+    let (points, mut indices) = cuboid(DVec3::splat(-0.1), DVec3::splat(0.1));
+    indices.drain(6..12);
+    scene.body("Cup", (points, indices), 1.0, &|t| {
+        (DVec3::new(0.0, 0.0, 0.1 + 0.5 * t), DQuat::IDENTITY)
+    });
+    let mut json = scene.builder.json(None);
+    json["materials"] = json!([{"name": "Clay"}]);
+    json["meshes"][1]["primitives"][0]["material"] = json!(0);
+    let glb = builder::pack_glb(&json.to_string(), &scene.builder.bin);
+    let shot = Shot::read(&glb, &mut |_| Err(String::new()), &ShotOptions::default()).unwrap();
+    let cup = shot.node("Cup").unwrap();
+    assert_eq!(shot.mesh(cup).unwrap().materials, ["Clay"]);
+    let bodies = [("Cup", cup), ("Floor", shot.node("Floor").unwrap())].map(|(name, node)| Body {
+        name: name.into(),
+        node,
+        density: 1000.0,
+        mass: None,
+    });
+    let found = find_contacts(&shot, &bodies, &ContactOptions::default()).unwrap();
+    assert_eq!(found.bodies[0].kind, ShapeKind::Hull);
+    assert!(
+        (found.bodies[0].volume - 0.008).abs() < 1e-9,
+        "the hull's volume"
+    );
+    assert_eq!(
+        found.warnings,
+        ["the mesh of \"Cup\" is not closed: its convex hull stands in for it"]
+    );
+    assert_eq!(found.bodies[1].kind, ShapeKind::Convex);
+}
