@@ -69,7 +69,7 @@ fn shot() -> Vec<u8> {
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut push = |bytes: Vec<u8>, component: u32, kind: &str, count: usize, bounds: String| {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         views.push(format!(
@@ -153,10 +153,10 @@ fn shot() -> Vec<u8> {
         accessors.join(",")
     );
     let mut json = json.into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut glb = Vec::new();

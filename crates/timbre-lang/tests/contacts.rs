@@ -191,7 +191,7 @@ fn with_wood(glb: &[u8]) -> Vec<u8> {
         primitive["material"] = serde_json::json!(0);
     }
     let mut text = json.to_string().into_bytes();
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let bin = &glb[20 + length..];
