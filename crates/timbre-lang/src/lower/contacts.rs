@@ -368,95 +368,21 @@ impl Lowerer<'_> {
             };
             object.preset = preset(object.material, size, mass, area, nyquist);
         }
-        let suppressed = self.suppressed(options.get("suppress"), origin)?;
-        let keep = |t: f64, a: &str, b: &str| {
-            !suppressed.iter().any(|(x, y, from, until)| {
-                ((x == a && y == b) || (x == b && y == a)) && (*from..=*until).contains(&t)
-            })
+        let form = Sounding {
+            shot: &shot,
+            name: &shot_name,
+            start,
+            settings: &settings,
+            suppressed: self.suppressed(options.get("suppress"), origin)?,
+            span: form.span,
+            origin,
         };
         let mut rows = Vec::new();
-        let mut made = 0;
-        let span = form.span;
-        for (k, impact) in found.impacts.iter().enumerate() {
-            let (a, b) = (&objects[impact.a], &objects[impact.b]);
-            if !keep(impact.time + start, &a.name, &b.name) {
-                continue;
-            }
-            let (force_expr, peak) = impact_force(a, b, impact, &found, span);
-            rows.push(ContactRow {
-                time: impact.time + start,
-                kind: "impact",
-                a: a.name.clone(),
-                b: b.name.clone(),
-                normal_speed: impact.normal_speed,
-                slip_speed: impact.tangential_speed,
-                rolling_speed: 0.0,
-                impulse: impact.impulse,
-                force: peak,
-                point: impact.point,
-                length: 0.0,
-            });
-            for object in [a, b] {
-                let name = format!("{shot_name}.impact-{k}.{}", object.name);
-                let time = impact.time + start;
-                self.time_offset = time;
-                let force = self.lower(&force_expr, origin, &mut Scope::new());
-                self.time_offset = 0.0;
-                let length = settings
-                    .length
-                    .unwrap_or(object.preset.t60.clamp(0.05, 6.0));
-                let place = Path::Fixed(impact.point);
-                let instance = self.contact_instance(
-                    &name, "impacts", object, force?, time, length, place, &settings, span, origin,
-                )?;
-                self.scene.instances.push(instance);
-                made += 1;
-            }
-        }
-        for (k, contact) in found.sustained.iter().enumerate() {
-            let (a, b) = (&objects[contact.a], &objects[contact.b]);
-            for (kind, run) in kind_runs(&contact.samples) {
-                if keep(run[0].time + start, &a.name, &b.name) {
-                    rows.push(sustained_row(kind, run, &a.name, &b.name, start));
-                }
-            }
-            let samples = &contact.samples;
-            if samples.iter().all(|s| s.kind == ContactKind::Rest)
-                || !keep(samples[0].time + start, &a.name, &b.name)
-            {
-                continue;
-            }
-            for (object, other, radius) in
-                [(a, b, samples[0].radius_a), (b, a, samples[0].radius_b)]
-            {
-                let from = samples[0].time + start - RAMP;
-                let until = samples[samples.len() - 1].time + start + RAMP;
-                let length = until - from + object.preset.t60.clamp(0.05, 2.0);
-                for (kind, stem) in [
-                    (ContactKind::Slide, "sliding"),
-                    (ContactKind::Roll, "rolling"),
-                ] {
-                    // A surface per pair of objects, the same for both of them.
-                    let seed = (k * 2 + usize::from(kind == ContactKind::Roll)) as f64 + 1.0;
-                    let Some(force) = self.sustained_force(
-                        samples, kind, start, object, other, radius, seed, span, origin,
-                    )?
-                    else {
-                        continue;
-                    };
-                    let name = format!("{shot_name}.{stem}-{k}.{}", object.name);
-                    let place = NodeRef::of(&shot, object.node, start);
-                    let instance = self.contact_instance(
-                        &name, stem, object, force, from, length, place, &settings, span, origin,
-                    )?;
-                    self.scene.instances.push(instance);
-                    made += 1;
-                }
-            }
-        }
+        let mut made = self.sound_impacts(&form, &found, &objects, &mut rows)?;
+        made += self.sound_sustained(&form, &found, &objects, &mut rows)?;
         rows.sort_by(|x, y| x.time.total_cmp(&y.time));
         self.scene.found_contacts.push(FoundContacts {
-            shot: shot_name,
+            shot: shot_name.clone(),
             frame_rate: settings.frame_rate,
             rows,
             instances: made,
@@ -465,17 +391,13 @@ impl Lowerer<'_> {
     }
 }
 
-/// A path riding a node of a shot from its `:start`.
-struct NodeRef;
-
-impl NodeRef {
-    fn of(shot: &Shot, node: NodeIndex, start: f64) -> Path {
-        let position = shot.position(node);
-        if start == 0.0 {
-            Path::Moving(position)
-        } else {
-            Path::Moving(Arc::new(Shifted(position, start)))
-        }
+/// The path of a node's origin, its shot played from `start` (scene time).
+fn riding(shot: &Shot, node: NodeIndex, start: f64) -> Path {
+    let position = shot.position(node);
+    if start == 0.0 {
+        Path::Moving(position)
+    } else {
+        Path::Moving(Arc::new(Shifted(position, start)))
     }
 }
 
@@ -486,6 +408,52 @@ struct Settings {
     /// Seconds each impact's sound lasts (default: its preset's longest T60).
     length: Option<f64>,
     frame_rate: f64,
+}
+
+/// What the instances of one `contacts` form share.
+struct Sounding<'f> {
+    shot: &'f Shot,
+    /// The motion file's name, first in every instance's name.
+    name: &'f str,
+    /// Scene time of the shot's time 0.
+    start: f64,
+    settings: &'f Settings,
+    /// `:suppress`: pairs, and the span of scene time they are silent in.
+    suppressed: Vec<(String, String, f64, f64)>,
+    span: Span,
+    origin: &'f Origin,
+}
+
+impl Sounding<'_> {
+    /// Whether a contact of `a` and `b` at shot time `t` sounds.
+    fn keeps(&self, t: f64, a: &str, b: &str) -> bool {
+        let t = t + self.start;
+        !self.suppressed.iter().any(|(x, y, from, until)| {
+            ((x == a && y == b) || (x == b && y == a)) && (*from..=*until).contains(&t)
+        })
+    }
+}
+
+/// One instance of a contact: its name and stem kind, the force that drives it, when
+/// and where.
+struct ContactSound {
+    name: String,
+    kind: &'static str,
+    force: NodeId,
+    start: f64,
+    length: f64,
+    place: Path,
+}
+
+/// What a sustained contact's force on one object is read from.
+#[derive(Clone, Copy)]
+struct Surface<'o> {
+    kind: ContactKind,
+    object: &'o Object,
+    other: &'o Object,
+    /// The object's local radius of curvature at the contact, m.
+    radius: f64,
+    seed: f64,
 }
 
 /// The box and surface area of a node's mesh (m, m²), in its own scaled frame.
@@ -825,19 +793,20 @@ impl Lowerer<'_> {
     /// are tracks that move linearly between keys, and rise from and fall back to 0
     /// over [`RAMP`] at the ends, so the force of one kind fades as the other's rises,
     /// without a click. `None` if it is never of that kind.
-    #[allow(clippy::too_many_arguments)]
     fn sustained_force(
         &mut self,
+        form: &Sounding<'_>,
         samples: &[ContactSample],
-        kind: ContactKind,
-        start: f64,
-        object: &Object,
-        other: &Object,
-        radius: f64,
-        seed: f64,
-        span: Span,
-        origin: &Origin,
+        surface: &Surface<'_>,
     ) -> Result<Option<NodeId>, Diag> {
+        let Surface {
+            kind,
+            object,
+            other,
+            radius,
+            seed,
+        } = *surface;
+        let (start, span, origin) = (form.start, form.span, form.origin);
         if !samples.iter().any(|s| s.kind == kind) {
             return Ok(None);
         }
@@ -897,23 +866,132 @@ impl Lowerer<'_> {
         node.map(Some)
     }
 
-    /// The instance of one object's sound driven by `force`, from `start` for
-    /// `length` seconds, heard at `place` (or at the channels as written when the
-    /// scene has no listener).
-    #[allow(clippy::too_many_arguments)]
+    /// An instance per object of each impact (heard from its world point), and its
+    /// row of the score; how many instances.
+    fn sound_impacts(
+        &mut self,
+        form: &Sounding<'_>,
+        found: &Contacts,
+        objects: &[Object],
+        rows: &mut Vec<ContactRow>,
+    ) -> Result<usize, Diag> {
+        let mut made = 0;
+        for (k, impact) in found.impacts.iter().enumerate() {
+            let (a, b) = (&objects[impact.a], &objects[impact.b]);
+            if !form.keeps(impact.time, &a.name, &b.name) {
+                continue;
+            }
+            let time = impact.time + form.start;
+            let (force_expr, peak) = impact_force(a, b, impact, found, form.span);
+            rows.push(ContactRow {
+                time,
+                kind: "impact",
+                a: a.name.clone(),
+                b: b.name.clone(),
+                normal_speed: impact.normal_speed,
+                slip_speed: impact.tangential_speed,
+                rolling_speed: 0.0,
+                impulse: impact.impulse,
+                force: peak,
+                point: impact.point,
+                length: 0.0,
+            });
+            for object in [a, b] {
+                self.time_offset = time;
+                let force = self.lower(&force_expr, form.origin, &mut Scope::new());
+                self.time_offset = 0.0;
+                let length = (form.settings.length).unwrap_or(object.preset.t60.clamp(0.05, 6.0));
+                let sound = ContactSound {
+                    name: format!("{}.impact-{k}.{}", form.name, object.name),
+                    kind: "impacts",
+                    force: force?,
+                    start: time,
+                    length,
+                    place: Path::Fixed(impact.point),
+                };
+                let instance = self.contact_instance(form, object, sound)?;
+                self.scene.instances.push(instance);
+                made += 1;
+            }
+        }
+        Ok(made)
+    }
+
+    /// Instances per object of each sustained contact that slides or rolls (heard
+    /// from the object's origin), and a row of the score per run of one kind; how
+    /// many instances.
+    fn sound_sustained(
+        &mut self,
+        form: &Sounding<'_>,
+        found: &Contacts,
+        objects: &[Object],
+        rows: &mut Vec<ContactRow>,
+    ) -> Result<usize, Diag> {
+        let mut made = 0;
+        for (k, contact) in found.sustained.iter().enumerate() {
+            let (a, b) = (&objects[contact.a], &objects[contact.b]);
+            let samples = &contact.samples;
+            if !form.keeps(samples[0].time, &a.name, &b.name) {
+                continue;
+            }
+            for (kind, run) in kind_runs(samples) {
+                rows.push(sustained_row(kind, run, &a.name, &b.name, form.start));
+            }
+            let from = samples[0].time + form.start - RAMP;
+            let until = samples[samples.len() - 1].time + form.start + RAMP;
+            for (object, other, radius) in
+                [(a, b, samples[0].radius_a), (b, a, samples[0].radius_b)]
+            {
+                for (kind, stem) in [
+                    (ContactKind::Slide, "sliding"),
+                    (ContactKind::Roll, "rolling"),
+                ] {
+                    // A surface per pair of objects, the same for both of them.
+                    let seed = (k * 2 + usize::from(kind == ContactKind::Roll)) as f64 + 1.0;
+                    let surface = Surface {
+                        kind,
+                        object,
+                        other,
+                        radius,
+                        seed,
+                    };
+                    let Some(force) = self.sustained_force(form, samples, &surface)? else {
+                        continue;
+                    };
+                    let sound = ContactSound {
+                        name: format!("{}.{stem}-{k}.{}", form.name, object.name),
+                        kind: stem,
+                        force,
+                        start: from,
+                        length: until - from + object.preset.t60.clamp(0.05, 2.0),
+                        place: riding(form.shot, object.node, form.start),
+                    };
+                    let instance = self.contact_instance(form, object, sound)?;
+                    self.scene.instances.push(instance);
+                    made += 1;
+                }
+            }
+        }
+        Ok(made)
+    }
+
+    /// The instance of one object's sound driven by a force, heard at its place (or
+    /// at the channels as written when the scene has no listener).
     fn contact_instance(
         &mut self,
-        name: &str,
-        kind: &str,
+        form: &Sounding<'_>,
         object: &Object,
-        force: NodeId,
-        start: f64,
-        length: f64,
-        place: Path,
-        settings: &Settings,
-        span: Span,
-        origin: &Origin,
+        sound: ContactSound,
     ) -> Result<Instance, Diag> {
+        let ContactSound {
+            name,
+            kind,
+            force,
+            start,
+            length,
+            place,
+        } = sound;
+        let (span, origin) = (form.span, form.origin);
         let mut scope: Scope = vec![("force".to_owned(), force)];
         let call = match &object.class {
             Some(class) => list(
@@ -926,7 +1004,7 @@ impl Lowerer<'_> {
         let sound = self.lower(&call, origin, &mut scope);
         self.time_offset = 0.0;
         let mut sound = sound?;
-        if let Some(gain) = settings.gain {
+        if let Some(gain) = form.settings.gain {
             let gain = self.graph.constant(gain);
             sound = self
                 .graph
@@ -945,7 +1023,7 @@ impl Lowerer<'_> {
         };
         let place = self.scene.space.has_receivers().then_some((place, span));
         let names = Names {
-            name,
+            name: &name,
             class,
             stem: Stem {
                 object: Some(object.name.as_str().into()),
