@@ -305,7 +305,7 @@ fn block_size_does_not_change_the_output() {
 
 #[test]
 fn block_size_does_not_change_where_a_decayed_instance_ends() {
-    // cubes.tt: wood1 has no stop and ends once decayed, at about 0.8 s of 4.
+    // cubes.tt: wood1 has no stop and ends once decayed, well before the scene's 4 s.
     let cubes = example("cubes").into_os_string();
     let with = |block: &str| render_bytes(&[cubes.clone(), "--block-size".into(), block.into()]);
     assert!(

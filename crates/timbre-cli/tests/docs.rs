@@ -35,6 +35,16 @@ fn every_lisp_block_in_the_guide_checks() {
         dir.path().join("car-pass.glb"),
     )
     .unwrap();
+    // …and the contact shots as the examples do, from `shots/` beside it.
+    std::fs::create_dir(dir.path().join("shots")).unwrap();
+    for name in ["cube-drop", "stairs", "dominoes", "can"] {
+        let file = format!("{name}.glb");
+        std::fs::copy(
+            examples.join("shots").join(&file),
+            dir.path().join("shots").join(&file),
+        )
+        .unwrap();
+    }
     let mut checked = 0;
     let mut failures = vec![];
     for entry in std::fs::read_dir(&docs).unwrap() {

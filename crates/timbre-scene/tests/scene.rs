@@ -86,9 +86,10 @@ fn metal_is_silent_after_its_stop_and_declick() {
     let x = render(&only(&program, "metal1"), 4.0, Engine::Jit);
     let silent_from = ((3.5 + timbre_ir::DECLICK_OUT) * SR).round() as usize;
     assert!(x[silent_from..].iter().all(|v| *v == 0.0));
-    // …and not silent just before the stop: the fade-out is what ends it.
+    // …and not silent just before the stop: the fade-out is what ends it. The metal
+    // (T60 1.1–2.2 s) has decayed to about −90 dB by then, which is not 0.
     let before = &x[(3.4 * SR) as usize..(3.5 * SR) as usize];
-    assert!(before.iter().any(|v| v.abs() > 1e-4));
+    assert!(before.iter().any(|v| v.abs() > 1e-6));
 }
 
 #[test]
