@@ -65,20 +65,26 @@ fn small_search() -> Search {
 fn the_search_lowers_the_distance() {
     let target = target_of("(define-sound s () (* 0.4 (sawtooth (* t 330))))", &[], 0.4);
     let start = seed("(define-sound s () (* 0.3 (sine (* t 250))))", &[]);
-    let found = search(
-        &mut rand::rngs::StdRng::seed_from_u64(3),
-        &start,
-        &target,
-        &small_search(),
-    );
-    let first = found.history[0];
-    assert!(
-        found.history.windows(2).skip(1).all(|w| w[1] <= w[0]),
-        "{:?}",
-        found.history
-    );
-    assert!(found.distance < first / 2.0, "{:?}", found.history);
-    assert!(found.renders > 6 * 4);
+    // A search of six for four generations: it never loses ground, and from most
+    // seeds it halves the distance (not from every one: the search is random).
+    let mut halved = 0;
+    for s in 1..=5 {
+        let found = search(
+            &mut rand::rngs::StdRng::seed_from_u64(s),
+            &start,
+            &target,
+            &small_search(),
+        );
+        let first = found.history[0];
+        assert!(
+            found.history.windows(2).skip(1).all(|w| w[1] <= w[0]),
+            "{:?}",
+            found.history
+        );
+        assert!(found.renders > 6 * 4);
+        halved += usize::from(found.distance < first / 2.0);
+    }
+    assert!(halved >= 3, "halved from {halved} seeds of 5");
 }
 
 #[test]

@@ -42,6 +42,9 @@ const FULL_SCALE_PA: f64 = 20.0;
 const PRESET_MODES: usize = 24;
 /// Default frames per second of the score's frame column.
 const DEFAULT_FRAME_RATE: f64 = 24.0;
+/// The rms roughness of the surfaces that slide and roll, m: a sawn or cast finish
+/// (wood, concrete), rougher than `scrape`'s own default of a polished 1 µm.
+const DEFAULT_ROUGHNESS: f64 = 1e-5;
 /// How long a sustained contact's force takes to rise from and fall back to 0 at its
 /// ends, seconds.
 const RAMP: f64 = 0.005;
@@ -292,6 +295,8 @@ impl Lowerer<'_> {
                 "gain",
                 "length",
                 "frame-rate",
+                "roughness",
+                "grain",
             ],
             origin,
         )?;
@@ -408,6 +413,10 @@ struct Settings {
     /// Seconds each impact's sound lasts (default: its preset's longest T60).
     length: Option<f64>,
     frame_rate: f64,
+    /// The surfaces' rms roughness and shortest wavelength (m), for `scrape` and
+    /// `roll` ([`DEFAULT_ROUGHNESS`], and their default grain, when not given).
+    roughness: Option<f64>,
+    grain: Option<f64>,
 }
 
 /// What the instances of one `contacts` form share.
@@ -614,6 +623,8 @@ impl Lowerer<'_> {
             search.spacing = v;
         }
         let gain = number(self, "gain", "a gain", 0.0)?;
+        let roughness = number(self, "roughness", "a surface's rms roughness (m)", 0.0)?;
+        let grain = number(self, "grain", "a surface's shortest wavelength (m)", 1e-9)?;
         let length = number(self, "length", "how long each impact sounds (s)", 1e-3)?;
         let frame_rate =
             number(self, "frame-rate", "frames per second", 1e-3)?.unwrap_or(DEFAULT_FRAME_RATE);
@@ -640,6 +651,8 @@ impl Lowerer<'_> {
             gain,
             length,
             frame_rate,
+            roughness,
+            grain,
         })
     }
 
@@ -850,6 +863,11 @@ impl Lowerer<'_> {
             keyword("seed", span),
             number(seed, span),
         ];
+        let roughness = form.settings.roughness.unwrap_or(DEFAULT_ROUGHNESS);
+        call.extend([keyword("roughness", span), number(roughness, span)]);
+        if let Some(grain) = form.settings.grain {
+            call.extend([keyword("grain", span), number(grain, span)]);
+        }
         if kind == ContactKind::Roll {
             call.extend([
                 keyword("radius", span),
