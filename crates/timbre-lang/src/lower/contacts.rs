@@ -22,9 +22,9 @@ use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
 use timbre_ir::motion::Shifted;
 use timbre_ir::op::{FadeIn, Op};
 use timbre_ir::space::Path;
-use timbre_ir::{Instance, NodeId, Stem};
+use timbre_ir::{NodeId, Stem};
 use timbre_motion::contacts::{
-    self, Body, ContactKind, ContactOptions, ContactSample, Contacts, Impact,
+    self, Body, ContactError, ContactKind, ContactOptions, ContactSample, Contacts, Impact,
 };
 use timbre_motion::{NodeIndex, Shot};
 use timbre_syntax::{Expr, ExprKind, Span};
@@ -348,10 +348,14 @@ impl Lowerer<'_> {
             })
             .collect();
         let found = contacts::find_contacts(&shot, &bodies, &settings.search).map_err(|e| {
+            let span = match (&e, options.get("masses")) {
+                (ContactError::BadMass { .. }, Some(masses)) => masses.span,
+                _ => materials_expr.span,
+            };
             bad(
                 self,
                 e.to_string(),
-                materials_expr.span,
+                span,
                 "in these objects",
                 "give each object a closed mesh, and masses above 0",
             )
@@ -366,7 +370,11 @@ impl Lowerer<'_> {
         let nyquist = 0.5 * self.settings.sample_rate.unwrap_or(48_000.0);
         for (object, report) in objects.iter_mut().zip(&found.bodies) {
             let (size, area) = mesh_size(&shot, object.node);
-            let mass = if report.volume > 0.0 {
+            // An immovable object rings with the mass of its mesh (a sheet's as 1 cm
+            // thick).
+            let mass = if report.mass.is_finite() {
+                report.mass
+            } else if report.volume > 0.0 {
                 report.volume * object.material.density
             } else {
                 area * 0.01 * object.material.density
@@ -927,8 +935,7 @@ impl Lowerer<'_> {
                     length,
                     place: Path::Fixed(impact.point),
                 };
-                let instance = self.contact_instance(form, object, sound)?;
-                self.scene.instances.push(instance);
+                self.add_contact_instance(form, object, sound)?;
                 made += 1;
             }
         }
@@ -984,8 +991,7 @@ impl Lowerer<'_> {
                         length: until - from + object.preset.t60.clamp(0.05, 2.0),
                         place: riding(form.shot, object.node, form.start),
                     };
-                    let instance = self.contact_instance(form, object, sound)?;
-                    self.scene.instances.push(instance);
+                    self.add_contact_instance(form, object, sound)?;
                     made += 1;
                 }
             }
@@ -993,14 +999,14 @@ impl Lowerer<'_> {
         Ok(made)
     }
 
-    /// The instance of one object's sound driven by a force, heard at its place (or
-    /// at the channels as written when the scene has no listener).
-    fn contact_instance(
+    /// Adds the instance of one object's sound driven by a force, heard at its place
+    /// (or at the channels as written when the scene has no listener).
+    fn add_contact_instance(
         &mut self,
         form: &Sounding<'_>,
         object: &Object,
         sound: ContactSound,
-    ) -> Result<Instance, Diag> {
+    ) -> Result<(), Diag> {
         let ContactSound {
             name,
             kind,
@@ -1048,6 +1054,9 @@ impl Lowerer<'_> {
                 kind: Some(kind.into()),
             },
         };
-        self.finish_instance(names, sound, timing, place, &Options::none(), origin)
+        let instance =
+            self.finish_instance(names, sound, timing, place, &Options::none(), origin)?;
+        self.scene.instances.push(instance);
+        Ok(())
     }
 }
