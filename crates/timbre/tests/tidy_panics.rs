@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The library crates: what a host links, and what reads scripts and files.
-const CRATES: [&str; 10] = [
+const CRATES: [&str; 11] = [
     "timbre",
     "timbre-diag",
     "timbre-ir",
@@ -17,6 +17,7 @@ const CRATES: [&str; 10] = [
     "timbre-jit",
     "timbre-scene",
     "timbre-motion",
+    "timbre-modal",
     "timbre-syntax",
     "timbre-evolve",
 ];

@@ -1,0 +1,202 @@
+//! The 8-node trilinear hexahedron on a cubic voxel of side h: its stiffness and
+//! consistent mass, 24 × 24 (node k's x, y, z at 3k, 3k + 1, 3k + 2).
+//!
+//! Node k sits at the corner (k & 1, k >> 1 & 1, k >> 2 & 1)·h; its shape function in
+//! the voxel's natural coordinates ξ, η, ζ ∈ [−1, 1] is
+//! N_k = (1 + ξ·ξ_k)(1 + η·η_k)(1 + ζ·ζ_k)/8. On a cube the Jacobian is (h/2)·I, so
+//! ∂N/∂x = (2/h)·∂N/∂ξ. Strains in Voigt order (εxx, εyy, εzz, γxy, γyz, γzx);
+//! D = λ·m·mᵀ + μ·diag(2, 2, 2, 1, 1, 1) with m = (1, 1, 1, 0, 0, 0).
+//!
+//! K = Σ_g Bᵀ·D·B·(h/2)³ and M = ρ·Σ_g Nᵀ·N·(h/2)³ over the 2 × 2 × 2 Gauss points
+//! ±1/√3 (weights 1): exact for both, as their integrands are of degree at most 2 in
+//! each coordinate.
+
+// Index loops write the sums of the formulas as they are printed.
+#![allow(clippy::needless_range_loop)]
+
+use crate::Elastic;
+
+/// Degrees of freedom of one element.
+pub const DOFS: usize = 24;
+
+/// The corner of node `k` in natural coordinates (each −1 or 1).
+fn corner(k: usize) -> [f64; 3] {
+    [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b| if b == 0 { -1.0 } else { 1.0 })
+}
+
+/// The Gauss points of the 2 × 2 × 2 rule.
+fn gauss_points() -> impl Iterator<Item = [f64; 3]> {
+    let g = 1.0 / 3f64.sqrt();
+    (0..8).map(move |k| corner(k).map(|c| c * g))
+}
+
+/// The shape functions and their natural derivatives at a point.
+fn shape(p: [f64; 3]) -> ([f64; 8], [[f64; 3]; 8]) {
+    let mut n = [0.0; 8];
+    let mut dn = [[0.0; 3]; 8];
+    for k in 0..8 {
+        let c = corner(k);
+        let f = [0, 1, 2].map(|i| 1.0 + p[i] * c[i]);
+        n[k] = f[0] * f[1] * f[2] / 8.0;
+        dn[k] = [
+            c[0] * f[1] * f[2] / 8.0,
+            f[0] * c[1] * f[2] / 8.0,
+            f[0] * f[1] * c[2] / 8.0,
+        ];
+    }
+    (n, dn)
+}
+
+/// The element's stiffness for a voxel of side `h`.
+pub fn stiffness(material: &Elastic, h: f64) -> [[f64; DOFS]; DOFS] {
+    let (lambda, mu) = (material.lambda(), material.shear());
+    let mut d = [[0.0; 6]; 6];
+    for i in 0..3 {
+        for j in 0..3 {
+            d[i][j] = lambda;
+        }
+        d[i][i] += 2.0 * mu;
+        d[i + 3][i + 3] = mu;
+    }
+    let volume = (h / 2.0).powi(3);
+    let mut k = [[0.0; DOFS]; DOFS];
+    for p in gauss_points() {
+        let (_, dn) = shape(p);
+        // B: 6 × 24.
+        let mut b = [[0.0; DOFS]; 6];
+        for node in 0..8 {
+            let [dx, dy, dz] = dn[node].map(|v| v * 2.0 / h);
+            let c = 3 * node;
+            b[0][c] = dx;
+            b[1][c + 1] = dy;
+            b[2][c + 2] = dz;
+            b[3][c] = dy;
+            b[3][c + 1] = dx;
+            b[4][c + 1] = dz;
+            b[4][c + 2] = dy;
+            b[5][c] = dz;
+            b[5][c + 2] = dx;
+        }
+        // D·B, then Bᵀ·(D·B).
+        let mut db = [[0.0; DOFS]; 6];
+        for i in 0..6 {
+            for j in 0..DOFS {
+                db[i][j] = (0..6).map(|m| d[i][m] * b[m][j]).sum();
+            }
+        }
+        for i in 0..DOFS {
+            for j in 0..DOFS {
+                k[i][j] += volume * (0..6).map(|m| b[m][i] * db[m][j]).sum::<f64>();
+            }
+        }
+    }
+    k
+}
+
+/// The element's consistent mass for a voxel of side `h`.
+pub fn mass(material: &Elastic, h: f64) -> [[f64; DOFS]; DOFS] {
+    let volume = (h / 2.0).powi(3);
+    let mut m = [[0.0; DOFS]; DOFS];
+    for p in gauss_points() {
+        let (n, _) = shape(p);
+        for a in 0..8 {
+            for b in 0..8 {
+                let value = material.density * n[a] * n[b] * volume;
+                for i in 0..3 {
+                    m[3 * a + i][3 * b + i] += value;
+                }
+            }
+        }
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const STEEL: Elastic = Elastic {
+        youngs: 200e9,
+        poisson: 0.3,
+        density: 7850.0,
+    };
+
+    /// The displacement of every node of a voxel of side `h` under the field `u`.
+    fn nodal(h: f64, u: impl Fn([f64; 3]) -> [f64; 3]) -> [f64; DOFS] {
+        let mut out = [0.0; DOFS];
+        for k in 0..8 {
+            let x = corner(k).map(|c| (c + 1.0) / 2.0 * h);
+            out[3 * k..3 * k + 3].copy_from_slice(&u(x));
+        }
+        out
+    }
+
+    fn energy(k: &[[f64; DOFS]; DOFS], u: &[f64; DOFS]) -> f64 {
+        (0..DOFS)
+            .map(|i| u[i] * (0..DOFS).map(|j| k[i][j] * u[j]).sum::<f64>())
+            .sum::<f64>()
+            / 2.0
+    }
+
+    #[test]
+    fn rigid_motions_store_no_energy_and_uniform_strains_the_exact_energy() {
+        let h = 0.01;
+        let k = stiffness(&STEEL, h);
+        let scale = k[0][0] * h * h;
+        let rigid: [fn([f64; 3]) -> [f64; 3]; 6] = [
+            |_| [1.0, 0.0, 0.0],
+            |_| [0.0, 1.0, 0.0],
+            |_| [0.0, 0.0, 1.0],
+            |[_, y, z]| [0.0, -z, y],
+            |[x, _, z]| [z, 0.0, -x],
+            |[x, y, _]| [-y, x, 0.0],
+        ];
+        for u in rigid {
+            let u = nodal(h, u);
+            let size = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(energy(&k, &u).abs() < 1e-12 * k[0][0] * size * size);
+        }
+        // Uniform strains: ½·εᵀ·D·ε·h³ exactly (the patch test).
+        let (lambda, mu) = (STEEL.lambda(), STEEL.shear());
+        let e = 1e-4;
+        let stretch = energy(&k, &nodal(h, |[x, _, _]| [e * x, 0.0, 0.0]));
+        let expected = 0.5 * (lambda + 2.0 * mu) * e * e * h.powi(3);
+        assert!(
+            (stretch / expected - 1.0).abs() < 1e-12,
+            "{stretch} {expected}"
+        );
+        let shear = energy(&k, &nodal(h, |[_, y, _]| [e * y, 0.0, 0.0]));
+        let expected = 0.5 * mu * e * e * h.powi(3);
+        assert!((shear / expected - 1.0).abs() < 1e-12, "{shear} {expected}");
+        for i in 0..DOFS {
+            for j in 0..DOFS {
+                assert!((k[i][j] - k[j][i]).abs() <= 1e-12 * scale);
+            }
+        }
+    }
+
+    #[test]
+    fn the_mass_is_the_voxel_s_along_each_axis_and_its_inertia_is_exact() {
+        let h = 0.02;
+        let m = mass(&STEEL, h);
+        let total = STEEL.density * h.powi(3);
+        for axis in 0..3 {
+            let u = nodal(h, |_| {
+                let mut v = [0.0; 3];
+                v[axis] = 1.0;
+                v
+            });
+            let moved: f64 = (0..DOFS)
+                .map(|i| u[i] * (0..DOFS).map(|j| m[i][j] * u[j]).sum::<f64>())
+                .sum();
+            assert!((moved / total - 1.0).abs() < 1e-12);
+        }
+        // A rotation about the voxel's x edge: ∫ρ(y² + z²)dV = ρh⁵·2/3.
+        let u = nodal(h, |[_, y, z]| [0.0, -z, y]);
+        let inertia: f64 = (0..DOFS)
+            .map(|i| u[i] * (0..DOFS).map(|j| m[i][j] * u[j]).sum::<f64>())
+            .sum();
+        let expected = STEEL.density * h.powi(5) * 2.0 / 3.0;
+        assert!((inertia / expected - 1.0).abs() < 1e-12);
+    }
+}
