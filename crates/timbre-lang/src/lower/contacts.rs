@@ -17,9 +17,9 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use timbre_diag::Diag;
+use timbre_ir::dsp::impact::Bodies as HertzBodies;
 use timbre_ir::dsp::materials::Material;
 use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
-use timbre_ir::motion::Shifted;
 use timbre_ir::op::{FadeIn, Op};
 use timbre_ir::space::Path;
 use timbre_ir::{NodeId, Stem};
@@ -29,6 +29,7 @@ use timbre_motion::contacts::{
 use timbre_motion::{NodeIndex, Shot};
 use timbre_syntax::{Expr, ExprKind, Span};
 
+use super::motion::NodeRef;
 use super::scene::{Names, Options, Timing};
 use super::{Lowerer, Origin, Scope};
 
@@ -369,7 +370,7 @@ impl Lowerer<'_> {
         }
         let nyquist = 0.5 * self.settings.sample_rate.unwrap_or(48_000.0);
         for (object, report) in objects.iter_mut().zip(&found.bodies) {
-            let (size, area) = mesh_size(&shot, object.node);
+            let (size, area) = (report.size, report.area);
             // An immovable object rings with the mass of its mesh (a sheet's as 1 cm
             // thick).
             let mass = if report.mass.is_finite() {
@@ -404,16 +405,6 @@ impl Lowerer<'_> {
     }
 }
 
-/// The path of a node's origin, its shot played from `start` (scene time).
-fn riding(shot: &Shot, node: NodeIndex, start: f64) -> Path {
-    let position = shot.position(node);
-    if start == 0.0 {
-        Path::Moving(position)
-    } else {
-        Path::Moving(Arc::new(Shifted(position, start)))
-    }
-}
-
 /// The form's search tolerances and sound settings.
 struct Settings {
     search: ContactOptions,
@@ -429,7 +420,7 @@ struct Settings {
 
 /// What the instances of one `contacts` form share.
 struct Sounding<'f> {
-    shot: &'f Shot,
+    shot: &'f Arc<Shot>,
     /// The motion file's name, first in every instance's name.
     name: &'f str,
     /// Scene time of the shot's time 0.
@@ -473,28 +464,6 @@ struct Surface<'o> {
     seed: f64,
 }
 
-/// The box and surface area of a node's mesh (m, m²), in its own scaled frame.
-fn mesh_size(shot: &Shot, node: NodeIndex) -> (DVec3, f64) {
-    let Some(mesh) = shot.mesh(node) else {
-        return (DVec3::ZERO, 0.0);
-    };
-    let scale = shot.pose(node, 0.0).scale;
-    let points: Vec<DVec3> = mesh.vertices.iter().map(|&v| v * scale).collect();
-    let (lo, hi) = points.iter().fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(lo, hi), &v| (lo.min(v), hi.max(v)),
-    );
-    let area = mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| points[i as usize]);
-            0.5 * (b - a).cross(c - a).length()
-        })
-        .sum();
-    (hi - lo, area)
-}
-
 /// The Hertz force of an impact as a call of `impact` scaled to the impulse found,
 /// and its peak in newtons. The movable (or lighter) body is body a of the call: the
 /// force is the same on both.
@@ -530,21 +499,27 @@ fn impact_force(
     if m2.is_finite() {
         call.extend([keyword("mass-b", span), number(m2, span)]);
     }
-    // F_max = (4/3)·E*·√R*·δ_max^(3/2), δ_max = (15·m*·v²/(16·E*·√R*))^(2/5).
-    let e_star = 1.0 / (first.material.compliance() + second.material.compliance());
-    let r_star = 1.0 / (1.0 / r1 + if r2.is_finite() { 1.0 / r2 } else { 0.0 });
-    let m_star = if m2.is_finite() {
-        m1 * m2 / (m1 + m2)
+    // The pulse `impact` makes (`dsp::impact`), for its peak and the impulse it
+    // carries: 2·m*·v, as an elastic contact does. Scaled to the impulse the motion
+    // shows, (1 + e)·m*·v, it carries what the bodies exchanged.
+    let pulse = HertzBodies {
+        youngs_a: first.material.youngs,
+        poisson_a: first.material.poisson,
+        youngs_b: second.material.youngs,
+        poisson_b: second.material.poisson,
+        radius_a: r1,
+        radius_b: r2,
+        mass_a: m1,
+        mass_b: m2,
+        speed: impact.normal_speed,
+    }
+    .impact();
+    let (peak, elastic) = pulse.map_or((0.0, 0.0), |p| (p.peak_force(), p.impulse()));
+    let share = if elastic > 0.0 {
+        (impact.impulse / elastic).clamp(0.0, 1.0)
     } else {
-        m1
+        1.0
     };
-    let v = impact.normal_speed;
-    let delta = (15.0 * m_star * v * v / (16.0 * e_star * r_star.sqrt())).powf(0.4);
-    let peak = 4.0 / 3.0 * e_star * r_star.sqrt() * delta.powf(1.5);
-    // The Hertz pulse carries 2·m*·v, as an elastic contact does; scaled to the
-    // impulse the motion shows, (1 + e)·m*·v, it carries what the bodies exchanged.
-    let elastic = 2.0 * m_star * v;
-    let share = (impact.impulse / elastic).clamp(0.0, 1.0);
     let force = if impact.impulse > 0.0 && elastic > 0.0 {
         list(
             vec![symbol("*", span), number(share, span), list(call, span)],
@@ -989,7 +964,15 @@ impl Lowerer<'_> {
                         force,
                         start: from,
                         length: until - from + object.preset.t60.clamp(0.05, 2.0),
-                        place: riding(form.shot, object.node, form.start),
+                        place: Path::Moving(
+                            NodeRef {
+                                shot: form.shot.clone(),
+                                node: object.node,
+                                start: form.start,
+                                name: object.name.clone(),
+                            }
+                            .position(),
+                        ),
                     };
                     self.add_contact_instance(form, object, sound)?;
                     made += 1;

@@ -98,6 +98,10 @@ pub struct BodyReport {
     pub volume: f64,
     /// kg; +∞ for an immovable body.
     pub mass: f64,
+    /// The sides of its mesh's box in its own frame (scaled), m.
+    pub size: DVec3,
+    /// Its mesh's surface area (scaled), m².
+    pub area: f64,
 }
 
 /// One impact between bodies `a` and `b` (indices of the bodies given).
@@ -406,13 +410,14 @@ pub fn find_contacts(
         warnings.extend(warning);
         states.push(state);
     }
+    let boxes: Vec<_> = states.iter().map(|s| reach_box(s, options)).collect();
     let mut impacts = Vec::new();
     let mut sustained = Vec::new();
     for a in 0..states.len() {
         for b in a + 1..states.len() {
-            if !(states[a].moves() || states[b].moves())
-                || !may_meet(&states[a], &states[b], options)
-            {
+            let ((alo, ahi), (blo, bhi)) = (boxes[a], boxes[b]);
+            let may_meet = alo.cmple(bhi).all() && blo.cmple(ahi).all();
+            if !(states[a].moves() || states[b].moves()) || !may_meet {
                 continue;
             }
             let pair = Pair {
@@ -439,6 +444,8 @@ pub fn find_contacts(
                 kind: s.shape.kind,
                 volume: s.shape.volume,
                 mass: s.mass,
+                size: s.shape.size,
+                area: s.shape.area,
             })
             .collect(),
         impacts,
@@ -447,19 +454,15 @@ pub fn find_contacts(
     })
 }
 
-/// Whether the bodies' world boxes over the whole shot come within the tolerance.
-fn may_meet(a: &State, b: &State, options: &ContactOptions) -> bool {
-    let reach = |s: &State| {
-        let (lo, hi) = s.keys.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), k| (lo.min(k.position), hi.max(k.position)),
-        );
-        let r = s.shape.reach + options.margin + options.tolerance;
-        (lo - r, hi + r)
-    };
-    let (alo, ahi) = reach(a);
-    let (blo, bhi) = reach(b);
-    alo.cmple(bhi).all() && blo.cmple(ahi).all()
+/// The world box a body's mesh stays in over the whole shot, grown by the touching
+/// distance: two bodies whose boxes are apart never meet.
+fn reach_box(s: &State, options: &ContactOptions) -> (DVec3, DVec3) {
+    let (lo, hi) = s.keys.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), k| (lo.min(k.position), hi.max(k.position)),
+    );
+    let r = s.shape.reach + options.margin + options.tolerance;
+    (lo - r, hi + r)
 }
 
 /// Two bodies and what the search needs of them.

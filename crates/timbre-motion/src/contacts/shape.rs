@@ -41,6 +41,10 @@ pub(crate) struct BodyShape {
     pub(crate) volume: f64,
     /// The welded vertices, for curvature.
     vertices: Vec<DVec3>,
+    /// The sides of the local box, m.
+    pub(crate) size: DVec3,
+    /// The surface's area, m².
+    pub(crate) area: f64,
     /// The shortest side of the local box, metres.
     pub(crate) thickness: f64,
     /// The farthest vertex from the frame's origin, metres.
@@ -136,7 +140,15 @@ impl BodyShape {
             |(lo, hi), &v| (lo.min(v), hi.max(v)),
         );
         let reach = vertices.iter().fold(0.0f64, |m, v| m.max(v.length()));
-        let thickness = (hi - lo).min_element();
+        let size = hi - lo;
+        let thickness = size.min_element();
+        let area = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| vertices[i as usize]);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
         let trimesh = || {
             TriMesh::new(points.clone(), triangles.clone())
                 .map(SharedShape::new)
@@ -155,6 +167,8 @@ impl BodyShape {
                 kind: ShapeKind::Sphere,
                 volume: 4.0 / 3.0 * std::f64::consts::PI * radius.powi(3),
                 vertices,
+                size,
+                area,
                 thickness,
                 reach,
                 sphere: Some(radius),
@@ -176,6 +190,8 @@ impl BodyShape {
             kind,
             volume,
             vertices,
+            size,
+            area,
             thickness,
             reach,
             sphere: None,
