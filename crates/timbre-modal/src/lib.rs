@@ -13,6 +13,7 @@
 
 pub mod grid;
 pub mod hex8;
+pub mod solve;
 
 /// An isotropic, linear elastic material.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,0 +1,628 @@
+//! The lowest elastic modes of a free solid: K·φ = λ·M·φ, λ = ω².
+//!
+//! **Shift and invert.** K − σM is factored once (faer's sparse Cholesky, AMD
+//! ordering) with σ < 0, so it is positive definite although the free solid's K is
+//! singular. The operator A = (K − σM)⁻¹·M is self-adjoint in the M inner product
+//! ⟨x, y⟩ = xᵀMy and has the modes as eigenvectors, with θ = 1/(λ − σ): the lowest
+//! λ are the largest θ, well apart from each other.
+//!
+//! **Rigid motion removed.** The six rigid motions (three translations, three
+//! rotations about the centre of mass) span K's null space exactly, since a trilinear
+//! element strains under no linear field that is a rigid motion. They are built from
+//! the nodes, M-orthonormalised, and every basis vector is kept M-orthogonal to them,
+//! so the search sees only elastic modes.
+//!
+//! **Block Krylov with thick restarts.** The basis V grows a block of [`Options::block`]
+//! vectors at a time, V_{j+1} = A·V_j made M-orthonormal to all before it (classical
+//! Gram–Schmidt, twice); a block finds repeated eigenvalues (a cube's or a sphere's
+//! symmetric modes) together. T = VᵀM·A·V is kept as the basis grows. When the basis is
+//! full, its Ritz pairs (faer's dense symmetric eigensolver on T) are tested, the best
+//! kept and the basis continued from them (a thick restart, so no work on converged
+//! vectors is lost), until each wanted mode's residual ‖A·y − θ·y‖_M is below
+//! [`Options::tolerance`]·θ.
+//!
+//! **Checked and reproducible.** Each mode found is checked on the original problem,
+//! ‖K·φ − λ·M·φ‖ ≤ 10⁻⁶·‖K·φ‖, or the solve fails naming it. Modes come in ascending
+//! order, M-normalised (φᵀMφ = 1), each signed so that its largest component (the
+//! first, on a tie) is positive. Every step runs on one thread in a fixed order with
+//! a seeded start, so the same matrices give the same modes, bit for bit.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
+use faer::linalg::matmul::matmul;
+use faer::prelude::{Reborrow, ReborrowMut};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
+
+use crate::grid::{Assembled, Sparse};
+
+/// How the lowest modes are sought.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// The elastic modes wanted.
+    pub count: usize,
+    /// σ < 0, in (rad/s)²: near the lowest elastic λ (within a few orders of
+    /// magnitude below it) for the fastest convergence.
+    pub shift: f64,
+    /// Vectors added to the basis at a time; the most repeated eigenvalue it finds at
+    /// once.
+    pub block: usize,
+    /// The relative residual of A·y = θ·y below which a mode has converged.
+    pub tolerance: f64,
+    /// The most restarts before the solve gives up.
+    pub max_restarts: usize,
+}
+
+impl Options {
+    /// `count` modes, shift `shift`, blocks of 8, converged at 10⁻⁸, 60 restarts.
+    pub fn new(count: usize, shift: f64) -> Self {
+        Options {
+            count,
+            shift,
+            block: 8,
+            tolerance: 1e-8,
+            max_restarts: 60,
+        }
+    }
+}
+
+/// The modes found.
+#[derive(Clone, Debug)]
+pub struct Eigen {
+    /// λ = ω² of each mode, ascending, (rad/s)².
+    pub values: Vec<f64>,
+    /// Mode k is column k, M-normalised.
+    pub vectors: Mat<f64>,
+    /// ‖K·φ − λ·M·φ‖/‖K·φ‖ of each mode.
+    pub residuals: Vec<f64>,
+}
+
+/// Why no modes came out.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SolveError {
+    /// The solid has too few degrees of freedom for the modes asked.
+    TooSmall { dofs: usize, wanted: usize },
+    /// The shift was not negative or not finite.
+    BadShift(f64),
+    /// K − σM could not be factored (not positive definite, or out of memory).
+    Factor(String),
+    /// A mode did not converge: its number (from 1) and relative residual.
+    NoConvergence { mode: usize, residual: f64 },
+}
+
+impl std::fmt::Display for SolveError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SolveError::TooSmall { dofs, wanted } => write!(
+                f,
+                "the solid has {dofs} degrees of freedom, too few for {wanted} elastic modes \
+                 (6 are rigid motion)"
+            ),
+            SolveError::BadShift(s) => write!(f, "the shift must be below 0, not {s}"),
+            SolveError::Factor(why) => write!(f, "K − σM could not be factored: {why}"),
+            SolveError::NoConvergence { mode, residual } => write!(
+                f,
+                "mode {mode} did not converge: its relative residual is {residual:.2e}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SolveError {}
+
+/// The `options.count` lowest elastic modes of the assembled solid.
+pub fn lowest_modes(solid: &Assembled, options: &Options) -> Result<Eigen, SolveError> {
+    let n = solid.stiffness.size;
+    let wanted = options.count;
+    let block = options.block.max(1);
+    if wanted == 0 || n < wanted + 6 + 2 * block {
+        return Err(SolveError::TooSmall { dofs: n, wanted });
+    }
+    if !(options.shift < 0.0 && options.shift.is_finite()) {
+        return Err(SolveError::BadShift(options.shift));
+    }
+    let factor = Factor::new(&solid.stiffness, &solid.mass, options.shift)?;
+    let mass = &solid.mass;
+    let rigid = rigid_modes(&solid.nodes, mass);
+    // The basis: room for the wanted modes, a block being tested and room to grow.
+    let capacity = (2 * wanted + 3 * block).min(n - 6);
+    let keep = (wanted + block).min(capacity - block);
+    let mut basis = Mat::<f64>::zeros(n, capacity);
+    let mut image = Mat::<f64>::zeros(n, capacity);
+    let mut used = 0;
+    let mut next = start_block(n, block);
+    let mut draws = block as u64;
+    orthonormalise(
+        &mut next,
+        basis.as_ref().subcols(0, 0),
+        &rigid,
+        mass,
+        &mut draws,
+    );
+    let mut restarts = 0;
+    loop {
+        // Append the block and its image under A; extend T = VᵀM·A·V.
+        let width = next.ncols();
+        basis.as_mut().subcols_mut(used, width).copy_from(&next);
+        let mut w = factor.solve(&mass_times(mass, next.as_ref()));
+        // A keeps the complement of rigid motion, but the solve's rounding does not:
+        // its rigid part, magnified by 1/|σ|, would stall the residuals.
+        project_out(w.as_mut(), &[rigid.as_ref()], mass);
+        image.as_mut().subcols_mut(used, width).copy_from(&w);
+        used += width;
+        let mut candidate = w;
+        orthonormalise(
+            &mut candidate,
+            basis.as_ref().subcols(0, used),
+            &rigid,
+            mass,
+            &mut draws,
+        );
+        if used + block <= capacity {
+            next = candidate;
+            continue;
+        }
+        // The basis is full: Ritz pairs, largest θ first.
+        let (theta, vectors) = symmetric_eigen(rayleigh(
+            basis.as_ref().subcols(0, used),
+            image.as_ref().subcols(0, used),
+            mass,
+        ));
+        let order: Vec<usize> = (0..used).rev().collect();
+        let mut ritz = Mat::<f64>::zeros(used, keep);
+        for (c, &k) in order.iter().take(keep).enumerate() {
+            ritz.as_mut().col_mut(c).copy_from(vectors.col(k));
+        }
+        let ritz_vectors = times(basis.as_ref().subcols(0, used), ritz.as_ref());
+        let ritz_images = times(image.as_ref().subcols(0, used), ritz.as_ref());
+        let thetas: Vec<f64> = order.iter().take(keep).map(|&k| theta[k]).collect();
+        let mut residual = ritz_images.clone();
+        for c in 0..keep {
+            let (y, mut r) = (ritz_vectors.col(c), residual.as_mut().col_mut(c));
+            for i in 0..n {
+                r[i] -= thetas[c] * y[i];
+            }
+        }
+        let residual_norms = mass_norms(mass, residual.as_ref());
+        let unconverged =
+            (0..wanted).find(|&c| !(residual_norms[c] <= options.tolerance * thetas[c].abs()));
+        if unconverged.is_none() {
+            return finish(solid, &ritz_vectors, &thetas, options);
+        }
+        restarts += 1;
+        if restarts > options.max_restarts {
+            let c = unconverged.unwrap_or(0);
+            return Err(SolveError::NoConvergence {
+                mode: c + 1,
+                residual: residual_norms[c] / thetas[c].abs(),
+            });
+        }
+        // Thick restart: the Ritz vectors kept, then the block that was next.
+        basis.as_mut().subcols_mut(0, keep).copy_from(&ritz_vectors);
+        image.as_mut().subcols_mut(0, keep).copy_from(&ritz_images);
+        used = keep;
+        next = candidate;
+    }
+}
+
+/// Sorts the converged Ritz pairs into modes, checks them on K·φ = λ·M·φ and signs
+/// them.
+fn finish(
+    solid: &Assembled,
+    vectors: &Mat<f64>,
+    thetas: &[f64],
+    options: &Options,
+) -> Result<Eigen, SolveError> {
+    let wanted = options.count;
+    let mut order: Vec<usize> = (0..wanted).collect();
+    let lambda = |c: usize| options.shift + 1.0 / thetas[c];
+    order.sort_by(|&a, &b| lambda(a).total_cmp(&lambda(b)).then(a.cmp(&b)));
+    let n = solid.stiffness.size;
+    let mut out = Mat::<f64>::zeros(n, wanted);
+    let mut values = Vec::with_capacity(wanted);
+    let mut residuals = Vec::with_capacity(wanted);
+    for (mode, &c) in order.iter().enumerate() {
+        let mut phi: Vec<f64> = vectors.col(c).iter().copied().collect();
+        let norm = solid.mass.quadratic(&phi).sqrt();
+        let largest =
+            phi.iter().enumerate().fold(
+                0,
+                |best, (i, x)| if x.abs() > phi[best].abs() { i } else { best },
+            );
+        let sign = if phi[largest] < 0.0 { -1.0 } else { 1.0 };
+        phi.iter_mut().for_each(|x| *x *= sign / norm);
+        let value = lambda(c);
+        let kphi = solid.stiffness.mul(&phi);
+        let mphi = solid.mass.mul(&phi);
+        let r: f64 = kphi
+            .iter()
+            .zip(&mphi)
+            .map(|(k, m)| (k - value * m).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let scale = kphi.iter().map(|k| k * k).sum::<f64>().sqrt();
+        let relative = r / scale;
+        if !(relative <= 1e-6) || !value.is_finite() {
+            return Err(SolveError::NoConvergence {
+                mode: mode + 1,
+                residual: relative,
+            });
+        }
+        out.as_mut()
+            .col_mut(mode)
+            .iter_mut()
+            .zip(&phi)
+            .for_each(|(o, x)| *o = *x);
+        values.push(value);
+        residuals.push(relative);
+    }
+    Ok(Eigen {
+        values,
+        vectors: out,
+        residuals,
+    })
+}
+
+/// The Cholesky factor of K − σM.
+struct Factor {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+}
+
+impl Factor {
+    fn new(stiffness: &Sparse, mass: &Sparse, shift: f64) -> Result<Self, SolveError> {
+        let n = stiffness.size;
+        // The lower triangle, column by column: row r of a symmetric matrix in
+        // compressed rows is its column r, and its entries at or below the diagonal
+        // are those with a column ≥ r.
+        let mut starts = vec![0usize];
+        let mut rows = Vec::new();
+        let mut values = Vec::new();
+        for r in 0..n {
+            let mass_row = mass.rows[r]..mass.rows[r + 1];
+            let mut m = mass_row.start;
+            for k in stiffness.rows[r]..stiffness.rows[r + 1] {
+                let c = stiffness.columns[k];
+                while m < mass_row.end && mass.columns[m] < c {
+                    m += 1;
+                }
+                let mass_value = if m < mass_row.end && mass.columns[m] == c {
+                    mass.values[m]
+                } else {
+                    0.0
+                };
+                if c >= r {
+                    rows.push(c);
+                    values.push(stiffness.values[k] - shift * mass_value);
+                }
+            }
+            starts.push(rows.len());
+        }
+        let pattern = SymbolicSparseColMat::new_checked(n, n, starts, None, rows);
+        let matrix = SparseColMat::new(pattern, values);
+        let symbolic = factorize_symbolic_cholesky(
+            matrix.symbolic(),
+            Side::Lower,
+            Default::default(),
+            Default::default(),
+        )
+        .map_err(|e| SolveError::Factor(format!("{e:?}")))?;
+        let mut factor = vec![0.0; symbolic.len_val()];
+        let scratch = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+        let mut buffer =
+            MemBuffer::try_new(scratch).map_err(|_| SolveError::Factor("out of memory".into()))?;
+        symbolic
+            .factorize_numeric_llt(
+                &mut factor,
+                matrix.as_ref(),
+                Side::Lower,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut buffer),
+                Default::default(),
+            )
+            .map_err(|e| SolveError::Factor(format!("{e:?}")))?;
+        Ok(Factor {
+            symbolic,
+            values: factor,
+        })
+    }
+
+    /// (K − σM)⁻¹·rhs.
+    fn solve(&self, rhs: &Mat<f64>) -> Mat<f64> {
+        let mut x = rhs.clone();
+        let scratch = self
+            .symbolic
+            .solve_in_place_scratch::<f64>(x.ncols(), Par::Seq);
+        let mut buffer = MemBuffer::new(scratch);
+        faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.values)
+            .solve_in_place_with_conj(Conj::No, x.as_mut(), Par::Seq, MemStack::new(&mut buffer));
+        x
+    }
+}
+
+/// M·X for a block X, row by row so each entry of M is read once.
+fn mass_times(mass: &Sparse, x: MatRef<'_, f64>) -> Mat<f64> {
+    let (n, b) = (x.nrows(), x.ncols());
+    let mut out = Mat::<f64>::zeros(n, b);
+    let mut sums = vec![0.0; b];
+    for r in 0..mass.size {
+        sums.iter_mut().for_each(|s| *s = 0.0);
+        for k in mass.rows[r]..mass.rows[r + 1] {
+            let (v, column) = (mass.values[k], mass.columns[k]);
+            for (c, s) in sums.iter_mut().enumerate() {
+                *s += v * x[(column, c)];
+            }
+        }
+        for (c, s) in sums.iter().enumerate() {
+            out[(r, c)] = *s;
+        }
+    }
+    out
+}
+
+/// √(xᵀMx) of each column.
+fn mass_norms(mass: &Sparse, x: MatRef<'_, f64>) -> Vec<f64> {
+    let mx = mass_times(mass, x);
+    (0..x.ncols())
+        .map(|c| {
+            x.col(c)
+                .iter()
+                .zip(mx.col(c).iter())
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
+                .max(0.0)
+                .sqrt()
+        })
+        .collect()
+}
+
+/// T = VᵀM·(A·V), made exactly symmetric: the Rayleigh quotient of A on the basis.
+/// Computed whole at each restart, not grown block by block, since the rounding of
+/// the solves makes A's symmetry inexact and a T grown by symmetry drifts from
+/// the basis it describes.
+fn rayleigh(basis: MatRef<'_, f64>, image: MatRef<'_, f64>, mass: &Sparse) -> Mat<f64> {
+    let mut t = times(basis.transpose(), mass_times(mass, image).as_ref());
+    let n = t.nrows();
+    for i in 0..n {
+        for j in 0..i {
+            let mean = 0.5 * (t[(i, j)] + t[(j, i)]);
+            t[(i, j)] = mean;
+            t[(j, i)] = mean;
+        }
+    }
+    t
+}
+
+fn times(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
+    matmul(out.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
+    out
+}
+
+/// Eigenvalues (ascending) and eigenvectors of a small symmetric matrix.
+fn symmetric_eigen(mut t: Mat<f64>) -> (Vec<f64>, Mat<f64>) {
+    let n = t.nrows();
+    // Scaled to a largest entry of 1 first: T's entries are of order 1/ω², and the
+    // eigensolver's deflation tests are not all relative.
+    let scale = t
+        .as_ref()
+        .col_iter()
+        .flat_map(|c| c.iter().map(|x| x.abs()).collect::<Vec<_>>())
+        .fold(0.0, f64::max);
+    let scale = if scale > 0.0 && scale.is_finite() {
+        scale
+    } else {
+        1.0
+    };
+    t.as_mut()
+        .col_iter_mut()
+        .for_each(|c| c.iter_mut().for_each(|x| *x /= scale));
+    let mut values = faer::diag::Diag::<f64>::zeros(n);
+    let mut vectors = Mat::<f64>::zeros(n, n);
+    let scratch =
+        self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, Par::Seq, Default::default());
+    let mut buffer = MemBuffer::new(scratch);
+    // A symmetric tridiagonal QR always converges on a finite matrix; on a
+    // non-finite one the values come back NaN and the residual test fails.
+    let _ = self_adjoint_evd(
+        t.as_ref(),
+        values.as_mut(),
+        Some(vectors.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut buffer),
+        Default::default(),
+    );
+    (
+        values.column_vector().iter().map(|v| v * scale).collect(),
+        vectors,
+    )
+}
+
+/// The six rigid motions at the nodes, M-orthonormal: translations along x, y, z and
+/// rotations about the axes through the centre of mass.
+fn rigid_modes(nodes: &[[f64; 3]], mass: &Sparse) -> Mat<f64> {
+    let n = 3 * nodes.len();
+    let count = nodes.len().max(1) as f64;
+    let centre = nodes.iter().fold([0.0; 3], |c, p| {
+        [
+            c[0] + p[0] / count,
+            c[1] + p[1] / count,
+            c[2] + p[2] / count,
+        ]
+    });
+    let mut rigid = Mat::<f64>::zeros(n, 6);
+    for (i, p) in nodes.iter().enumerate() {
+        let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+        for axis in 0..3 {
+            rigid[(3 * i + axis, axis)] = 1.0;
+        }
+        // ω × d for ω = x̂, ŷ, ẑ.
+        let rotations = [[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]];
+        for (k, r) in rotations.iter().enumerate() {
+            for axis in 0..3 {
+                rigid[(3 * i + axis, 3 + k)] = r[axis];
+            }
+        }
+    }
+    let mut draws = 0;
+    let none = Mat::<f64>::zeros(n, 0);
+    orthonormalise(&mut rigid, none.as_ref(), &none, mass, &mut draws);
+    rigid
+}
+
+/// Makes the columns of `x` M-orthonormal to each other, to `basis` and to `rigid`
+/// (both M-orthonormal): two passes of block classical Gram–Schmidt against both,
+/// then two of Cholesky QR within the block. A block that is (nearly) rank
+/// deficient goes column by column instead, and a column that vanishes (it lay in
+/// the span already) is replaced by a fresh seeded random vector.
+fn orthonormalise(
+    x: &mut Mat<f64>,
+    basis: MatRef<'_, f64>,
+    rigid: &Mat<f64>,
+    mass: &Sparse,
+    draws: &mut u64,
+) {
+    let original = mass_norms(mass, x.as_ref());
+    for _ in 0..2 {
+        project_out(x.as_mut(), &[basis, rigid.as_ref()], mass);
+    }
+    for _ in 0..2 {
+        if !cholesky_qr(x, &original, mass) {
+            by_columns(x, basis, rigid, mass, draws);
+            return;
+        }
+    }
+}
+
+/// X ← X·R⁻¹ with RᵀR = XᵀMX, when R's diagonal shows no column vanished (each
+/// keeps 10⁻⁶ of its `original` norm); false, and X unchanged, otherwise.
+fn cholesky_qr(x: &mut Mat<f64>, original: &[f64], mass: &Sparse) -> bool {
+    let b = x.ncols();
+    let gram = times(
+        x.as_ref().transpose(),
+        mass_times(mass, x.as_ref()).as_ref(),
+    );
+    let mut r = Mat::<f64>::zeros(b, b);
+    for j in 0..b {
+        for i in 0..=j {
+            let mut sum = gram[(i, j)];
+            for k in 0..i {
+                sum -= r[(k, i)] * r[(k, j)];
+            }
+            if i == j {
+                if !(sum > (1e-6 * original[j]).powi(2)) {
+                    return false;
+                }
+                r[(j, j)] = sum.sqrt();
+            } else {
+                r[(i, j)] = sum / r[(i, i)];
+            }
+        }
+    }
+    // Rows of X times R⁻¹: forward substitution column by column.
+    for j in 0..b {
+        for k in 0..j {
+            let factor = r[(k, j)];
+            let (left, mut right) = x.as_mut().split_at_col_mut(j);
+            let (source, mut target) = (left.col(k), right.rb_mut().col_mut(0));
+            for i in 0..source.nrows() {
+                target[i] -= factor * source[i];
+            }
+        }
+        let diagonal = r[(j, j)];
+        x.as_mut()
+            .col_mut(j)
+            .iter_mut()
+            .for_each(|v| *v /= diagonal);
+    }
+    true
+}
+
+/// The careful path of [`orthonormalise`]: one column at a time against the basis,
+/// rigid motion and the columns before it, a vanished column redrawn.
+fn by_columns(
+    x: &mut Mat<f64>,
+    basis: MatRef<'_, f64>,
+    rigid: &Mat<f64>,
+    mass: &Sparse,
+    draws: &mut u64,
+) {
+    let n = x.nrows();
+    for c in 0..x.ncols() {
+        for attempt in 0..6 {
+            let before = mass_norms(mass, x.as_ref().subcols(c, 1))[0];
+            let (done, mut rest) = x.as_mut().split_at_col_mut(c);
+            for _ in 0..2 {
+                project_out(
+                    rest.rb_mut().subcols_mut(0, 1),
+                    &[basis, rigid.as_ref(), done.rb()],
+                    mass,
+                );
+            }
+            let after = mass_norms(mass, rest.rb().subcols(0, 1))[0];
+            if after > 1e-8 * before && after.is_finite() || attempt == 5 {
+                rest.col_mut(0).iter_mut().for_each(|v| *v /= after);
+                break;
+            }
+            let fresh = random_column(n, *draws);
+            *draws += 1;
+            rest.col_mut(0)
+                .iter_mut()
+                .zip(fresh)
+                .for_each(|(v, f)| *v = f);
+        }
+    }
+}
+
+/// x ← x − B·(BᵀM·x) for each set of M-orthonormal columns B (mutually
+/// M-orthogonal sets), with one product M·x for all.
+fn project_out(mut x: MatMut<'_, f64>, sets: &[MatRef<'_, f64>], mass: &Sparse) {
+    if x.ncols() == 0 || sets.iter().all(|b| b.ncols() == 0) {
+        return;
+    }
+    let mx = mass_times(mass, x.rb());
+    for b in sets.iter().filter(|b| b.ncols() > 0) {
+        let coefficients = times(b.transpose(), mx.as_ref());
+        matmul(
+            x.rb_mut(),
+            Accum::Add,
+            *b,
+            coefficients.as_ref(),
+            -1.0,
+            Par::Seq,
+        );
+    }
+}
+
+/// The starting block: seeded random vectors.
+fn start_block(n: usize, width: usize) -> Mat<f64> {
+    let mut x = Mat::<f64>::zeros(n, width);
+    for c in 0..width {
+        let column = random_column(n, c as u64);
+        x.as_mut()
+            .col_mut(c)
+            .iter_mut()
+            .zip(column)
+            .for_each(|(v, f)| *v = f);
+    }
+    x
+}
+
+/// Uniform numbers in [−1, 1) from a hash of (draw, index): the same on every run.
+fn random_column(n: usize, draw: u64) -> Vec<f64> {
+    (0..n as u64)
+        .map(|i| {
+            let mut z = draw
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(i)
+                .wrapping_add(0x632B_E59B_D9B4_E019);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^= z >> 31;
+            (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        })
+        .collect()
+}
