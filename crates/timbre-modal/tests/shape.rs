@@ -737,3 +737,18 @@ fn a_chosen_voxel_keeps_the_filled_grid_within_the_budget() {
         }
     }
 }
+
+#[test]
+fn a_mesh_measures_its_volume_area_and_bounds() {
+    let mut mesh = cube([0.0; 3], [0.1, 0.2, 0.3]);
+    assert!((mesh.volume() - 0.006).abs() < 1e-15);
+    assert!((mesh.area() - 2.0 * (0.02 + 0.06 + 0.03)).abs() < 1e-15);
+    assert_eq!(mesh.bounds(), ([0.0; 3], [0.1, 0.2, 0.3]));
+    // Wound the other way, the divergence theorem gives the volume negative.
+    mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    assert!((mesh.volume() + 0.006).abs() < 1e-15);
+    let r = 0.05;
+    let sphere = uv_sphere(r, 48, 96);
+    let exact = 4.0 / 3.0 * PI * r.powi(3);
+    assert!((sphere.volume() - exact).abs() < 0.005 * exact);
+}
