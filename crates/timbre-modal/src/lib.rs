@@ -8,11 +8,16 @@
 //! - **Grids** ([`grid`]): the voxels a solid fills, the nodes they share numbered in
 //!   order (x fastest), K and M assembled as sparse symmetric matrices (3 degrees of
 //!   freedom per node, x, y, z).
+//! - **Shapes** ([`shape`]): boxes, spheres, cylinders, tubes and triangle meshes (OBJ)
+//!   turned into voxels, with a voxel size that puts 4 through the thinnest wall within a
+//!   budget of degrees of freedom; broken meshes (holes, non-manifold edges,
+//!   self-intersections) are voxelised by a vote of rays along three axes, with warnings.
 //!
 //! Units are SI: metres, pascals, kilograms per cubic metre; ω in rad/s.
 
 pub mod grid;
 pub mod hex8;
+pub mod shape;
 pub mod solve;
 
 /// An isotropic, linear elastic material.
