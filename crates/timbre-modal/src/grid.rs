@@ -45,6 +45,37 @@ impl Sparse {
     }
 }
 
+/// Corner `c` of voxel `v`: bit 0 along x, bit 1 along y, bit 2 along z (the
+/// order of [`hex8`]'s nodes).
+fn corner(v: [usize; 3], c: usize) -> [usize; 3] {
+    [v[0] + (c & 1), v[1] + (c >> 1 & 1), v[2] + (c >> 2 & 1)]
+}
+
+/// How a grid's nodes are numbered.
+#[derive(Clone, Debug)]
+pub struct Numbering {
+    /// The node at each lattice point (x fastest), `usize::MAX` where none.
+    pub number: Vec<usize>,
+    /// The filled voxels, x fastest.
+    pub voxels: Vec<[usize; 3]>,
+    /// Each node's position, m, from the grid's corner.
+    pub nodes: Vec<[f64; 3]>,
+}
+
+/// A face of a filled voxel that borders an empty one.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExposedFace {
+    /// Its nodes at (u, v) = (0, 0), (1, 0), (0, 1), (1, 1), u and v the other two
+    /// axes in increasing order.
+    pub corners: [usize; 4],
+    /// The axis it faces along: 0, 1, 2 for x, y, z.
+    pub axis: usize,
+    /// −1 or +1: the outward normal's direction along `axis`.
+    pub outward: i8,
+    /// Its corner (0, 0), m, from the grid's corner.
+    pub low: [f64; 3],
+}
+
 /// A grid's nodes and its assembled stiffness and mass.
 #[derive(Clone, Debug)]
 pub struct Assembled {
@@ -68,11 +99,22 @@ impl VoxelGrid {
         self.filled[i + self.dims[0] * (j + self.dims[1] * k)]
     }
 
-    /// The stiffness and mass of the filled voxels of `material`.
-    pub fn assemble(&self, material: &Elastic) -> Assembled {
+    /// Whether voxel (i, j, k) is filled; false outside the grid.
+    pub fn filled_at(&self, at: [i64; 3]) -> bool {
+        let inside = (0..3).all(|a| at[a] >= 0 && (at[a] as usize) < self.dims[a]);
+        inside && self.voxel(at[0] as usize, at[1] as usize, at[2] as usize)
+    }
+
+    /// The index of lattice point (i, j, k), x fastest.
+    fn lattice(&self, [i, j, k]: [usize; 3]) -> usize {
+        let [nx, ny, _] = self.dims;
+        i + (nx + 1) * (j + (ny + 1) * k)
+    }
+
+    /// The filled voxels in order, and the lattice points they use numbered in
+    /// order: the node numbering of [`VoxelGrid::assemble`].
+    pub fn numbering(&self) -> Numbering {
         let [nx, ny, nz] = self.dims;
-        let lattice = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
-        // Number the lattice points that a filled voxel uses, in order.
         let mut number = vec![usize::MAX; (nx + 1) * (ny + 1) * (nz + 1)];
         let mut voxels = Vec::new();
         for k in 0..nz {
@@ -84,16 +126,16 @@ impl VoxelGrid {
                 }
             }
         }
-        for &[i, j, k] in &voxels {
+        for &voxel in &voxels {
             for c in 0..8 {
-                number[lattice(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1))] = 0;
+                number[self.lattice(corner(voxel, c))] = 0;
             }
         }
         let mut nodes = Vec::new();
         for k in 0..=nz {
             for j in 0..=ny {
                 for i in 0..=nx {
-                    let n = &mut number[lattice(i, j, k)];
+                    let n = &mut number[self.lattice([i, j, k])];
                     if *n == 0 {
                         *n = nodes.len();
                         nodes.push([i, j, k].map(|v| v as f64 * self.h));
@@ -101,6 +143,99 @@ impl VoxelGrid {
                 }
             }
         }
+        Numbering {
+            number,
+            voxels,
+            nodes,
+        }
+    }
+
+    /// Keeps only the largest piece of voxels joined through shared nodes (a piece
+    /// held by an edge or a corner counts as joined), so that the solid has exactly
+    /// six rigid motions. Returns the voxels dropped and the pieces they made.
+    pub fn keep_largest_piece(&mut self) -> (usize, usize) {
+        let [nx, ny, _] = self.dims;
+        let mut piece = vec![usize::MAX; self.filled.len()];
+        let mut sizes: Vec<usize> = Vec::new();
+        for start in 0..self.filled.len() {
+            if !self.filled[start] || piece[start] != usize::MAX {
+                continue;
+            }
+            let label = sizes.len();
+            let mut stack = vec![start];
+            piece[start] = label;
+            let mut size = 0;
+            while let Some(v) = stack.pop() {
+                size += 1;
+                let at = [v % nx, v / nx % ny, v / (nx * ny)].map(|x| x as i64);
+                for d in 0..27 {
+                    let next = [at[0] + d % 3 - 1, at[1] + d / 3 % 3 - 1, at[2] + d / 9 - 1];
+                    if !self.filled_at(next) {
+                        continue;
+                    }
+                    let w = next[0] as usize + nx * (next[1] as usize + ny * next[2] as usize);
+                    if piece[w] == usize::MAX {
+                        piece[w] = label;
+                        stack.push(w);
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        // The largest; the first of equals.
+        let Some(largest) = (0..sizes.len()).rev().max_by_key(|&p| sizes[p]) else {
+            return (0, 0);
+        };
+        let dropped = sizes.iter().sum::<usize>() - sizes[largest];
+        for (f, p) in self.filled.iter_mut().zip(&piece) {
+            *f = *f && *p == largest;
+        }
+        (dropped, sizes.len() - 1)
+    }
+
+    /// The voxel faces between a filled voxel and an empty one (or the grid's
+    /// outside), voxel by voxel in order, each −x, +x, −y, +y, −z, +z.
+    pub fn exposed_faces(&self, numbering: &Numbering) -> Vec<ExposedFace> {
+        let mut faces = Vec::new();
+        for &voxel in &numbering.voxels {
+            for axis in 0..3 {
+                for outward in [-1i8, 1] {
+                    let mut next = voxel.map(|x| x as i64);
+                    next[axis] += outward as i64;
+                    if self.filled_at(next) {
+                        continue;
+                    }
+                    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                    let (u, v) = (u.min(v), u.max(v));
+                    let mut low = voxel;
+                    if outward > 0 {
+                        low[axis] += 1;
+                    }
+                    let corners = [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(du, dv)| {
+                        let mut c = low;
+                        c[u] += du;
+                        c[v] += dv;
+                        numbering.number[self.lattice(c)]
+                    });
+                    faces.push(ExposedFace {
+                        corners,
+                        axis,
+                        outward,
+                        low: low.map(|x| x as f64 * self.h),
+                    });
+                }
+            }
+        }
+        faces
+    }
+
+    /// The stiffness and mass of the filled voxels of `material`.
+    pub fn assemble(&self, material: &Elastic) -> Assembled {
+        let Numbering {
+            number,
+            voxels,
+            nodes,
+        } = self.numbering();
         let element_k = hex8::stiffness(material, self.h);
         let element_m = hex8::mass(material, self.h);
         let size = 3 * nodes.len();
@@ -109,7 +244,7 @@ impl VoxelGrid {
         for &[i, j, k] in &voxels {
             let dofs: Vec<usize> = (0..8)
                 .flat_map(|c| {
-                    let n = number[lattice(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1))];
+                    let n = number[self.lattice(corner([i, j, k], c))];
                     [3 * n, 3 * n + 1, 3 * n + 2]
                 })
                 .collect();

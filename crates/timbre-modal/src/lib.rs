@@ -15,8 +15,10 @@
 //!
 //! Units are SI: metres, pascals, kilograms per cubic metre; ω in rad/s.
 
+pub mod cache;
 pub mod grid;
 pub mod hex8;
+pub mod model;
 pub mod shape;
 pub mod solve;
 

@@ -1,0 +1,1 @@
+//! Models cached on disk (written by a later commit).
