@@ -31,6 +31,8 @@
 //! ρ₀/(4π)·|Σ h²·(φᵢ·n)·e^(ik·r̂·x)| (q̈ of a mode ringing with amplitude J/ω is
 //! ω·J).
 
+#![allow(clippy::needless_range_loop)]
+
 use crate::grid::{ExposedFace, VoxelGrid};
 use crate::shape::{self, Resolution, Shape, ShapeError, ShapeWarning};
 use crate::solve::{self, lowest_modes, SolveError};
@@ -256,19 +258,21 @@ impl Model {
                 let omega = lambda.max(0.0).sqrt();
                 Mode {
                     frequency: omega / (2.0 * std::f64::consts::PI),
-                    damping: material.damping.ratio(omega),
+                    damping: 0.0,
                     radiation: surface.radiation(m, eigen.values.len(), omega),
                 }
             })
             .collect();
-        Ok(Model {
+        // Damped as a cached model is, so both give the same bits.
+        let model = Model {
             modes,
             dofs: solid.stiffness.size,
             mass,
             bounds: (low, high),
             surface,
             warnings,
-        })
+        };
+        Ok(model.with_damping(material.damping))
     }
 
     /// The same modes with another damping.

@@ -27,6 +27,8 @@
 //! first, on a tie) is positive. Every step runs on one thread in a fixed order with
 //! a seeded start, so the same matrices give the same modes, bit for bit.
 
+#![allow(clippy::needless_range_loop)]
+
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
@@ -186,8 +188,9 @@ pub fn lowest_modes(solid: &Assembled, options: &Options) -> Result<Eigen, Solve
             }
         }
         let residual_norms = mass_norms(mass, residual.as_ref());
-        let unconverged =
-            (0..wanted).find(|&c| !(residual_norms[c] <= options.tolerance * thetas[c].abs()));
+        let unconverged = (0..wanted).find(|&c| {
+            residual_norms[c].is_nan() || residual_norms[c] > options.tolerance * thetas[c].abs()
+        });
         if unconverged.is_none() {
             return finish(solid, &ritz_vectors, &thetas, options);
         }
@@ -244,7 +247,7 @@ fn finish(
             .sqrt();
         let scale = kphi.iter().map(|k| k * k).sum::<f64>().sqrt();
         let relative = r / scale;
-        if !(relative <= 1e-4) || !value.is_finite() {
+        if relative.is_nan() || relative > 1e-4 || !value.is_finite() {
             return Err(SolveError::NoConvergence {
                 mode: mode + 1,
                 residual: relative,
@@ -513,7 +516,7 @@ fn cholesky_qr(x: &mut Mat<f64>, original: &[f64], mass: &Sparse) -> bool {
                 sum -= r[(k, i)] * r[(k, j)];
             }
             if i == j {
-                if !(sum > (1e-6 * original[j]).powi(2)) {
+                if sum.is_nan() || sum <= (1e-6 * original[j]).powi(2) {
                     return false;
                 }
                 r[(j, j)] = sum.sqrt();
