@@ -29,6 +29,7 @@
 
 mod canvas;
 mod font;
+pub mod modes;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -923,7 +924,7 @@ fn panel_tag(canvas: &mut Canvas, y0: i64, label: &str) {
 
 /// An inferno-like colour map: black through purple, red and orange to pale yellow,
 /// brightness rising monotonically with `x` in [0, 1].
-fn inferno(x: f64) -> Rgb {
+pub(crate) fn inferno(x: f64) -> Rgb {
     const STOPS: [(f64, [f64; 3]); 9] = [
         (0.000, [0.0, 0.0, 4.0]),
         (0.125, [31.0, 12.0, 72.0]),

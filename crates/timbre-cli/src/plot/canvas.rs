@@ -27,6 +27,14 @@ impl Canvas {
         canvas
     }
 
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
     /// Sets one pixel; coordinates outside the canvas are ignored.
     pub fn set(&mut self, x: i64, y: i64, color: Rgb) {
         if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
