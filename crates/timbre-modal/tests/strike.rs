@@ -102,3 +102,15 @@ fn a_mode_decays_by_60_db_in_6_91_over_its_damping_rate() {
         assert!((mode.t60() * xi * omega / 6.907755 - 1.0).abs() < 1e-6);
     }
 }
+
+#[test]
+fn the_same_shape_gives_the_same_model_bit_for_bit_on_any_thread() {
+    let here = bar();
+    let elsewhere: Vec<Model> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..3).map(|_| s.spawn(bar)).collect();
+        handles.into_iter().map(|h| h.join().expect("solved")).collect()
+    });
+    for model in elsewhere {
+        assert_eq!(model, here);
+    }
+}
