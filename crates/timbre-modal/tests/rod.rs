@@ -2,11 +2,14 @@
 //! Rayleigh's quotient: the rod's assembled K and M, and the free rod's n-th axial
 //! mode shape u_x = cos(nπx/L) with the lateral contraction of uniaxial stress,
 //! u_y = −ν·ε·(y − y₀), u_z = −ν·ε·(z − z₀) (ε = ∂u_x/∂x). The quotient is an upper
-//! bound of the discrete mode, which converges to the rod's from above.
+//! bound of the discrete mode, which converges to the rod's from above. Then the
+//! solver's own first axial mode, found among the bending and torsion modes below it
+//! by its displacement.
 
 use std::f64::consts::PI;
 
 use timbre_modal::grid::VoxelGrid;
+use timbre_modal::solve::{lowest_modes, Options};
 use timbre_modal::Elastic;
 
 const ALUMINIUM: Elastic = Elastic {
@@ -41,6 +44,55 @@ fn a_thin_rod_rings_at_its_axial_modes_within_1_percent() {
         );
         assert!(f >= expected * 0.999, "an upper bound");
     }
+}
+
+#[test]
+fn the_solver_finds_the_thin_rods_first_axial_mode_within_1_percent() {
+    let (n, h) = (100, 0.01);
+    let rod = VoxelGrid::solid([n, 1, 1], h).assemble(&ALUMINIUM);
+    let length = n as f64 * h;
+    let expected = (ALUMINIUM.youngs / ALUMINIUM.density).sqrt() / (2.0 * length);
+    // A 1 m rod 1 cm thick bends at tens of hertz: sixteen bending modes (two planes)
+    // and a torsion mode lie below the first axial one at 2.5 kHz (it is mode 18).
+    let count = 32;
+    let modes = lowest_modes(&rod, &Options::new(count, -1e4)).expect("solved");
+    // An axial mode moves along the axis (x): all but the lateral contraction,
+    // a share of order (ν·π·h/L)² of its motion. A bending or torsion mode moves
+    // across it, its x motion only the sections' small rotation.
+    let axial_share = |k: usize| {
+        let (mut along, mut total) = (0.0, 0.0);
+        for node in 0..rod.nodes.len() {
+            let u = [0, 1, 2].map(|a| modes.vectors[(3 * node + a, k)]);
+            along += u[0] * u[0];
+            total += u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+        }
+        along / total
+    };
+    let shares: Vec<f64> = (0..count).map(axial_share).collect();
+    let first = shares
+        .iter()
+        .position(|&s| s > 0.9)
+        .expect("an axial mode among the lowest 32");
+    let f = modes.values[first].sqrt() / (2.0 * PI);
+    eprintln!(
+        "axial mode: number {} of {count}, {f:.1} Hz against {expected:.1} Hz, axial share {:.4}",
+        first + 1,
+        shares[first]
+    );
+    assert!(
+        (f / expected - 1.0).abs() < 0.01,
+        "the first axial mode: {f} Hz, the rod's {expected} Hz"
+    );
+    // The only other mode this low that moves along the axis is the second axial one,
+    // at twice the frequency.
+    let axial: Vec<usize> = (0..count).filter(|&k| shares[k] > 0.1).collect();
+    assert_eq!(axial.len(), 2, "{shares:?}");
+    let second = modes.values[axial[1]].sqrt() / (2.0 * PI);
+    assert!(
+        (second / (2.0 * expected) - 1.0).abs() < 0.01,
+        "the second axial mode: {second} Hz, the rod's {} Hz",
+        2.0 * expected
+    );
 }
 
 #[test]

@@ -108,7 +108,10 @@ fn the_same_shape_gives_the_same_model_bit_for_bit_on_any_thread() {
     let here = bar();
     let elsewhere: Vec<Model> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..3).map(|_| s.spawn(bar)).collect();
-        handles.into_iter().map(|h| h.join().expect("solved")).collect()
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("solved"))
+            .collect()
     });
     for model in elsewhere {
         assert_eq!(model, here);
