@@ -573,10 +573,11 @@ fn rigid_modes(nodes: &[[f64; 3]], mass: &Sparse) -> Mat<f64> {
 }
 
 /// Makes the columns of `x` M-orthonormal to each other, to `basis` and to `rigid`:
-/// two passes of block classical Gram–Schmidt against both, then two of Cholesky
-/// QR within the block. A block that is (nearly) rank deficient goes column by
-/// column instead, and a column that vanishes (it lay in the span already) is
-/// replaced by a fresh seeded random vector.
+/// block classical Gram–Schmidt against both, repeated while a pass still shrinks
+/// a column by more than half (at most three passes: "twice is enough" unless the
+/// block lay almost wholly in the span), then two passes of Cholesky QR within the
+/// block. A column that all but vanishes (it lay in the span already) sends the
+/// block column by column, where it is replaced by a fresh seeded random vector.
 fn orthonormalise(
     x: &mut Mat<f64>,
     basis: &KnownRef<'_>,
@@ -585,20 +586,37 @@ fn orthonormalise(
     draws: &mut u64,
 ) {
     let original = mass_norms(mass, x.as_ref());
-    for _ in 0..2 {
+    let mut norms = original.clone();
+    for _ in 0..3 {
         project_out(x.as_mut(), &[*basis, rigid.as_ref()]);
+        let after = mass_norms(mass, x.as_ref());
+        let settled = after.iter().zip(&norms).all(|(a, b)| *a > 0.5 * b);
+        norms = after;
+        if settled {
+            break;
+        }
+    }
+    let vanished = norms
+        .iter()
+        .zip(&original)
+        .any(|(n, o)| n.is_nan() || *n <= 1e-12 * o);
+    if vanished {
+        by_columns(x, basis, rigid, mass, draws);
+        return;
     }
     for _ in 0..2 {
-        if !cholesky_qr(x, &original, mass) {
+        if !cholesky_qr(x, &norms, mass) {
             by_columns(x, basis, rigid, mass, draws);
             return;
         }
+        norms = vec![1.0; x.ncols()];
     }
 }
 
-/// X ← X·R⁻¹ with RᵀR = XᵀMX, when R's diagonal shows no column vanished (each
-/// keeps 10⁻⁶ of its `original` norm); false, and X unchanged, otherwise.
-fn cholesky_qr(x: &mut Mat<f64>, original: &[f64], mass: &Sparse) -> bool {
+/// X ← X·R⁻¹ with RᵀR = XᵀMX, when R's diagonal shows the block has full rank
+/// (each column keeps 10⁻⁶ of its M-norm `norms` after those before it are taken
+/// out); false, and X unchanged, otherwise.
+fn cholesky_qr(x: &mut Mat<f64>, norms: &[f64], mass: &Sparse) -> bool {
     let b = x.ncols();
     let gram = times(
         x.as_ref().transpose(),
@@ -612,7 +630,7 @@ fn cholesky_qr(x: &mut Mat<f64>, original: &[f64], mass: &Sparse) -> bool {
                 sum -= r[(k, i)] * r[(k, j)];
             }
             if i == j {
-                if sum.is_nan() || sum <= (1e-6 * original[j]).powi(2) {
+                if sum.is_nan() || sum <= (1e-6 * norms[j]).powi(2) {
                     return false;
                 }
                 r[(j, j)] = sum.sqrt();
