@@ -77,6 +77,9 @@ enum Command {
     /// With --ir, print the graph its sounds are rendered from instead: one line per
     /// node, `%ID = OP ARGS… [WIDTH]`, arguments before their users. With --lowered,
     /// print each sound as lowered, as source that lowers back to the same graph.
+    /// Without either, it also lists the events of `events` forms, the contacts of
+    /// `contacts` forms, and the modes of each `modal` node: frequency (Hz), T60 (s)
+    /// and level where it is struck (dB re the loudest).
     ///
     /// Examples:
     ///   timbre check examples/bell.tt

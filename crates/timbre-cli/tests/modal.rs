@@ -10,10 +10,13 @@ use std::fmt::Write;
 use common::*;
 use timbre_testkit::{peak, rms, spectral_centroid};
 
+/// A closed triangle mesh: its points (m) and triangles (indices into them).
+type Part = (Vec<[f64; 3]>, Vec<[usize; 3]>);
+
 /// A closed surface of revolution about z: `profile` is (r, z) from a point on the
 /// axis to another, the solid to its left as it is walked; `segments` around.
 /// The two ends on the axis are poles, every other point a ring.
-fn revolve(profile: &[(f64, f64)], segments: usize) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+fn revolve(profile: &[(f64, f64)], segments: usize) -> Part {
     let rings = profile.len() - 2;
     let mut points = vec![[0.0, 0.0, profile[0].1]];
     for &(r, z) in &profile[1..=rings] {
@@ -40,7 +43,7 @@ fn revolve(profile: &[(f64, f64)], segments: usize) -> (Vec<[f64; 3]>, Vec<[usiz
 }
 
 /// A box from `low` to `high`, outward faces.
-fn cuboid(low: [f64; 3], high: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+fn cuboid(low: [f64; 3], high: [f64; 3]) -> Part {
     let corner = |i: usize| {
         [
             if i & 1 == 0 { low[0] } else { high[0] },
@@ -66,7 +69,7 @@ fn cuboid(low: [f64; 3], high: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
 
 /// Wavefront OBJ text of the parts (each closed; they may overlap), in millimetres
 /// to 4 decimals of a metre.
-fn obj(title: &str, parts: &[(Vec<[f64; 3]>, Vec<[usize; 3]>)]) -> String {
+fn obj(title: &str, parts: &[Part]) -> String {
     let mut text = format!("# {title}\n# Written by crates/timbre-cli/tests/modal.rs; metres.\n");
     let mut first = 1;
     for (points, triangles) in parts {

@@ -261,3 +261,56 @@ fn bad_input_is_a_diagnostic() {
     assert_eq!(code, "timbre::not-constant");
     assert_eq!(message, "the number of modes must be a constant number");
 }
+
+#[test]
+fn a_wall_thinner_than_four_voxels_is_a_warning_that_names_a_voxel() {
+    let compiled = compile_with(
+        "(modal :material steel :box (0.1 0.02 0.004) :voxel 0.002 :modes 4)",
+        &[],
+        0,
+    )
+    .unwrap();
+    let [warning] = &compiled.warnings[..] else {
+        panic!("{:?}", compiled.warnings)
+    };
+    assert_eq!(warning.code, "timbre::modal-warning");
+    assert!(
+        warning.message.contains("a voxel of 1 mm gives 4"),
+        "{}",
+        warning.message
+    );
+    assert!(warning.help.as_deref().unwrap_or("").contains(":voxel"));
+}
+
+/// A closed cube of side 0.1 m as an OBJ file, corners at ±0.05.
+const CUBE_OBJ: &str = "v -0.05 -0.05 -0.05\nv 0.05 -0.05 -0.05\nv -0.05 0.05 -0.05\n\
+v 0.05 0.05 -0.05\nv -0.05 -0.05 0.05\nv 0.05 -0.05 0.05\nv -0.05 0.05 0.05\n\
+v 0.05 0.05 0.05\nf 1 3 4\nf 1 4 2\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\n\
+f 3 7 8\nf 3 8 4\nf 1 5 7\nf 1 7 3\nf 2 4 8\nf 2 8 6\n";
+
+#[test]
+fn a_mesh_is_read_relative_to_its_file_and_rings_as_the_same_box() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("meshes")).unwrap();
+    std::fs::write(dir.path().join("meshes/cube.obj"), CUBE_OBJ).unwrap();
+    let text = "(modal :material aluminium :mesh \"meshes/cube.obj\" :voxel 0.0125 :modes 6)";
+    let registry = timbre_lang::Registry::new();
+    let options = timbre_lang::CompileOptions::new(&registry, &timbre_lang::FsLoader);
+    let source = timbre_lang::SourceFile::new("cube.tt", text);
+    let mesh = timbre_lang::compile(source, Some(dir.path()), &options).unwrap();
+    let boxed = compile_with(
+        "(modal :material aluminium :box (0.1 0.1 0.1) :voxel 0.0125 :modes 6)",
+        &[],
+        0,
+    )
+    .unwrap();
+    let (mesh, boxed) = (&mesh.modal[0], &boxed.modal[0]);
+    assert_eq!(mesh.shape, "mesh meshes/cube.obj");
+    assert_eq!(mesh.dofs, boxed.dofs);
+    for (a, b) in mesh.modes.iter().zip(&boxed.modes) {
+        assert!(
+            (a.frequency / b.frequency - 1.0).abs() < 1e-6,
+            "{a:?} vs {b:?}"
+        );
+    }
+}
