@@ -51,7 +51,7 @@ fn a_struck_shape_is_one_compiled_modal_bank() {
 #[test]
 fn a_driven_shape_agrees_too() {
     engines_agree(
-        "(modal :material glass :sphere 0.02 :voxel 0.004 :modes 8 :force (* 100 (< t 0.001)))",
+        "(modal :material steel :box (0.16 0.02 0.01) :voxel 0.0025 :modes 16 :force (* 100 (< t 0.001)))",
         false,
     );
 }
