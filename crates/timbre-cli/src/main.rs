@@ -77,6 +77,9 @@ enum Command {
     /// With --ir, print the graph its sounds are rendered from instead: one line per
     /// node, `%ID = OP ARGS… [WIDTH]`, arguments before their users. With --lowered,
     /// print each sound as lowered, as source that lowers back to the same graph.
+    /// Without either, it also lists the events of `events` forms, the contacts of
+    /// `contacts` forms, and the modes of each `modal` node: frequency (Hz), T60 (s)
+    /// and level where it is struck (dB re the loudest).
     ///
     /// Examples:
     ///   timbre check examples/bell.tt
@@ -683,7 +686,48 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     for found in &program.contacts {
         print!("{}", contact_listing(found));
     }
+    for found in &program.modal {
+        print!("{}", modal_listing(found));
+    }
     Ok(())
+}
+
+/// What `timbre check` says of a `modal` node: the solid solved, the point struck,
+/// and each mode's frequency, T60 and level there relative to the loudest.
+fn modal_listing(found: &timbre_lang::FoundModal) -> String {
+    let [x, y, z] = found.strike;
+    let mut text = format!(
+        "modal {}:{}: {}, {}: {} degrees of freedom, voxel {:.2} mm, {:.4} kg, struck at \
+         ({x:.4}, {y:.4}, {z:.4}) m\n",
+        found.file,
+        found.line,
+        found.shape,
+        found.material,
+        found.dofs,
+        found.voxel * 1e3,
+        found.mass
+    );
+    text += "  mode  frequency Hz     T60 s   gain dB\n";
+    for (k, mode) in found.modes.iter().enumerate() {
+        let gain = if mode.gain_db.is_finite() {
+            format!("{:9.1}", mode.gain_db)
+        } else {
+            format!("{:>9}", "-inf")
+        };
+        text += &format!(
+            "  {:>4}  {:>12.2}  {:>8.3} {gain}\n",
+            k + 1,
+            mode.frequency,
+            mode.t60
+        );
+    }
+    if found.dropped > 0 {
+        text += &format!(
+            "  ({} modes above 0.45 × the sample rate left out)\n",
+            found.dropped
+        );
+    }
+    text
 }
 
 /// What `timbre check` says of an `events` form: each event's instance, time, frame

@@ -20,6 +20,8 @@ const TREES: u64 = 2000;
 const NOT_GENERATED: &[&str] = &[
     // Plays a sound file: generated trees are compiled without files (`NoFiles`).
     "sample",
+    // Solves a finite-element model while lowering: a second or more per tree.
+    "modal",
 ];
 
 fn configs() -> Vec<GenConfig> {

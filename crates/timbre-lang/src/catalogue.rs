@@ -841,6 +841,14 @@ pub static NODES: &[NodeSpec] = &[
     .constant()
     .own_width(),
     NodeSpec::new(
+        "modal",
+        &[],
+        "`modal`",
+        Build::Form(|l, call, origin, scope| l.lower_modal(call, origin, scope)),
+        "(modal :material steel :box (0.08 0.02 0.02) :voxel 0.005 :modes 8 :strike (0.04 0 0.01))",
+    )
+    .own_width(),
+    NodeSpec::new(
         "impact",
         physical::IMPACT_PARAMS,
         PHYSICAL,

@@ -33,8 +33,8 @@ pub use loader::{
 };
 pub use lower::{
     compile, compile_after, contact_score, did_you_mean, CompileOptions, Compiled, ContactRow,
-    DeclaredSpace, FoundContacts, FoundEvent, FoundEvents, Instantiated, Library, ParamValue,
-    Registry,
+    DeclaredSpace, FoundContacts, FoundEvent, FoundEvents, FoundModal, Instantiated, Library,
+    ModalRow, ParamValue, Registry,
 };
 pub use print::{print_tree, same_tree, Unprintable, MAX_INLINE_DEPTH};
 pub use timbre_diag::{Diag, Diagnostics, SourceFile, Span};

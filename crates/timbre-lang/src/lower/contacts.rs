@@ -38,7 +38,7 @@ const USAGE: &str = "(contacts shot :materials ((\"Cube\" oak) (\"Floor\" concre
 /// Air density at 20 °C, kg/m³, for the presets' radiation.
 const AIR_DENSITY: f64 = 1.204;
 /// The pressure at 1 m (Pa) that a preset writes as full scale (120 dB SPL).
-const FULL_SCALE_PA: f64 = 20.0;
+pub(crate) const FULL_SCALE_PA: f64 = 20.0;
 /// Modes of a preset.
 const PRESET_MODES: usize = 24;
 /// Default frames per second of the score's frame column.

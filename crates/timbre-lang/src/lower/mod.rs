@@ -23,6 +23,7 @@ mod files;
 mod forms;
 mod frames;
 mod library;
+mod modal;
 mod morph;
 mod motion;
 mod motion_events;
@@ -37,6 +38,7 @@ pub use motion::MOTION_NODES;
 
 pub use contacts::{contact_score, ContactRow, FoundContacts};
 pub use library::{Instantiated, Library, ParamValue};
+pub use modal::{FoundModal, ModalRow};
 pub use motion_events::{FoundEvent, FoundEvents};
 pub use space::DeclaredSpace;
 pub(crate) use timbre_ir::{Instance, Program, Settings, DECLICK_IN, DECLICK_OUT, MAX_LANES};
@@ -124,6 +126,8 @@ pub struct Compiled {
     pub events: Vec<FoundEvents>,
     /// The contacts its `contacts` forms found (each sounds through instances).
     pub contacts: Vec<FoundContacts>,
+    /// The modes of its `modal` nodes, one entry per node written.
+    pub modal: Vec<FoundModal>,
 }
 
 impl std::ops::Deref for Compiled {
@@ -200,6 +204,8 @@ pub(crate) struct Lowerer<'a> {
     includes: Includes,
     expansion: Expansion,
     samples: HashMap<PathBuf, Arc<SampleData>>,
+    /// The `modal` nodes' analyses, and what they found.
+    modal: modal::ModalState,
     used_bindings: HashSet<String>,
     /// Scene time at an instance's t = 0 while it is lowered (keyframes read scene time).
     time_offset: f64,
@@ -305,6 +311,7 @@ impl<'a> Lowerer<'a> {
             includes: Includes::default(),
             expansion: Expansion::default(),
             samples: HashMap::new(),
+            modal: modal::ModalState::default(),
             used_bindings: HashSet::new(),
             time_offset: 0.0,
             checking_unused: false,
@@ -465,6 +472,7 @@ impl<'a> Lowerer<'a> {
             scores: self.scene.scores,
             events: self.scene.found_events,
             contacts: self.scene.found_contacts,
+            modal: self.modal.found,
         })
     }
 
