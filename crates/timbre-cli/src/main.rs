@@ -230,6 +230,11 @@ struct CheckArgs {
     /// force (N), length (s) and the world point (m).
     #[arg(long, value_name = "FILE")]
     contacts: Option<PathBuf>,
+
+    /// Draw the first modes of each `modal` node as PNG files in DIR (made if need
+    /// be), named after the file and line of the node: `bar-12-mode-3.png`.
+    #[arg(long, value_name = "DIR")]
+    mode_pictures: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -688,6 +693,28 @@ fn check(args: CheckArgs) -> Result<(), Failure> {
     }
     for found in &program.modal {
         print!("{}", modal_listing(found));
+    }
+    if let Some(dir) = &args.mode_pictures {
+        mode_pictures(&program.modal, dir).map_err(Failure::Message)?;
+    }
+    Ok(())
+}
+
+/// Modes drawn by `timbre check --mode-pictures`: each node's first few.
+const MODES_DRAWN: usize = 6;
+
+fn mode_pictures(found: &[timbre_lang::FoundModal], dir: &Path) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot make `{}`: {e}", dir.display()))?;
+    for node in found {
+        let stem = Path::new(&node.file)
+            .file_stem()
+            .map_or("modal".into(), |s| s.to_string_lossy().into_owned());
+        for mode in 0..node.model.modes.len().min(MODES_DRAWN) {
+            let path = dir.join(format!("{stem}-{}-mode-{}.png", node.line, mode + 1));
+            let output = output::prepare(&path, &[])?;
+            plot::modes::mode_png(&node.model, mode, 480, 300, output)?;
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
 }

@@ -18,7 +18,6 @@ const SCALE: usize = 2;
 const SWING: f64 = 0.08;
 
 /// Draws mode `mode` (from 0) of `model` as a PNG of `width` × `height` pixels.
-#[allow(dead_code)] // Called by `timbre check --mode-pictures`, next.
 pub fn mode_png(
     model: &Model,
     mode: usize,

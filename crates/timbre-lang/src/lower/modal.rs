@@ -81,6 +81,8 @@ pub struct FoundModal {
     pub modes: Vec<ModalRow>,
     /// Modes found but left out (above 0.45 × the sample rate, or overdamped).
     pub dropped: usize,
+    /// The model itself (for pictures of its modes).
+    pub model: Arc<Model>,
 }
 
 /// The analyses of one compilation, and what `timbre check` lists.
@@ -92,9 +94,11 @@ pub(crate) struct ModalState {
     pub(crate) found: Vec<FoundModal>,
 }
 
-/// The one place a model is made (a cache on disk would go here).
+/// The one place a model is made: through the cache on disk
+/// (`timbre_modal::cache::default_dir`), so a scene renders again without solving.
 fn analyse(shape: &Shape, material: &Material, settings: &Settings) -> Result<Model, ModalError> {
-    Model::analyse(shape, material, settings)
+    let dir = timbre_modal::cache::default_dir();
+    timbre_modal::cache::analyse_cached(shape, material, settings, dir.as_deref()).map(|c| c.model)
 }
 
 /// A shape as read from the form, with what a diagnostic needs.
@@ -617,7 +621,7 @@ impl Lowerer<'_> {
         origin: &Origin,
         shape: String,
         material: String,
-        model: &Model,
+        model: &Arc<Model>,
         point: [f64; 3],
         bank: &Bank,
     ) {
@@ -658,6 +662,7 @@ impl Lowerer<'_> {
             strike: point,
             dropped: model.modes.len() - modes.len(),
             modes,
+            model: model.clone(),
         });
     }
 }
