@@ -3,7 +3,8 @@
 //! square steel plate 3 voxels thick (thin, as most sounding objects are). Each is
 //! voxelised, assembled and solved on one thread; the table gives the median of
 //! three runs of each step. Run with `cargo bench -p timbre-benches --bench modal`
-//! (`-- --quick` for one run of the two smaller sizes).
+//! (`-- --quick` for one run of the two smaller sizes, `-- --large` for one run of
+//! the largest alone).
 
 use std::time::{Duration, Instant};
 
@@ -28,7 +29,8 @@ fn median(mut times: Vec<Duration>) -> Duration {
 
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
-    let runs = if quick { 1 } else { 3 };
+    let large = std::env::args().any(|a| a == "--large");
+    let runs = if quick || large { 1 } else { 3 };
     // (name, shape, voxel): about 10 k, 50 k and 100 k degrees of freedom.
     let mut cases = vec![
         ("cube 14³", Shape::Box { size: [0.14; 3] }, 0.01),
@@ -48,6 +50,9 @@ fn main() {
             0.01,
         ),
     ];
+    if large {
+        cases.clear();
+    }
     if !quick {
         cases.push(("cube 31³", Shape::Box { size: [0.31; 3] }, 0.01));
         cases.push((
