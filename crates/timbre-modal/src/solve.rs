@@ -13,20 +13,23 @@
 //! the nodes, M-orthonormalised, and every basis vector is kept M-orthogonal to them,
 //! so the search sees only elastic modes.
 //!
-//! **Block Krylov with thick restarts.** The basis V grows a block of [`Options::block`]
-//! vectors at a time, V_{j+1} = A·V_j made M-orthonormal to all before it (classical
-//! Gram–Schmidt, twice); a block finds repeated eigenvalues (a cube's or a sphere's
-//! symmetric modes) together. T = VᵀM·A·V is kept as the basis grows. When the basis is
-//! full, its Ritz pairs (faer's dense symmetric eigensolver on T) are tested, the best
-//! kept and the basis continued from them (a thick restart, so no work on converged
-//! vectors is lost), until each wanted mode's residual ‖A·y − θ·y‖_M is below
-//! [`Options::tolerance`]·θ.
+//! **Block Krylov with thick restarts.** The basis V grows a block of
+//! [`Options::block`] vectors at a time, V_{j+1} = A·V_j made M-orthonormal to all
+//! before it (classical Gram–Schmidt, repeated while a pass still removes much, then
+//! Cholesky QR within the block); a block finds repeated eigenvalues (a cube's or a
+//! sphere's symmetric modes) together. M·V is kept beside V, so neither projections
+//! nor T need a product with M. When the basis is full, the Ritz pairs of
+//! T = (M·V)ᵀ·A·V (computed whole, and scaled to unit size for faer's dense
+//! symmetric eigensolver, whose deflation tests are not all relative) are tested,
+//! the best kept and the basis continued from them (a thick restart, so no work on
+//! converged vectors is lost), until each wanted mode's residual
+//! ‖A·y − θ·y‖/(θ·‖y‖) is below [`Options::tolerance`].
 //!
 //! **Checked and reproducible.** Each mode found is checked on the original problem,
 //! ‖K·φ − λ·M·φ‖ ≤ 10⁻⁴·‖K·φ‖ (a residual r moves λ by about r², the
 //! shape by r over the gap to the next mode), or the solve fails naming it. Modes
-//! come in ascending order, M-normalised (φᵀMφ = 1), each signed so that its largest component (the
-//! first, on a tie) is positive. Every step runs on one thread in a fixed order with
+//! come in ascending order, M-normalised (φᵀMφ = 1), each signed so that its
+//! largest component (the first, on a tie) is positive. Every step runs on one thread in a fixed order with
 //! a seeded start, so the same matrices give the same modes, bit for bit.
 
 // Loops over a basis index several arrays (Ritz values, residual columns) by the
