@@ -30,13 +30,21 @@ pub struct Sparse {
 impl Sparse {
     /// y = A·x.
     pub fn mul(&self, x: &[f64]) -> Vec<f64> {
-        (0..self.size)
-            .map(|r| {
-                (self.rows[r]..self.rows[r + 1])
-                    .map(|k| self.values[k] * x[self.columns[k]])
-                    .sum()
-            })
-            .collect()
+        let mut y = vec![0.0; self.size];
+        self.mul_into(x, &mut y);
+        y
+    }
+
+    /// y = A·x, into `y`.
+    pub fn mul_into(&self, x: &[f64], y: &mut [f64]) {
+        for (r, out) in y.iter_mut().enumerate().take(self.size) {
+            let entries = self.rows[r]..self.rows[r + 1];
+            *out = self.columns[entries.clone()]
+                .iter()
+                .zip(&self.values[entries])
+                .map(|(&c, v)| v * x[c])
+                .sum();
+        }
     }
 
     /// xᵀ·A·x.
@@ -49,6 +57,12 @@ impl Sparse {
 /// order of [`hex8`]'s nodes).
 fn corner(v: [usize; 3], c: usize) -> [usize; 3] {
     [v[0] + (c & 1), v[1] + (c >> 1 & 1), v[2] + (c >> 2 & 1)]
+}
+
+/// The two axes other than `axis`, in increasing order: an [`ExposedFace`]'s u and v.
+pub fn other_axes(axis: usize) -> (usize, usize) {
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    (u.min(v), u.max(v))
 }
 
 /// How a grid's nodes are numbered.
@@ -205,8 +219,7 @@ impl VoxelGrid {
                     if self.filled_at(next) {
                         continue;
                     }
-                    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-                    let (u, v) = (u.min(v), u.max(v));
+                    let (u, v) = other_axes(axis);
                     let mut low = voxel;
                     if outward > 0 {
                         low[axis] += 1;
@@ -231,17 +244,23 @@ impl VoxelGrid {
 
     /// The stiffness and mass of the filled voxels of `material`.
     pub fn assemble(&self, material: &Elastic) -> Assembled {
+        self.assemble_numbered(&self.numbering(), material)
+    }
+
+    /// [`VoxelGrid::assemble`] with the grid's [`numbering`](VoxelGrid::numbering)
+    /// already made.
+    pub fn assemble_numbered(&self, numbering: &Numbering, material: &Elastic) -> Assembled {
         let Numbering {
             number,
             voxels,
             nodes,
-        } = self.numbering();
+        } = numbering;
         let element_k = hex8::stiffness(material, self.h);
         let element_m = hex8::mass(material, self.h);
         let size = 3 * nodes.len();
         let mut k_rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); size];
         let mut m_rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); size];
-        for &[i, j, k] in &voxels {
+        for &[i, j, k] in voxels {
             let dofs: Vec<usize> = (0..8)
                 .flat_map(|c| {
                     let n = number[self.lattice(corner([i, j, k], c))];
@@ -258,7 +277,7 @@ impl VoxelGrid {
             }
         }
         Assembled {
-            nodes,
+            nodes: nodes.clone(),
             stiffness: compress(size, k_rows),
             mass: compress(size, m_rows),
         }

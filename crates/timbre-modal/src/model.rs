@@ -33,7 +33,7 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use crate::grid::{ExposedFace, VoxelGrid};
+use crate::grid::{other_axes, ExposedFace, VoxelGrid};
 use crate::shape::{self, Resolution, Shape, ShapeError, ShapeWarning};
 use crate::solve::{self, lowest_modes, SolveError};
 use crate::Elastic;
@@ -232,12 +232,12 @@ impl Model {
                 pieces + 1
             ));
         }
-        let solid = grid.assemble(&material.elastic);
+        let numbering = grid.numbering();
+        let solid = grid.assemble_numbered(&numbering, &material.elastic);
         let lengths = (0..3).map(|a| grid.dims[a] as f64 * grid.h);
         let longest = lengths.fold(0.0, f64::max);
         let options = solve::Options::new(settings.modes, shift(&material.elastic, longest));
         let eigen = lowest_modes(&solid, &options).map_err(ModalError::Solve)?;
-        let numbering = grid.numbering();
         let faces = grid.exposed_faces(&numbering);
         let surface = Surface::new(&grid, voxelized.origin, faces, &numbering.nodes, &eigen);
         let count = numbering.voxels.len();
@@ -250,6 +250,8 @@ impl Model {
                 high[a] = high[a].max(voxelized.origin[a] + (v[a] + 1) as f64 * grid.h);
             }
         }
+        let centres = surface.face_centres();
+        let directions = fibonacci_sphere(DIRECTIONS);
         let modes = eigen
             .values
             .iter()
@@ -259,7 +261,13 @@ impl Model {
                 Mode {
                     frequency: omega / (2.0 * std::f64::consts::PI),
                     damping: 0.0,
-                    radiation: surface.radiation(m, eigen.values.len(), omega),
+                    radiation: surface.radiation(
+                        m,
+                        eigen.values.len(),
+                        omega,
+                        &centres,
+                        &directions,
+                    ),
                 }
             })
             .collect();
@@ -421,12 +429,35 @@ impl Surface {
         (best.0, best.1, best.2)
     }
 
-    /// Rᵢ of mode `m` of `count` at angular frequency `omega` (module docs).
-    fn radiation(&self, m: usize, count: usize, omega: f64) -> f64 {
+    /// The centre of each face, m.
+    fn face_centres(&self) -> Vec<[f64; 3]> {
         let h = self.voxel;
+        self.faces
+            .iter()
+            .map(|face| {
+                let (u, v) = other_axes(face.axis);
+                let mut centre = face.low;
+                centre[u] += 0.5 * h;
+                centre[v] += 0.5 * h;
+                centre
+            })
+            .collect()
+    }
+
+    /// Rᵢ of mode `m` of `count` at angular frequency `omega` (module docs), from
+    /// the faces' `centres` and the `directions` averaged.
+    fn radiation(
+        &self,
+        m: usize,
+        count: usize,
+        omega: f64,
+        centres: &[[f64; 3]],
+        directions: &[[f64; 3]],
+    ) -> f64 {
+        let area = self.voxel * self.voxel;
         let k = omega / SPEED_OF_SOUND;
-        // Each face's normal displacement per unit modal coordinate, at its centre.
-        let sources: Vec<([f64; 3], f64)> = self
+        // Each face's normal displacement per unit modal coordinate, times its area.
+        let strengths: Vec<f64> = self
             .faces
             .iter()
             .map(|face| {
@@ -437,17 +468,13 @@ impl Surface {
                     .sum::<f64>()
                     * 0.25
                     * face.outward as f64;
-                let (u, v) = other_axes(face.axis);
-                let mut centre = face.low;
-                centre[u] += 0.5 * h;
-                centre[v] += 0.5 * h;
-                (centre, normal * h * h)
+                normal * area
             })
             .collect();
         let mut power = 0.0;
-        for direction in fibonacci_sphere(DIRECTIONS) {
+        for direction in directions {
             let (mut re, mut im) = (0.0, 0.0);
-            for (x, strength) in &sources {
+            for (x, strength) in centres.iter().zip(&strengths) {
                 let phase = k * (direction[0] * x[0] + direction[1] * x[1] + direction[2] * x[2]);
                 let (s, c) = phase.sin_cos();
                 re += strength * c;
@@ -455,14 +482,8 @@ impl Surface {
             }
             power += re * re + im * im;
         }
-        AIR_DENSITY / (4.0 * std::f64::consts::PI) * (power / DIRECTIONS as f64).sqrt()
+        AIR_DENSITY / (4.0 * std::f64::consts::PI) * (power / directions.len() as f64).sqrt()
     }
-}
-
-/// The two axes other than `axis`, in increasing order (a face's u and v).
-fn other_axes(axis: usize) -> (usize, usize) {
-    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-    (u.min(v), u.max(v))
 }
 
 /// `n` directions spread evenly over the sphere (a Fibonacci lattice).

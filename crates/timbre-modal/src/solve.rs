@@ -90,8 +90,6 @@ pub struct Eigen {
     pub vectors: Mat<f64>,
     /// ‖K·φ − λ·M·φ‖/‖K·φ‖ of each mode.
     pub residuals: Vec<f64>,
-    /// Solves with K − σM, one per vector (a measure of the work done).
-    pub solves: usize,
 }
 
 /// Why no modes came out.
@@ -159,13 +157,11 @@ pub fn lowest_modes(solid: &Assembled, options: &Options) -> Result<Eigen, Solve
     let mut draws = block as u64;
     orthonormalise(&mut next, &basis.first(0), &rigid, mass, &mut draws);
     let mut restarts = 0;
-    let mut solves = 0;
     loop {
         // Append the block, M times it, and its image under A.
         let width = next.ncols();
         let mass_next = mass_times(mass, next.as_ref());
         let mut w = factor.solve(&mass_next);
-        solves += width;
         basis
             .vectors
             .as_mut()
@@ -215,7 +211,7 @@ pub fn lowest_modes(solid: &Assembled, options: &Options) -> Result<Eigen, Solve
         let unconverged =
             (0..wanted).find(|&c| relative[c].is_nan() || relative[c] > options.tolerance);
         let Some(worst) = unconverged else {
-            return finish(solid, &ritz_vectors, &thetas, options, solves);
+            return finish(solid, &ritz_vectors, &thetas, options);
         };
         restarts += 1;
         if restarts > options.max_restarts {
@@ -275,7 +271,6 @@ fn finish(
     vectors: &Mat<f64>,
     thetas: &[f64],
     options: &Options,
-    solves: usize,
 ) -> Result<Eigen, SolveError> {
     let wanted = options.count;
     let mut order: Vec<usize> = (0..wanted).collect();
@@ -324,7 +319,6 @@ fn finish(
         values,
         vectors: out,
         residuals,
-        solves,
     })
 }
 
@@ -439,25 +433,22 @@ fn symbolic_factor(
     })
 }
 
-/// M·X for a block X, column by column over contiguous slices.
+/// M·X for a block X, column by column.
 fn mass_times(mass: &Sparse, x: MatRef<'_, f64>) -> Mat<f64> {
     let (n, b) = (x.nrows(), x.ncols());
     let mut out = Mat::<f64>::zeros(n, b);
-    let mut column = vec![0.0; n];
+    let (mut column, mut product) = (vec![0.0; n], vec![0.0; n]);
     for c in 0..b {
         column
             .iter_mut()
             .zip(x.col(c).iter())
             .for_each(|(o, v)| *o = *v);
-        let target = out.as_mut().col_mut(c);
-        for (r, o) in target.iter_mut().enumerate() {
-            let entries = mass.rows[r]..mass.rows[r + 1];
-            *o = mass.columns[entries.clone()]
-                .iter()
-                .zip(&mass.values[entries])
-                .map(|(&k, v)| v * column[k])
-                .sum();
-        }
+        mass.mul_into(&column, &mut product);
+        out.as_mut()
+            .col_mut(c)
+            .iter_mut()
+            .zip(&product)
+            .for_each(|(o, p)| *o = *p);
     }
     out
 }

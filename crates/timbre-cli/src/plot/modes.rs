@@ -4,6 +4,7 @@
 //! from the viewer's upper left. The displacement is scaled so the point that moves
 //! most moves 8 % of the solid's largest side.
 
+use glam::DVec3;
 use timbre_modal::model::Model;
 
 use super::canvas::{Canvas, Rgb};
@@ -49,11 +50,11 @@ pub fn draw_mode(
         ));
     }
     let surface = &model.surface;
-    let shape = |point: usize| -> [f64; 3] {
-        [0, 1, 2].map(|a| surface.shapes[(point * count + mode) * 3 + a] as f64)
+    let shape = |point: usize| -> DVec3 {
+        DVec3::from_array([0, 1, 2].map(|a| surface.shapes[(point * count + mode) * 3 + a] as f64))
     };
     let largest_motion = (0..surface.points.len())
-        .map(|p| length(shape(p)))
+        .map(|p| shape(p).length())
         .fold(0.0, f64::max);
     let (low, high) = model.bounds;
     let side = (0..3).map(|a| high[a] - low[a]).fold(0.0, f64::max);
@@ -63,28 +64,21 @@ pub fn draw_mode(
         0.0
     };
     let (azimuth, elevation) = (35f64.to_radians(), 25f64.to_radians());
-    let toward_viewer = [
+    let toward_viewer = DVec3::new(
         elevation.cos() * azimuth.sin(),
         -elevation.cos() * azimuth.cos(),
         elevation.sin(),
-    ];
-    let right = normalise(cross([0.0, 0.0, 1.0], toward_viewer));
-    let up = cross(toward_viewer, right);
-    let light = normalise([
-        toward_viewer[0] - 0.4 * right[0] + 0.5 * up[0],
-        toward_viewer[1] - 0.4 * right[1] + 0.5 * up[1],
-        toward_viewer[2] - 0.4 * right[2] + 0.5 * up[2],
-    ]);
+    );
+    let right = DVec3::Z.cross(toward_viewer).normalize_or_zero();
+    let up = toward_viewer.cross(right);
+    let light = (toward_viewer - 0.4 * right + 0.5 * up).normalize_or_zero();
     // Each surface point displaced, and seen: (screen x, screen y, depth).
-    let moved: Vec<[f64; 3]> = (0..surface.points.len())
-        .map(|p| {
-            let (x, u) = (surface.points[p], shape(p));
-            [0, 1, 2].map(|a| x[a] + swing * u[a])
-        })
+    let moved: Vec<DVec3> = (0..surface.points.len())
+        .map(|p| DVec3::from_array(surface.points[p]) + swing * shape(p))
         .collect();
     let seen: Vec<[f64; 3]> = moved
         .iter()
-        .map(|x| [dot(*x, right), dot(*x, up), dot(*x, toward_viewer)])
+        .map(|x| [x.dot(right), x.dot(up), x.dot(toward_viewer)])
         .collect();
     let caption = text_height(SCALE) as f64 + 16.0;
     let (area_w, area_h) = (width as f64 - 20.0, height as f64 - caption - 20.0);
@@ -112,14 +106,13 @@ pub fn draw_mode(
     for face in &surface.faces {
         let c = face.corners;
         for triangle in [[c[0], c[1], c[3]], [c[0], c[3], c[2]]] {
-            let normal = normalise(cross(
-                sub(moved[triangle[1]], moved[triangle[0]]),
-                sub(moved[triangle[2]], moved[triangle[0]]),
-            ));
-            let shade = 0.35 + 0.65 * dot(normal, light).abs();
+            let normal = (moved[triangle[1]] - moved[triangle[0]])
+                .cross(moved[triangle[2]] - moved[triangle[0]])
+                .normalize_or_zero();
+            let shade = 0.35 + 0.65 * normal.dot(light).abs();
             let motion: Vec<f64> = triangle
                 .iter()
-                .map(|&p| length(shape(p)) / largest_motion.max(f64::MIN_POSITIVE))
+                .map(|&p| shape(p).length() / largest_motion.max(f64::MIN_POSITIVE))
                 .collect();
             let corners = triangle.map(|p| pixel(seen[p]));
             fill_triangle(&mut canvas, &mut depth, corners, |w| {
@@ -198,35 +191,6 @@ fn fill_triangle(
                 canvas.set(x, y, color(w));
             }
         }
-    }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn length(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-fn normalise(a: [f64; 3]) -> [f64; 3] {
-    let l = length(a);
-    if l > 0.0 {
-        a.map(|x| x / l)
-    } else {
-        a
     }
 }
 

@@ -23,20 +23,20 @@ use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
 use timbre_ir::op::{FadeIn, Op};
 use timbre_ir::space::Path;
 use timbre_ir::{NodeId, Stem};
+use timbre_modal::model::AIR_DENSITY;
 use timbre_motion::contacts::{
     self, Body, ContactError, ContactKind, ContactOptions, ContactSample, Contacts, Impact,
 };
 use timbre_motion::{NodeIndex, Shot};
 use timbre_syntax::{Expr, ExprKind, Span};
 
+use super::build::{keyword, list, number, resonator_bank, symbol};
 use super::motion::NodeRef;
 use super::scene::{Names, Options, Timing};
 use super::{Lowerer, Origin, Scope};
 
 const USAGE: &str = "(contacts shot :materials ((\"Cube\" oak) (\"Floor\" concrete)))";
 
-/// Air density at 20 °C, kg/m³, for the presets' radiation.
-const AIR_DENSITY: f64 = 1.204;
 /// The pressure at 1 m (Pa) that a preset writes as full scale (120 dB SPL).
 pub(crate) const FULL_SCALE_PA: f64 = 20.0;
 /// Modes of a preset.
@@ -189,61 +189,11 @@ pub(crate) fn preset(
     Preset { modes, t60 }
 }
 
-fn symbol(name: &str, span: Span) -> Expr {
-    Expr {
-        kind: ExprKind::Symbol(name.into()),
-        span,
-    }
-}
-
-fn number(x: f64, span: Span) -> Expr {
-    Expr {
-        kind: ExprKind::Number(x),
-        span,
-    }
-}
-
-fn keyword(name: &str, span: Span) -> Expr {
-    Expr {
-        kind: ExprKind::Keyword(name.into()),
-        span,
-    }
-}
-
-fn list(items: Vec<Expr>, span: Span) -> Expr {
-    Expr {
-        kind: ExprKind::List(items),
-        span,
-    }
-}
-
-fn vector(values: impl Iterator<Item = f64>, span: Span) -> Expr {
-    let mut items = vec![symbol("vector", span)];
-    items.extend(values.map(|x| number(x, span)));
-    list(items, span)
-}
-
 impl Preset {
     /// `(combine (* gains (resonator force freqs bandwidths)))`.
     fn expr(&self, span: Span) -> Expr {
-        let resonator = list(
-            vec![
-                symbol("resonator", span),
-                symbol("force", span),
-                vector(self.modes.iter().map(|m| m.0), span),
-                vector(self.modes.iter().map(|m| m.1), span),
-            ],
-            span,
-        );
-        let weighted = list(
-            vec![
-                symbol("*", span),
-                vector(self.modes.iter().map(|m| m.2), span),
-                resonator,
-            ],
-            span,
-        );
-        list(vec![symbol("combine", span), weighted], span)
+        let column = |k: fn(&(f64, f64, f64)) -> f64| self.modes.iter().map(k).collect::<Vec<_>>();
+        resonator_bank(&column(|m| m.2), &column(|m| m.0), &column(|m| m.1), span)
     }
 }
 

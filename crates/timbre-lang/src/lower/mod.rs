@@ -16,6 +16,7 @@
 //! `SceneForms`, `Includes` and `Expansion` (of named trees).
 
 mod args;
+mod build;
 mod contacts;
 mod events;
 mod expr;

@@ -25,6 +25,7 @@ use timbre_modal::solve::SolveError;
 use timbre_modal::Elastic;
 use timbre_syntax::{Expr, ExprKind, Span};
 
+use super::build::{call, resonator_bank, symbol, vector};
 use super::contacts::FULL_SCALE_PA;
 use super::scene::Options;
 use super::{Arg, Call, Lowerer, Origin, Scope};
@@ -685,25 +686,6 @@ fn bank(model: &Model, pressures: &[f64], scale: f64, rate: f64) -> Bank {
     bank
 }
 
-fn at(kind: ExprKind, span: Span) -> Expr {
-    Expr { kind, span }
-}
-
-fn call(name: &str, args: Vec<Expr>, span: Span) -> Expr {
-    let mut items = vec![at(ExprKind::Symbol(name.into()), span)];
-    items.extend(args);
-    at(ExprKind::List(items), span)
-}
-
-fn symbol(name: &str, span: Span) -> Expr {
-    at(ExprKind::Symbol(name.into()), span)
-}
-
-fn vector(values: &[f64], span: Span) -> Expr {
-    let numbers = values.iter().map(|&x| at(ExprKind::Number(x), span));
-    call("vector", numbers.collect(), span)
-}
-
 /// `(combine (* A (sine (* t F)) (damp (* t D))))`.
 fn struck_tree(bank: &Bank, span: Span) -> Expr {
     let times = |values: &[f64]| call("*", vec![symbol("t", span), vector(values, span)], span);
@@ -731,15 +713,5 @@ fn driven_tree(bank: &Bank, impulse: f64, span: Span) -> Expr {
         .zip(&bandwidths)
         .map(|(a, b)| a / (2.0 * std::f64::consts::PI * b * impulse))
         .collect();
-    let resonator = call(
-        "resonator",
-        vec![
-            symbol("force", span),
-            vector(&bank.frequencies, span),
-            vector(&bandwidths, span),
-        ],
-        span,
-    );
-    let product = call("*", vec![vector(&gains, span), resonator], span);
-    call("combine", vec![product], span)
+    resonator_bank(&gains, &bank.frequencies, &bandwidths, span)
 }
