@@ -219,6 +219,8 @@ fn exact(sx: &Sx, env: &mut Vec<(String, bool)>, violations: &mut Vec<String>) -
         "index" => &["x", "i"],
         "pulse" => &["x", "width"],
         "latch" => &["x", "trigger"],
+        "delay" => &["x", "time"],
+        "comb" | "allpass" => &["x", "delay"],
         _ => &[],
     };
     let mut args: Vec<(String, bool)> = Vec::new();
@@ -242,6 +244,10 @@ fn exact(sx: &Sx, env: &mut Vec<(String, bool)>, violations: &mut Vec<String>) -
         "if" => name == "condition",
         "index" => name == "i",
         "latch" => name == "trigger",
+        // The delayed signal may jump: an error in the time moves the read point
+        // across the jump.
+        "delay" => name == "time",
+        "comb" | "allpass" => name == "delay",
         _ => is_jumpy_node(head),
     };
     for (name, x) in &args {
@@ -249,12 +255,24 @@ fn exact(sx: &Sx, env: &mut Vec<(String, bool)>, violations: &mut Vec<String>) -
             violations.push(sx.text());
         }
     }
+    // Steep near zero, `sqrt` and `log` amplify rounding there: an inexact argument
+    // is kept at 0.1 or more, as `(+ small (abs x))`.
+    if matches!(head, "sqrt" | "log") && !args[0].1 && !offset_at_least(&items[1], 0.1) {
+        violations.push(sx.text());
+    }
     match head {
         // Constants computed while lowering, whatever their arguments.
         "lanes" | "iota" | "tube-modes" => true,
         _ if is_exact_node(head) => args.iter().all(|(_, x)| *x),
         _ => false,
     }
+}
+
+/// Whether `sx` is `(+ c (abs …))` with a number c ≥ `least`.
+fn offset_at_least(sx: &Sx, least: f64) -> bool {
+    let Sx::List(items) = sx else { return false };
+    matches!((sx.head(), items.get(1), items.get(2).and_then(Sx::head)),
+        (Some("+"), Some(Sx::Atom(c)), Some("abs")) if c.parse::<f64>().is_ok_and(|c| c >= least))
 }
 
 fn violations(text: &str) -> Vec<String> {
@@ -361,6 +379,13 @@ fn smooth_only_trees_feed_discontinuities_only_exact_values() {
     assert!(violations("(if (< (frac (* t 3)) 0.5) (sine t) (tanh t))").is_empty());
     assert!(violations("(index (sine (* t (vector 1 2))) :i (* 2 (frac t)))").is_empty());
     assert!(violations("(sine (phasor (+ 3 (sine t))))").is_empty());
+    assert!(!violations("(delay (sawtooth t) (+ 0.01 (* 0.001 (sine t))) 0.02)").is_empty());
+    assert!(!violations("(comb (sawtooth t) (+ 0.01 (* 0.001 (sine t))) 0.5)").is_empty());
+    assert!(violations("(delay (sawtooth t) (+ 0.01 (* 0.001 (triangle t))) 0.02)").is_empty());
+    assert!(!violations("(sqrt (abs (sine t)))").is_empty());
+    assert!(!violations("(log (+ 0.001 (abs (sine t))))").is_empty());
+    assert!(violations("(sqrt (+ 0.1 (abs (sine t))))").is_empty());
+    assert!(violations("(sqrt (abs (triangle t)))").is_empty());
 
     let mut free = 0;
     for (i, config) in configs().into_iter().enumerate() {

@@ -161,10 +161,15 @@ impl<R: Rng> Gen<'_, R> {
         }
     }
 
-    /// `log` of `(+ small (abs x))`, sometimes scaled down.
+    /// `log` of `(+ small (abs x))`, sometimes scaled down; small ≥ 0.1 in
+    /// `smooth_only` mode (1/small amplifies rounding).
     pub(super) fn log(&mut self, w: usize, depth: usize) -> Ex {
         let a = self.audio(w, depth, false);
-        let small: f64 = self.pick(&[0.001, 0.01, 0.1, 1.0]);
+        let small: f64 = if self.smooth_only {
+            self.pick(&[0.1, 1.0])
+        } else {
+            self.pick(&[0.001, 0.01, 0.1, 1.0])
+        };
         let b = (-small.ln()).max((small + a.b).ln().abs());
         let s = format!("(log (+ {} (abs {})))", num(small), a.s);
         if self.p(0.5) {
@@ -174,13 +179,18 @@ impl<R: Rng> Gen<'_, R> {
         }
     }
 
-    /// `sqrt` of `(abs x)` or `(+ small (abs x))`.
+    /// `sqrt` of `(abs x)` or `(+ small (abs x))`; in `smooth_only` mode the latter,
+    /// with small ≥ 0.1, off the steep part near zero that amplifies rounding.
     pub(super) fn sqrt(&mut self, w: usize, depth: usize) -> Ex {
         let a = self.audio(w, depth, false);
-        if self.p(0.5) {
+        if !self.smooth_only && self.p(0.5) {
             Ex::new(format!("(sqrt (abs {}))", a.s), a.b.sqrt(), false)
         } else {
-            let small = self.pick(&[0.001, 0.1, 1.0]);
+            let small = if self.smooth_only {
+                self.pick(&[0.1, 1.0])
+            } else {
+                self.pick(&[0.001, 0.1, 1.0])
+            };
             let s = format!("(sqrt (+ {} (abs {})))", num(small), a.s);
             Ex::new(s, (a.b + small).sqrt(), false)
         }

@@ -94,11 +94,16 @@ pub struct GenConfig {
     /// (`sine sin cos tan tanh exp log sqrt pow / damp`, `dbamp ampdb midihz hzmidi`,
     /// noises, `env`, the other stateful nodes) is inexact: it may flow into smooth
     /// consumers (arithmetic, `sine`, `triangle`, `triangle-bl`, `noise`, filters,
-    /// delay times and gains, `lag`, `env`, what a `latch` holds), but never into
-    /// `floor frac mod`, a comparison, `and or not`, the condition of `if`, the phase
+    /// gains, `lag`, `env`, what a `latch` holds), but never into `floor frac mod`,
+    /// a comparison, `and or not`, the condition of `if`, a varying time of `delay`,
+    /// `comb` or `allpass` (the delayed signal may jump: a time error δ moves the
+    /// read point δ·rate samples across the jump), the phase
     /// of `sawtooth square pulse saw-bl square-bl` (the band-limited two turn a phase
     /// error into an error over the phase's step per sample), the width of `pulse`,
-    /// the lane of `index`, the trigger of `latch` or any argument of `adsr`.
+    /// the lane of `index`, the trigger of `latch` or any argument of `adsr`. And
+    /// `sqrt` and `log` stay off their steep part near zero (argument ≥ 0.1), and
+    /// what modulates a frequency is exact: the phase t·f multiplies an error in f by
+    /// up to a few hundred cycles, and compiled modal banks round to `f32`.
     pub smooth_only: bool,
     /// Allow the stateful nodes: filters, `delay`, `comb`, `allpass`, `conv`, `pink`,
     /// `markov`, `phasor`, `adsr`, `latch`, `lag`, `saw-bl`, `square-bl`,

@@ -137,6 +137,10 @@ impl<R: Rng> Gen<'_, R> {
         let ws = self.widths(w, 2);
         // MIDI notes 36 to 96 (65 Hz to 1 kHz), as far as the range allows.
         let (note_lo, note_hi) = (note_of(lo).max(36.0), note_of(hi).min(96.0));
+        // The phase t·f multiplies an error in f by up to a few hundred cycles, and
+        // compiled modal banks round to f32: in `smooth_only` mode the modulator is
+        // exact (the functions of it, `midihz` and `pow`, round like any other).
+        let exact_modulator = ex || self.smooth_only;
         let choice = match (ex, note_hi - note_lo >= 6.0) {
             (true, _) => self.int(0, 1),
             (false, false) => self.int(0, 2),
@@ -147,13 +151,13 @@ impl<R: Rng> Gen<'_, R> {
             // whatever the deviation.
             self.spend(1);
             let (note, _) = self.const_vec(ws[0], note_lo, note_hi);
-            let m = self.slow_audio(ws[1], depth - 1, false);
+            let m = self.slow_audio(ws[1], depth - 1, exact_modulator);
             let semitones = self.logu(0.05, 7.0) / norm(m.b);
             let s = format!("(midihz (+ {note} (* {} {})))", num(semitones), m.s);
             return Ex::new(s, hi * 1.5, false);
         }
         let f0 = self.const_freq(ws[0], lo, hi);
-        let m = self.slow_audio(ws[1], depth - 1, ex);
+        let m = self.slow_audio(ws[1], depth - 1, exact_modulator);
         let amount = self.logu(0.003, 0.5) / norm(m.b);
         match choice {
             4 => {

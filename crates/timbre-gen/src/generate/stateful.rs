@@ -102,6 +102,8 @@ impl<R: Rng> Gen<'_, R> {
     }
 
     /// A delay time of width `w` and, when it needs one (or by chance), a maximum.
+    /// A varying time is exact in `smooth_only` mode: the delayed signal may jump,
+    /// and an error δ in the time moves the read point δ·rate samples across it.
     fn delay_time(&mut self, w: usize, depth: usize) -> (String, Option<String>) {
         if !self.grow(depth) || self.p(0.5) {
             if w == 1 && self.p(0.05) {
@@ -116,7 +118,7 @@ impl<R: Rng> Gen<'_, R> {
             return (time, max);
         }
         let c = self.uni(0.002, 0.02);
-        let m = self.slow_audio(w, depth - 1, false);
+        let m = self.slow_audio(w, depth - 1, self.smooth_only);
         let dev = c * 0.8 / norm(m.b);
         let time = format!("(+ {} (* {} {}))", num(c), num(dev), m.s);
         let max = num(c + dev * m.b + 0.001);
@@ -184,7 +186,7 @@ impl<R: Rng> Gen<'_, R> {
     }
 
     /// A loop delay for `comb` and `allpass` of width `w`, 1 to 20 ms, and a maximum
-    /// when it varies (or by chance).
+    /// when it varies (or by chance); exact in `smooth_only` mode, as a delay time.
     fn loop_delay(&mut self, w: usize, depth: usize) -> (String, Option<String>) {
         if !self.grow(depth) || self.p(0.5) {
             let (time, longest) = self.const_vec(w, 0.001, 0.02);
@@ -192,7 +194,7 @@ impl<R: Rng> Gen<'_, R> {
             return (time, max);
         }
         let c = self.uni(0.003, 0.015);
-        let m = self.slow_audio(w, depth - 1, false);
+        let m = self.slow_audio(w, depth - 1, self.smooth_only);
         let dev = (c - 0.001) / norm(m.b);
         let time = format!("(+ {} (* {} {}))", num(c), num(dev), m.s);
         let max = num(c + dev * m.b + 0.001);
