@@ -23,7 +23,7 @@ use timbre_ir::dsp::envelope::AdsrEnvelope;
 use timbre_ir::dsp::expressive::{
     locked_weights, Energetic, InverseImportance, LockError, Sputter, SweepCurve,
 };
-use timbre_ir::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator};
+use timbre_ir::dsp::filter::{Biquad, BiquadKind, OnePoleLowpass, Resonator, Resonz};
 use timbre_ir::dsp::noise::{hash2, lane_seeds, MarkovNoise, PinkNoise};
 use timbre_ir::dsp::tube::ALUMINIUM;
 use timbre_ir::op::{BinaryOp, Op, TernaryOp, UnaryOp};
@@ -660,6 +660,14 @@ pub static NODES: &[NodeSpec] = &[
         "(resonator (white) 880 20)",
     )
     .stateful(),
+    NodeSpec::new(
+        "resonz",
+        &[p("x"), p("freq"), p("bandwidth")],
+        FILTERS,
+        Build::Args(resonz),
+        "(resonz (white) 880 20)",
+    )
+    .stateful(),
     // Delays.
     NodeSpec::new(
         "delay",
@@ -1045,6 +1053,10 @@ fn resonator(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     Ok(l.stateful(Resonator, b.nodes()))
 }
 
+fn resonz(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
+    Ok(l.stateful(Resonz, b.nodes()))
+}
+
 fn adsr(l: &mut Lowerer<'_>, b: &Bound<'_>) -> Result<NodeId, Diag> {
     Ok(l.stateful(AdsrEnvelope, b.nodes()))
 }
@@ -1355,7 +1367,6 @@ pub const ALIASES: &[(&str, &str, &str)] = &[
     ("hpf", "highpass", "write `(highpass x freq)`"),
     ("hp", "highpass", "write `(highpass x freq)`"),
     ("bpf", "bandpass", "write `(bandpass x freq)`"),
-    ("resonz", "resonator", "write `(resonator x freq bandwidth)`"),
     ("reson", "resonator", "write `(resonator x freq bandwidth)`"),
     ("delayn", "delay", "write `(delay x seconds)`"),
     ("delayl", "delay", "write `(delay x seconds)`"),

@@ -91,6 +91,10 @@ fn stateful_nodes_recover_from_an_infinite_input() {
             format!("(resonator (* (sine (* t 440)) {BAD_QUARTER}) 440 100)"),
         ),
         (
+            "resonz",
+            format!("(resonz (* (sine (* t 440)) {BAD_QUARTER}) 440 100)"),
+        ),
+        (
             "comb",
             format!("(* 0.3 (comb (* (sine (* t 440)) {BAD_QUARTER}) 0.01 0.5 0))"),
         ),

@@ -23,7 +23,8 @@ impl<R: Rng> Gen<'_, R> {
         )
     }
 
-    /// `lowpass`, `highpass`, `bandpass`, `onepole` or `resonator` of width `w`.
+    /// `lowpass`, `highpass`, `bandpass`, `onepole`, `resonator` or `resonz` of width
+    /// `w`.
     pub(super) fn filter(&mut self, w: usize, depth: usize) -> Ex {
         let kind = self.weighted(&[
             (3.0, "lowpass"),
@@ -31,6 +32,7 @@ impl<R: Rng> Gen<'_, R> {
             (1.5, "bandpass"),
             (1.0, "onepole"),
             (1.0, "resonator"),
+            (0.5, "resonz"),
         ]);
         let n = if kind == "onepole" { 2 } else { 3 };
         let ws = self.widths(w, n);
@@ -55,14 +57,14 @@ impl<R: Rng> Gen<'_, R> {
                 self.call("onepole", &[("x", Some(x.s)), ("freq", Some(f.s))], ""),
                 1.0,
             ),
-            "resonator" => {
+            "resonator" | "resonz" => {
                 let (bw, _) = third(self, 2.0, 400.0);
                 let params = [
                     ("x", Some(x.s)),
                     ("freq", Some(f.s)),
                     ("bandwidth", Some(bw)),
                 ];
-                (self.call("resonator", &params, ""), 2.0)
+                (self.call(kind, &params, ""), 2.0)
             }
             _ => {
                 let top = if kind == "bandpass" { 12.0 } else { 4.0 };

@@ -1,5 +1,6 @@
 //! Filters: RBJ Audio-EQ-Cookbook biquads (transposed direct form II), a
-//! one-pole low-pass and a Csound-`reson`-style two-pole resonator.
+//! one-pole low-pass, a Csound-`reson`-style two-pole resonator and a
+//! Csound-`resonz`-style one with zeros at DC and Nyquist.
 //!
 //! Coefficients and state are separate so that the interpreter can recompute
 //! coefficients only when the parameters change (or every sample when they are
@@ -192,6 +193,73 @@ impl ResonatorState {
     }
 }
 
+/// Coefficients of a two-pole resonator with zeros at DC and Nyquist (after Csound's
+/// `resonz`; J. O. Smith and J. B. Angell, "A constant-gain digital resonator tuned
+/// by a single coefficient", Computer Music Journal 6(4), 1982), gain exactly 1 at
+/// the centre frequency.
+///
+/// `y[n] = g·(x[n] − x[n−2]) + c2·y[n−1] − c3·y[n−2]` with `r = exp(−π·bw/sr)`,
+/// `c3 = r²`, `c2 = 2r·cos ω0` (the poles at ±ω0) and
+/// `g = |1 − c2·e^{−jω0} + c3·e^{−2jω0}| / |1 − e^{−2jω0}|`, `ω0 = 2πf/sr`, so that
+/// `|H(e^{jω0})| = 1`; `g = 0` at f = 0 and sr/2, where the zeros are. Its poles are
+/// `reson`'s (the same decay), but a slow input does not pass: its gain falls as
+/// f/f0 below the centre, where `reson`'s stays near bw/f0.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ResonzCoeffs {
+    g: f64,
+    c2: f64,
+    c3: f64,
+}
+
+impl ResonzCoeffs {
+    /// Centred on `freq_hz` (clamped to `[0, sr/2]`, NaN → 0) with bandwidth
+    /// `bandwidth_hz` (clamped to `[1e-3, sr/2]`, NaN → sr/2).
+    pub fn new(freq_hz: f64, bandwidth_hz: f64, sample_rate: f64) -> Self {
+        let sr = sane_rate(sample_rate);
+        let f = clamp_or(freq_hz, 0.0, 0.5 * sr, 0.0);
+        let bw = clamp_or(bandwidth_hz, 1e-3, 0.5 * sr, 0.5 * sr);
+        let r = (-PI * bw / sr).exp();
+        let c3 = r * r;
+        let w0 = 2.0 * PI * f / sr;
+        let c2 = 2.0 * r * w0.cos();
+        let re = 1.0 - c2 * w0.cos() + c3 * (2.0 * w0).cos();
+        let im = c2 * w0.sin() - c3 * (2.0 * w0).sin();
+        // |1 − e^{−2jω0}| = 2·|sin ω0|.
+        let zeros = 2.0 * w0.sin().abs();
+        let g = if zeros > 1e-12 {
+            re.hypot(im) / zeros
+        } else {
+            0.0
+        };
+        Self { g, c2, c3 }
+    }
+}
+
+/// State of a [`ResonzCoeffs`] resonator: the last two inputs and outputs.
+#[derive(Default, Clone, Copy, Debug)]
+pub struct ResonzState {
+    x1: f64,
+    x2: f64,
+    y1: f64,
+    y2: f64,
+}
+
+impl ResonzState {
+    /// One sample: `y = g·(x − x[n−2]) + c2·y[n−1] − c3·y[n−2]`.
+    #[inline]
+    pub fn process(&mut self, c: &ResonzCoeffs, x: f64) -> f64 {
+        let y = c.g * (x - self.x2) + c.c2 * self.y1 - c.c3 * self.y2;
+        self.x2 = self.x1;
+        self.x1 = x;
+        self.y2 = self.y1;
+        self.y1 = flush(y);
+        if !y.is_finite() {
+            *self = Self::default();
+        }
+        y
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::testutil::{db, sine_gain};
@@ -289,6 +357,57 @@ mod tests {
         assert_eq!(OnePole::coefficient(f64::NAN, SR), 0.0);
         assert_eq!(OnePole::coefficient(1e300, SR), 1.0);
         assert_eq!(OnePole::coefficient(-5.0, SR), 0.0);
+    }
+
+    #[test]
+    fn resonz_has_unit_gain_at_its_centre_and_none_at_dc() {
+        for &(f, bw) in &[
+            (1000.0, 100.0),
+            (440.0, 20.0),
+            (5000.0, 500.0),
+            (16000.0, 40.0),
+        ] {
+            let c = ResonzCoeffs::new(f, bw, SR);
+            let gain = |freq: f64| {
+                let mut s = ResonzState::default();
+                sine_gain(|x| s.process(&c, x), freq, SR, 96_000, 96_000)
+            };
+            let g0 = gain(f);
+            assert!((g0 - 1.0).abs() < 0.01, "f={f}: centre gain {g0}");
+            // The peak is at the centre: a tenth of the bandwidth either side is lower.
+            assert!(gain(f - 0.1 * bw) < g0 && gain(f + 0.1 * bw) < g0);
+            // A constant input gives nothing once it has passed (x − x[n−2] = 0), and
+            // a slow sine sin ω / sin ω0 of what reson gives it (their poles agree).
+            let mut s = ResonzState::default();
+            let settled = (0..96_000).map(|_| s.process(&c, 1.0)).last().unwrap();
+            assert!(settled.abs() < 1e-9, "f={f}: DC gives {settled}");
+            let slow = gain(f / 20.0);
+            let reson = {
+                let rc = ResonatorCoeffs::new(f, bw, SR);
+                let mut s = ResonatorState::default();
+                sine_gain(|x| s.process(&rc, x), f / 20.0, SR, 96_000, 96_000)
+            };
+            let expected = (PI / 10.0 * f / SR).sin() / (2.0 * PI * f / SR).sin();
+            let ratio = slow / reson;
+            assert!(
+                (ratio / expected - 1.0).abs() < 0.1,
+                "f={f}: {ratio} vs {expected}"
+            );
+        }
+        // Its impulse response decays as reson's: by e^{−π} in 1/bw seconds.
+        let c = ResonzCoeffs::new(1000.0, 100.0, SR);
+        let mut s = ResonzState::default();
+        let ys: Vec<f64> = (0..4800)
+            .map(|n| s.process(&c, if n == 0 { 1.0 } else { 0.0 }))
+            .collect();
+        let peak = |a: usize| ys[a..a + 96].iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        let ratio = peak(480 + 96) / peak(96);
+        assert!((ratio / (-PI).exp() - 1.0).abs() < 0.05, "{ratio}");
+        // At DC and Nyquist the zeros silence it; a NaN does not poison it.
+        assert_eq!(ResonzCoeffs::new(0.0, 10.0, SR).g, 0.0);
+        let mut s = ResonzState::default();
+        s.process(&c, f64::NAN);
+        assert!(s.process(&c, 1.0).is_finite());
     }
 
     #[test]
@@ -473,6 +592,50 @@ impl StatefulKernel for OnePoleLowpass {
 
     fn memory(&self, ctx: &StateContext) -> u64 {
         small_state_bytes(ctx)
+    }
+}
+
+/// The `resonz` node; arguments: input, frequency, bandwidth.
+#[derive(Debug)]
+pub struct Resonz;
+
+impl StatefulKernel for Resonz {
+    type State = Vec<(ResonzState, ResonzCoeffs, [f64; 2])>;
+
+    fn name(&self) -> &'static str {
+        "resonz"
+    }
+
+    fn new_state(&self, ctx: &StateContext) -> Self::State {
+        let fresh = (
+            ResonzState::default(),
+            ResonzCoeffs::new(1.0, 1.0, ctx.config.sample_rate),
+            [f64::NAN; 2],
+        );
+        vec![fresh; ctx.width]
+    }
+
+    fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
+        let sr = inputs.sample_rate;
+        for (lane, (filter, coeffs, last)) in lanes.iter_mut().enumerate() {
+            let (x, f, bw) = (
+                inputs.lane(0, lane),
+                inputs.lane(1, lane),
+                inputs.lane(2, lane),
+            );
+            for (k, y) in out.lane(lane).iter_mut().enumerate() {
+                if [f[k], bw[k]] != *last {
+                    *last = [f[k], bw[k]];
+                    *coeffs = ResonzCoeffs::new(f[k], bw[k], sr);
+                }
+                *y = filter.process(coeffs, x[k]);
+            }
+        }
+    }
+
+    fn memory(&self, ctx: &StateContext) -> u64 {
+        // Two inputs more than `resonator` keeps: past `small_state_bytes`.
+        (std::mem::size_of::<(ResonzState, ResonzCoeffs, [f64; 2])>() * ctx.width) as u64
     }
 }
 

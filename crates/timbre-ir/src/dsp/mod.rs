@@ -9,8 +9,9 @@
 //!
 //! - [`noise`]: hash-based white noise, 1-D gradient (Perlin) noise, pink (1/f)
 //!   noise and second-order Markov (AR(2)) low-frequency noise.
-//! - [`filter`]: RBJ biquads (low/high/band-pass), one-pole low-pass and a
-//!   Csound-`reson`-style two-pole resonator.
+//! - [`filter`]: RBJ biquads (low/high/band-pass), one-pole low-pass, a
+//!   Csound-`reson`-style two-pole resonator and a `resonz`-style one with zeros at
+//!   DC and Nyquist.
 //! - [`delay`]: a ring-buffer delay line with fractional reads (4-point cubic and
 //!   6-point Lagrange).
 //! - [`air`]: air absorption after ISO 9613-1, and the low-pass that follows it.

@@ -36,8 +36,11 @@ pub(crate) fn vector(values: &[f64], span: Span) -> Expr {
     )
 }
 
-/// `(combine (* gains (resonator force frequencies bandwidths)))`: a bank of
-/// resonators driven by the signal bound to `force`.
+/// `(combine (* gains (resonz force frequencies bandwidths)))`: a bank of
+/// resonators driven by the signal bound to `force`. `resonz`, with its zeros at DC
+/// and Nyquist, so that a force's steady part (the weight an object rests with, a
+/// slow push) makes no sound, as a mode driven by it does not; near each mode it
+/// rings as `resonator` would.
 pub(crate) fn resonator_bank(
     gains: &[f64],
     frequencies: &[f64],
@@ -45,7 +48,7 @@ pub(crate) fn resonator_bank(
     span: Span,
 ) -> Expr {
     let resonator = call(
-        "resonator",
+        "resonz",
         vec![
             symbol("force", span),
             vector(frequencies, span),
