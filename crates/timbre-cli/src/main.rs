@@ -793,6 +793,18 @@ fn contact_listing(found: &timbre_lang::FoundContacts) -> String {
         count("roll"),
         found.instances
     );
+    for (object, model) in &found.shapes {
+        let frequencies = model.modes.iter().map(|m| m.damped_frequency());
+        let (low, high) =
+            frequencies.fold((f64::INFINITY, 0.0f64), |(l, h), f| (l.min(f), h.max(f)));
+        text += &format!(
+            "  {object} rings with {} modes of its shape, {low:.1} to {high:.1} Hz: {} degrees of freedom, voxel {:.2} mm, {:.4} kg\n",
+            model.modes.len(),
+            model.dofs,
+            1e3 * model.surface.voxel,
+            model.mass
+        );
+    }
     for r in &found.rows {
         text += &format!(
             "  {:<6} {:>9.6} s (frame {:>8.3})  {} / {}",

@@ -91,7 +91,7 @@ fn a_mode_at_the_preset_s_bandwidth_decays_60_db_in_the_material_s_t60() {
     // states. Struck once, measured from the envelope.
     let f = 700.0;
     let text = format!(
-        "(resonator (impact :a steel :b oak :radius 0.01 :mass 0.05 :speed 1) {f} {})",
+        "(resonz (impact :a steel :b oak :radius 0.01 :mass 0.05 :speed 1) {f} {})",
         OAK.loss * f
     );
     let stated = OAK.t60(f);
@@ -217,4 +217,200 @@ fn an_object_is_bound_by_its_gltf_material() {
         rows.iter().all(|r| r.a == "Cube" && r.b == "Floor"),
         "{rows:?}"
     );
+}
+
+/// The scene of `:modal` tests: the cube rings with the modes of its own mesh.
+fn modal_scene(extra: &str) -> String {
+    format!(
+        "(scene :sample-rate 48000)\n(motion shot \"drop.glb\")\n\
+         (contacts shot :materials ((\"Cube\" oak) (\"Floor\" concrete)) {extra})"
+    )
+}
+
+/// Each impact strikes the cube's model where the contact is: the point and normal
+/// that `timbre_motion` finds, put into the cube's own frame here from the shot's
+/// poses, give (through `Model::gains`) the gains the lowering wrote, mode for mode.
+/// A point left unscaled, or a normal left in the world's frame, gives others.
+#[test]
+fn an_object_of_modal_is_struck_by_each_impact_where_and_along_what_it_is_hit() {
+    use glam::DVec3;
+    use timbre_motion::contacts::{find_contacts, Body, ContactOptions};
+    use timbre_motion::{Shot, ShotOptions};
+
+    let program = compile_shot(&modal_scene(":modal (\"Cube\") :modes 12"))
+        .unwrap_or_else(|e| panic!("{e:?}"));
+    let found = &program.contacts[0];
+    assert_eq!(found.shapes.len(), 1);
+    let (name, model) = &found.shapes[0];
+    assert_eq!(name, "Cube");
+    assert_eq!(model.modes.len(), 12);
+    // Blender's cube of 0.2 m (its mesh scaled by its node), of oak: 5.6 kg, its
+    // voxels a little more.
+    assert!((model.mass / 5.6 - 1.0).abs() < 0.06, "{} kg", model.mass);
+
+    let shot = Shot::read(
+        &cube_drop(),
+        &mut |_| Err("no resources".into()),
+        &ShotOptions::default(),
+    )
+    .unwrap();
+    let cube = shot.node("Cube").unwrap();
+    let bodies = [("Cube", OAK.density), ("Floor", 2300.0)].map(|(name, density)| Body {
+        name: name.into(),
+        node: shot.node(name).unwrap(),
+        density,
+        mass: None,
+    });
+    let contacts = find_contacts(&shot, &bodies, &ContactOptions::default()).unwrap();
+    assert!(contacts.impacts.len() >= 3);
+    // The lowering's gains G = A/(2π·B) of each impact instance of the cube: the
+    // constant vectors beside its bank's frequencies.
+    let decays: Vec<f64> = model.modes.iter().map(|m| m.decay()).collect();
+    let written: Vec<Vec<f64>> = program
+        .instances
+        .iter()
+        .filter(|i| i.stem.object.as_deref() == Some("Cube") && i.name.contains("impact"))
+        .map(|i| {
+            let consts: Vec<&[f64]> = program
+                .graph
+                .schedule(i.root)
+                .into_iter()
+                .filter_map(|n| program.graph.const_value(n))
+                .filter(|v| v.len() == decays.len())
+                .collect();
+            // Not the frequencies or the bandwidths: the gains.
+            let frequencies: Vec<f64> = model.modes.iter().map(|m| m.damped_frequency()).collect();
+            let bandwidths: Vec<f64> = decays.iter().map(|d| d / std::f64::consts::PI).collect();
+            consts
+                .into_iter()
+                .find(|v| *v != frequencies.as_slice() && *v != bandwidths.as_slice())
+                .unwrap_or_else(|| panic!("no gains in {}", i.name))
+                .to_vec()
+        })
+        .collect();
+    assert_eq!(written.len(), contacts.impacts.len());
+    let scale = shot.pose(cube, 0.0).scale;
+    for (impact, gains) in contacts.impacts.iter().zip(&written) {
+        // The normal points from a toward b: the force on a is along −n.
+        let (local, push) = if impact.a == 0 {
+            (impact.point_a, -impact.normal)
+        } else {
+            (impact.point_b, impact.normal)
+        };
+        let rotation = shot.pose(cube, impact.time).rotation;
+        let strike = timbre_modal::model::Strike {
+            point: (local * scale).to_array(),
+            direction: (rotation.inverse() * push).to_array(),
+        };
+        let (pressures, point) = model.gains(&strike, 1.0);
+        // The point struck is on the cube's surface, near where the contact is.
+        let distance = (DVec3::from(point) - local * scale).length();
+        assert!(
+            distance < 2.0 * model.surface.voxel,
+            "{distance} m off the surface"
+        );
+        // G·B/P is one number for every mode: the impulse's and full scale's.
+        let ratios: Vec<f64> = (0..decays.len())
+            .filter(|&m| {
+                pressures[m].abs() > 1e-6 * pressures.iter().fold(0.0f64, |a, p| a.max(p.abs()))
+            })
+            .map(|m| gains[m] * decays[m] / pressures[m])
+            .collect();
+        assert!(ratios.len() >= 4, "{ratios:?}");
+        for r in &ratios {
+            assert!(
+                (r / ratios[0] - 1.0).abs() < 1e-9,
+                "impact at {} s: {ratios:?}",
+                impact.time
+            );
+        }
+    }
+}
+
+/// A glTF node's mesh is a `modal` shape too (`:mesh "drop.glb" :node "Cube"`), the
+/// same as `contacts` makes of it; an impact rings the cube at its modes' frequencies,
+/// and a file of several meshes needs `:node`.
+#[test]
+fn a_gltf_node_is_a_modal_shape_and_the_cube_rings_at_its_modes() {
+    let program = compile_shot(&modal_scene(":modal (\"Cube\") :modes 6"))
+        .unwrap_or_else(|e| panic!("{e:?}"));
+    let contacts_model = program.contacts[0].shapes[0].1.clone();
+    let text = format!(
+        "(modal :mesh \"drop.glb\" :node \"Cube\" :material oak :modes 6 :voxel {})",
+        contacts_model.surface.voxel
+    );
+    let node = compile_shot(&text).unwrap_or_else(|e| panic!("{e:?}"));
+    let model = &node.modal[0].model;
+    let frequencies = |m: &timbre_modal::model::Model| -> Vec<f64> {
+        m.modes.iter().map(|m| m.frequency).collect()
+    };
+    assert_eq!(frequencies(model), frequencies(&contacts_model));
+    // The first impact of the cube alone (no listener: the instance as written),
+    // rendered: its loudest partial above 3 kHz is one of its modes, within 0.5 %.
+    let first = program
+        .instances
+        .iter()
+        .find(|i| i.stem.object.as_deref() == Some("Cube") && i.name.contains("impact"))
+        .unwrap();
+    let config = timbre_ir::RenderConfig {
+        sample_rate: common::SR,
+        block_size: 256,
+    };
+    let mut out = vec![0.0; ((first.start + 0.2) * common::SR) as usize];
+    timbre_ir::Interpreter::new(&program.graph, first.root, config).render(&mut out);
+    let onset = out.iter().position(|y| y.abs() > 1e-9).expect("it sounds");
+    let ring = &out[onset..];
+    let peak = timbre_testkit::strongest_peak_in(ring, common::SR, 3000.0, 20_000.0);
+    let closest = frequencies(model)
+        .iter()
+        .map(|f| (peak / f - 1.0).abs())
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        closest < 0.005,
+        "peak {peak} Hz, modes {:?}",
+        frequencies(model)
+    );
+    let (code, message, underlined, help) =
+        error("(modal :mesh \"drop.glb\" :material oak :modes 6)");
+    assert_eq!(code, "timbre::bad-modal");
+    assert_eq!(
+        message,
+        "the file has 2 nodes with meshes: name one with :node"
+    );
+    assert_eq!(underlined, "\"drop.glb\"");
+    assert!(help.contains("Cube") && help.contains("Floor"), "{help}");
+}
+
+#[test]
+fn modal_objects_are_named_in_materials_and_not_in_sounds() {
+    let (code, message, underlined, help) = error(&modal_scene(":modal (\"Cub\")"));
+    assert_eq!(code, "timbre::bad-contacts");
+    assert_eq!(message, "\"Cub\" is not an object of :materials");
+    assert_eq!(
+        (underlined.as_str(), help.as_str()),
+        ("\"Cub\"", "did you mean \"Cube\"?")
+    );
+    let (code, message, underlined, _) = error(&modal_scene(":modal (\"Cube\") :modes 0"));
+    assert_eq!(code, "timbre::bad-contacts");
+    assert_eq!(
+        message,
+        "`:modes` is 0; it counts modes: a whole number from 1"
+    );
+    assert_eq!(underlined, "0");
+    let (code, _, underlined, _) = error(&modal_scene(":modes 12"));
+    assert_eq!(
+        (code.as_str(), underlined.as_str()),
+        ("timbre::bad-contacts", "12")
+    );
+    let text = format!(
+        "(define-sound knock (force) (resonz force 900 40))\n{}",
+        modal_scene(":modal (\"Cube\") :sounds ((\"Cube\" knock))")
+    );
+    let (code, message, underlined, _) = error(&text);
+    assert_eq!(code, "timbre::bad-contacts");
+    assert_eq!(
+        message,
+        "\"Cube\" has a class of :sounds and the modes of its shape"
+    );
+    assert_eq!(underlined, "\"Cube\"");
 }

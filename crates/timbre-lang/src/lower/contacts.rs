@@ -10,8 +10,10 @@
 //!   moving linearly between keys so that a change of kind makes no click.
 //!
 //! The force drives the object's sound: a class of `:sounds` (called with `:force`),
-//! or the preset of its material ([`preset`]). An impact is heard from its world
-//! point; a sustained contact from the object's origin as it moves.
+//! the modes of its own shape (`:modal`: its mesh and material analysed by
+//! `timbre_modal`, struck where the contact is, along its normal), or the preset of
+//! its material ([`preset`]). An impact is heard from its world point; a sustained
+//! contact from the object's origin as it moves.
 
 use std::sync::Arc;
 
@@ -23,7 +25,8 @@ use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
 use timbre_ir::op::{FadeIn, Op};
 use timbre_ir::space::Path;
 use timbre_ir::{NodeId, Stem};
-use timbre_modal::model::AIR_DENSITY;
+use timbre_modal::model::{Model, Settings as ModalSettings, Strike, AIR_DENSITY};
+use timbre_modal::shape::{Resolution, Shape};
 use timbre_motion::contacts::{
     self, Body, ContactError, ContactKind, ContactOptions, ContactSample, Contacts, Impact,
 };
@@ -31,6 +34,7 @@ use timbre_motion::{NodeIndex, Shot};
 use timbre_syntax::{Expr, ExprKind, Span};
 
 use super::build::{keyword, list, number, resonator_bank, symbol};
+use super::modal::{catalogue_material, modal_code, shot_mesh};
 use super::motion::NodeRef;
 use super::scene::{Names, Options, Timing};
 use super::{Lowerer, Origin, Scope};
@@ -85,6 +89,8 @@ pub struct FoundContacts {
     pub rows: Vec<ContactRow>,
     /// How many instances the form made.
     pub instances: usize,
+    /// The objects of `:modal`, each with the model of its shape.
+    pub shapes: Vec<(String, Arc<Model>)>,
 }
 
 /// The contact score of `found` as tab-separated values, one header line then one
@@ -125,9 +131,32 @@ struct Object {
     material: &'static Material,
     /// A sound class called with `:force`, instead of the preset.
     class: Option<Expr>,
-    /// The preset's modes and scale, when it has no class.
+    /// The modes of its shape (`:modal`), instead of the preset.
+    model: Option<Arc<Model>>,
+    /// The preset's modes and scale, when it has neither.
     preset: Preset,
 }
+
+impl Object {
+    /// Seconds its sound rings after a blow: the longest T60 of its modes.
+    fn ring(&self, nyquist: f64) -> f64 {
+        match &self.model {
+            Some(model) => model
+                .modes
+                .iter()
+                .filter(|m| m.damped_frequency() <= 0.9 * nyquist)
+                .map(|m| 3.0 * std::f64::consts::LN_10 / m.decay())
+                .fold(0.0, f64::max),
+            None => self.preset.t60,
+        }
+    }
+}
+
+/// Modes of each object's shape with `:modal` and no `:modes`.
+const CONTACT_MODES: usize = super::modal::DEFAULT_MODES;
+/// The most degrees of freedom of an object's analysis: a shot has several objects,
+/// each solved in seconds (and cached); a `modal` node is the place for finer ones.
+const CONTACT_MAX_DOFS: usize = 30_000;
 
 /// A material's sound for a body of a given size: modes of a free solid box.
 #[derive(Clone, Debug)]
@@ -190,7 +219,7 @@ pub(crate) fn preset(
 }
 
 impl Preset {
-    /// `(combine (* gains (resonator force freqs bandwidths)))`.
+    /// `(combine (* gains (resonz force freqs bandwidths)))`.
     fn expr(&self, span: Span) -> Expr {
         let column = |k: fn(&(f64, f64, f64)) -> f64| self.modes.iter().map(k).collect::<Vec<_>>();
         resonator_bank(&column(|m| m.2), &column(|m| m.0), &column(|m| m.1), span)
@@ -248,6 +277,8 @@ impl Lowerer<'_> {
                 "frame-rate",
                 "roughness",
                 "grain",
+                "modal",
+                "modes",
             ],
             origin,
         )?;
@@ -332,12 +363,43 @@ impl Lowerer<'_> {
             };
             object.preset = preset(object.material, size, mass, area, nyquist);
         }
+        if let Some(modal) = options.get("modal") {
+            let modes = match options.get("modes") {
+                Some(e) => {
+                    let count = self.constant_option(e, "a number of modes", origin)?;
+                    if !(count >= 1.0 && count.fract() == 0.0 && count <= 10_000.0) {
+                        return Err(bad(
+                            self,
+                            format!("`:modes` is {count}; it counts modes: a whole number from 1"),
+                            e.span,
+                            "modes",
+                            "write e.g. :modes 32",
+                        ));
+                    }
+                    count as usize
+                }
+                None => CONTACT_MODES,
+            };
+            for (index, span) in self.modal_objects(modal, &objects, origin)? {
+                let model = self.object_model(&shot, &objects[index], modes, span, origin)?;
+                objects[index].model = Some(model);
+            }
+        } else if let Some(e) = options.get("modes") {
+            return Err(bad(
+                self,
+                "`:modes` counts the modes of the objects `:modal` names".into(),
+                e.span,
+                "without :modal",
+                "name the objects that ring with the modes of their shapes: :modal (\"Cube\")",
+            ));
+        }
         let form = Sounding {
             shot: &shot,
             name: &shot_name,
             start,
             settings: &settings,
             suppressed: self.suppressed(options.get("suppress"), origin)?,
+            nyquist,
             span: form.span,
             origin,
         };
@@ -345,11 +407,16 @@ impl Lowerer<'_> {
         let mut made = self.sound_impacts(&form, &found, &objects, &mut rows)?;
         made += self.sound_sustained(&form, &found, &objects, &mut rows)?;
         rows.sort_by(|x, y| x.time.total_cmp(&y.time));
+        let shapes = objects
+            .iter()
+            .filter_map(|o| Some((o.name.clone(), o.model.clone()?)))
+            .collect();
         self.scene.found_contacts.push(FoundContacts {
             shot: shot_name.clone(),
             frame_rate: settings.frame_rate,
             rows,
             instances: made,
+            shapes,
         });
         Ok(())
     }
@@ -378,11 +445,27 @@ struct Sounding<'f> {
     settings: &'f Settings,
     /// `:suppress`: pairs, and the span of scene time they are silent in.
     suppressed: Vec<(String, String, f64, f64)>,
+    /// Half the scene's sample rate, Hz.
+    nyquist: f64,
     span: Span,
     origin: &'f Origin,
 }
 
 impl Sounding<'_> {
+    /// Where an object with modes is struck at shot time `t`: `local`, a point of
+    /// its unscaled mesh (as contacts give it), in the scaled mesh its model was
+    /// made of; along `push`, the world direction of the force on it, turned into
+    /// its own frame. `None` for an object without modes.
+    fn strike(&self, object: &Object, local: DVec3, push: DVec3, t: f64) -> Option<Strike> {
+        object.model.as_ref()?;
+        let scale = self.shot.pose(object.node, 0.0).scale;
+        let rotation = self.shot.pose(object.node, t).rotation;
+        Some(Strike {
+            point: (local * scale).to_array(),
+            direction: (rotation.inverse() * push).to_array(),
+        })
+    }
+
     /// Whether a contact of `a` and `b` at shot time `t` sounds.
     fn keeps(&self, t: f64, a: &str, b: &str) -> bool {
         let t = t + self.start;
@@ -398,6 +481,8 @@ struct ContactSound {
     name: String,
     kind: &'static str,
     force: NodeId,
+    /// Where an object with modes is struck.
+    strike: Option<Strike>,
     start: f64,
     length: f64,
     place: Path,
@@ -674,6 +759,7 @@ impl Lowerer<'_> {
                     node,
                     material,
                     class: None,
+                    model: None,
                     preset: Preset {
                         modes: vec![],
                         t60: 0.0,
@@ -847,21 +933,25 @@ impl Lowerer<'_> {
                 point: impact.point,
                 length: 0.0,
             });
-            for object in [a, b] {
+            // The normal points from a toward b: b pushes a back along −normal.
+            for (object, local, push) in [
+                (a, impact.point_a, -impact.normal),
+                (b, impact.point_b, impact.normal),
+            ] {
                 self.time_offset = time;
                 let force = self.lower(&force_expr, form.origin, &mut Scope::new());
                 self.time_offset = 0.0;
-                let length = (form.settings.length).unwrap_or(object.preset.t60.clamp(0.05, 6.0));
+                let ring = object.ring(form.nyquist).clamp(0.05, 6.0);
                 let sound = ContactSound {
                     name: format!("{}.impact-{k}.{}", form.name, object.name),
                     kind: "impacts",
                     force: force?,
+                    strike: form.strike(object, local, push, impact.time),
                     start: time,
-                    length,
+                    length: form.settings.length.unwrap_or(ring),
                     place: Path::Fixed(impact.point),
                 };
-                self.add_contact_instance(form, object, sound)?;
-                made += 1;
+                made += usize::from(self.add_contact_instance(form, object, sound)?);
             }
         }
         Ok(made)
@@ -889,9 +979,12 @@ impl Lowerer<'_> {
             }
             let from = samples[0].time + form.start - RAMP;
             let until = samples[samples.len() - 1].time + form.start + RAMP;
-            for (object, other, radius) in
-                [(a, b, samples[0].radius_a), (b, a, samples[0].radius_b)]
-            {
+            // Objects with modes are struck where the contact starts.
+            let first = &samples[0];
+            for (object, other, radius, local, push) in [
+                (a, b, first.radius_a, first.point_a, -first.normal),
+                (b, a, first.radius_b, first.point_b, first.normal),
+            ] {
                 for (kind, stem) in [
                     (ContactKind::Slide, "sliding"),
                     (ContactKind::Roll, "rolling"),
@@ -912,8 +1005,9 @@ impl Lowerer<'_> {
                         name: format!("{}.{stem}-{k}.{}", form.name, object.name),
                         kind: stem,
                         force,
+                        strike: form.strike(object, local, push, first.time),
                         start: from,
-                        length: until - from + object.preset.t60.clamp(0.05, 2.0),
+                        length: until - from + object.ring(form.nyquist).clamp(0.05, 2.0),
                         place: Path::Moving(
                             NodeRef {
                                 shot: form.shot.clone(),
@@ -924,8 +1018,7 @@ impl Lowerer<'_> {
                             .position(),
                         ),
                     };
-                    self.add_contact_instance(form, object, sound)?;
-                    made += 1;
+                    made += usize::from(self.add_contact_instance(form, object, sound)?);
                 }
             }
         }
@@ -933,29 +1026,36 @@ impl Lowerer<'_> {
     }
 
     /// Adds the instance of one object's sound driven by a force, heard at its place
-    /// (or at the channels as written when the scene has no listener).
+    /// (or at the channels as written when the scene has no listener); false when it
+    /// is silent (every mode of its shape above the sample rate's reach).
     fn add_contact_instance(
         &mut self,
         form: &Sounding<'_>,
         object: &Object,
         sound: ContactSound,
-    ) -> Result<(), Diag> {
+    ) -> Result<bool, Diag> {
         let ContactSound {
             name,
             kind,
             force,
+            strike,
             start,
             length,
             place,
         } = sound;
         let (span, origin) = (form.span, form.origin);
         let mut scope: Scope = vec![("force".to_owned(), force)];
-        let call = match &object.class {
-            Some(class) => list(
+        let call = match (&object.class, &object.model, strike) {
+            (Some(class), _, _) => list(
                 vec![class.clone(), keyword("force", span), symbol("force", span)],
                 span,
             ),
-            None => object.preset.expr(span),
+            (None, Some(model), Some(strike)) => match self.driven_model(model, &strike, 1.0, span)
+            {
+                Some((tree, _)) => tree,
+                None => return Ok(false),
+            },
+            _ => object.preset.expr(span),
         };
         self.time_offset = start;
         let sound = self.lower(&call, origin, &mut scope);
@@ -990,6 +1090,116 @@ impl Lowerer<'_> {
         let instance =
             self.finish_instance(names, sound, timing, place, &Options::none(), origin)?;
         self.scene.instances.push(instance);
-        Ok(())
+        Ok(true)
+    }
+
+    /// The objects `:modal` names, as indices into `objects`, with the span of each
+    /// name.
+    fn modal_objects(
+        &self,
+        e: &Expr,
+        objects: &[Object],
+        origin: &Origin,
+    ) -> Result<Vec<(usize, Span)>, Diag> {
+        let items = e.as_list().unwrap_or_default();
+        if items.is_empty() {
+            return Err(self
+                .diag(
+                    "timbre::bad-contacts",
+                    "`:modal` is a list of the objects that ring with their shapes' modes",
+                    origin,
+                )
+                .label(e.span, "expected (\"Name\" …)")
+                .help("write :modal (\"Cube\"): each object named in :materials"));
+        }
+        let mut chosen = vec![];
+        for item in items {
+            let ExprKind::Str(name) = &item.kind else {
+                return Err(self
+                    .diag(
+                        "timbre::bad-contacts",
+                        format!(
+                            "an object of `:modal` is named by a string, not {}",
+                            item.describe()
+                        ),
+                        origin,
+                    )
+                    .label(item.span, "expected \"Name\"")
+                    .help("write :modal (\"Cube\"): each object named in :materials"));
+            };
+            let Some(index) = objects.iter().position(|o| o.name == *name) else {
+                let help = match super::did_you_mean(name, objects.iter().map(|o| o.name.as_str()))
+                {
+                    Some(close) => format!("did you mean \"{close}\"?"),
+                    None => "name objects of :materials".into(),
+                };
+                return Err(self
+                    .diag(
+                        "timbre::bad-contacts",
+                        format!("\"{name}\" is not an object of :materials"),
+                        origin,
+                    )
+                    .label(item.span, "no material")
+                    .help(help));
+            };
+            if objects[index].class.is_some() {
+                return Err(self
+                    .diag(
+                        "timbre::bad-contacts",
+                        format!("\"{name}\" has a class of :sounds and the modes of its shape"),
+                        origin,
+                    )
+                    .label(item.span, "modes here")
+                    .help("an object sounds one way: drop it from :sounds or from :modal"));
+            }
+            chosen.push((index, item.span));
+        }
+        Ok(chosen)
+    }
+
+    /// The modes of an object's mesh, scaled as its node is at time 0, in its own
+    /// frame, of its material (`timbre_modal`, through its cache).
+    fn object_model(
+        &mut self,
+        shot: &Shot,
+        object: &Object,
+        modes: usize,
+        span: Span,
+        origin: &Origin,
+    ) -> Result<Arc<Model>, Diag> {
+        let scale = shot.pose(object.node, 0.0).scale;
+        // `contact_objects` keeps only nodes with meshes: an empty one holds no solid.
+        let shape = Shape::Mesh(shot_mesh(shot, object.node).unwrap_or_default());
+        let material = catalogue_material(object.material);
+        let settings = ModalSettings {
+            modes,
+            resolution: Resolution {
+                voxel: None,
+                max_dofs: CONTACT_MAX_DOFS,
+            },
+        };
+        let key = format!(
+            "shot {:x} node {} × {scale:?} {material:?} {settings:?}",
+            shot.content_hash(),
+            object.name
+        );
+        match self.shared_model(key, &shape, &material, &settings, span, origin)? {
+            Ok(model) => {
+                self.modal_warnings(&model, span, origin);
+                Ok(model)
+            }
+            Err(error) => Err(self
+                .diag(
+                    modal_code(&error),
+                    format!("cannot find the modes of \"{}\": {error}", object.name),
+                    origin,
+                )
+                .label(span, "this object")
+                .help(
+                    "the modes of a shape need a mesh that encloses a solid (a floor of one \
+                     sheet has none: leave it to its material's preset); ask for fewer :modes \
+                     if the solve fails",
+                )),
+        }
     }
 }

@@ -6,7 +6,7 @@
 //!   `:normal`: `(combine (* A (sine (* t F)) (damp (* t D))))`, the damped sines that
 //!   `timbre_ir::optimise` makes one modal bank of;
 //! - or driven by a force signal (`:force`, newtons):
-//!   `(combine (* G (resonator force F B)))`, each resonator scaled so that an
+//!   `(combine (* G (resonz force F B)))`, each resonator scaled so that an
 //!   impulse of J N·s in the force rings as the struck node with `:impulse J` does.
 //!
 //! A is the pressure of each mode at 1 m over [`FULL_SCALE_PA`] (the convention of
@@ -19,10 +19,12 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use timbre_diag::Diag;
+use timbre_ir::dsp::materials::Material as CatalogueMaterial;
 use timbre_modal::model::{Damping, Material, ModalError, Model, Settings, Strike};
 use timbre_modal::shape::{Resolution, Shape, ShapeError, TriangleMesh};
 use timbre_modal::solve::SolveError;
 use timbre_modal::Elastic;
+use timbre_motion::{NodeIndex, Shot, ShotOptions};
 use timbre_syntax::{Expr, ExprKind, Span};
 
 use super::build::{call, resonator_bank, symbol, vector};
@@ -44,6 +46,7 @@ const DEFAULT_RATE: f64 = 48_000.0;
 const KEYS: &[&str] = &[
     "mesh", "box", "sphere", "cylinder", "tube", "material", "youngs", "poisson", "density",
     "loss", "alpha", "beta", "modes", "voxel", "strike", "normal", "impulse", "force", "gain",
+    "node",
 ];
 const SHAPES: [&str; 5] = ["mesh", "box", "sphere", "cylinder", "tube"];
 const SHAPE_HELP: &str = "give one of :mesh \"glass.obj\", :box (x y z), :sphere radius, \
@@ -343,12 +346,15 @@ impl Lowerer<'_> {
                 (shape, text)
             }
             _ => {
-                let (mesh, resolved) = self.modal_mesh(value, origin)?;
-                let name = match &value.kind {
+                let (mesh, resolved, node) = self.modal_mesh(value, options.get("node"), origin)?;
+                let mut name = match &value.kind {
                     ExprKind::Str(s) => s.clone(),
                     _ => String::new(),
                 };
-                let key = format!("mesh {}", resolved.display());
+                if let Some(node) = node {
+                    name += &format!(" node {node}");
+                }
+                let key = format!("mesh {} {name}", resolved.display());
                 return Ok(ShapeArg {
                     shape: Shape::Mesh(mesh),
                     key,
@@ -366,8 +372,14 @@ impl Lowerer<'_> {
     }
 
     /// The mesh of `:mesh "file.obj"`, read through the host's loader (relative to
-    /// the file that names it), and its resolved path.
-    fn modal_mesh(&self, value: &Expr, origin: &Origin) -> Result<(TriangleMesh, PathBuf), Diag> {
+    /// the file that names it), and its resolved path; or of a glTF file's node (the
+    /// one `:node` names, else its only node with a mesh), and the node's name.
+    fn modal_mesh(
+        &self,
+        value: &Expr,
+        node: Option<&Expr>,
+        origin: &Origin,
+    ) -> Result<(TriangleMesh, PathBuf, Option<String>), Diag> {
         let ExprKind::Str(path) = &value.kind else {
             return Err(self
                 .diag(
@@ -376,7 +388,7 @@ impl Lowerer<'_> {
                     origin,
                 )
                 .label(value.span, "expected a string")
-                .help("write :mesh \"glass.obj\" (a Wavefront OBJ file)"));
+                .help("write :mesh \"glass.obj\" (a Wavefront OBJ file), or :mesh \"shot.glb\" :node \"Cup\""));
         };
         let unreadable = |why: String| {
             self.diag(
@@ -385,18 +397,110 @@ impl Lowerer<'_> {
                 origin,
             )
             .label(value.span, "this file")
-            .help("paths are relative to the file that names them; the file must be a Wavefront OBJ with faces")
+            .help("paths are relative to the file that names them; the file must be a Wavefront OBJ with faces, or a .glb or .gltf with :node")
         };
         let (resolved, bytes) = self
             .options
             .loader
             .load(path, origin.dir.as_deref())
             .map_err(|e| unreadable(e.to_string()))?;
+        let lower = path.to_ascii_lowercase();
+        if lower.ends_with(".glb") || lower.ends_with(".gltf") {
+            let (mesh, name) = self.gltf_mesh(&bytes, &resolved, value, node, origin)?;
+            return Ok((mesh, resolved, Some(name)));
+        }
+        if let Some(node) = node {
+            return Err(self
+                .diag(
+                    "timbre::bad-modal",
+                    "`:node` picks a node of a glTF file, not of an OBJ mesh",
+                    origin,
+                )
+                .label(node.span, "a node")
+                .label(value.span, "of this file")
+                .help("drop :node, or give a .glb or .gltf file"));
+        }
         let mesh = TriangleMesh::from_obj_bytes(&bytes).map_err(|e| match e {
             ShapeError::Unreadable { reason, .. } => unreadable(reason),
             other => unreadable(other.to_string()),
         })?;
-        Ok((mesh, resolved))
+        Ok((mesh, resolved, None))
+    }
+
+    /// The mesh of one node of a glTF file, as [`shot_mesh`] makes it, and the
+    /// node's name.
+    fn gltf_mesh(
+        &self,
+        bytes: &[u8],
+        resolved: &std::path::Path,
+        value: &Expr,
+        node: Option<&Expr>,
+        origin: &Origin,
+    ) -> Result<(TriangleMesh, String), Diag> {
+        let dir = resolved.parent().map(|d| d.to_path_buf());
+        let loader = self.options.loader;
+        let mut resource = |uri: &str| {
+            loader
+                .load(uri, dir.as_deref())
+                .map(|(_, bytes)| bytes)
+                .map_err(|e| e.to_string())
+        };
+        let shot = Shot::read(bytes, &mut resource, &ShotOptions::default())
+            .map_err(|e| e.diag(value.span).in_source(&origin.source))?;
+        let with_meshes: Vec<&str> = shot
+            .node_names()
+            .filter(|n| shot.node(n).is_some_and(|i| shot.mesh(i).is_some()))
+            .collect();
+        let name = match node {
+            Some(e) => match &e.kind {
+                ExprKind::Str(name) => name.clone(),
+                _ => {
+                    return Err(self
+                        .diag(
+                            "timbre::expected-string",
+                            format!("a node is named by a string, not {}", e.describe()),
+                            origin,
+                        )
+                        .label(e.span, "expected a string")
+                        .help("write :node \"Cube\", a node of the file with a mesh"))
+                }
+            },
+            None => match with_meshes[..] {
+                [one] => one.to_owned(),
+                _ => {
+                    return Err(self
+                        .diag(
+                            "timbre::bad-modal",
+                            format!(
+                                "the file has {} nodes with meshes: name one with :node",
+                                with_meshes.len()
+                            ),
+                            origin,
+                        )
+                        .label(value.span, "which mesh?")
+                        .help(format!("its nodes with meshes: {}", with_meshes.join(", "))))
+                }
+            },
+        };
+        let span = node.map_or(value.span, |e| e.span);
+        let found = shot
+            .node(&name)
+            .and_then(|i| Some((i, shot_mesh(&shot, i)?)));
+        let Some((_, mesh)) = found else {
+            let help = match super::did_you_mean(&name, with_meshes.iter().copied()) {
+                Some(close) => format!("did you mean \"{close}\"?"),
+                None => format!("its nodes with meshes: {}", with_meshes.join(", ")),
+            };
+            return Err(self
+                .diag(
+                    "timbre::unknown-node",
+                    format!("the file has no node \"{name}\" with a mesh"),
+                    origin,
+                )
+                .label(span, "not in the file")
+                .help(help));
+        };
+        Ok((mesh, name))
     }
 
     /// The material: a named one, its constants overridden by any given, or
@@ -484,17 +588,38 @@ impl Lowerer<'_> {
         origin: &Origin,
     ) -> Result<Arc<Model>, Diag> {
         let key = format!("{} {material:?} {settings:?}", shape.key);
-        let model = match self.modal.models.get(&key) {
-            Some(model) => model.clone(),
-            None => {
-                self.check_load_time(call.span, origin)?;
-                let model = analyse(&shape.shape, material, settings)
-                    .map_err(|e| self.modal_error(e, call, shape, options, origin))?;
-                let model = Arc::new(model);
-                self.modal.models.insert(key, model.clone());
-                model
-            }
-        };
+        let model = self
+            .shared_model(key, &shape.shape, material, settings, call.span, origin)?
+            .map_err(|e| self.modal_error(e, call, shape, options, origin))?;
+        self.modal_warnings(&model, shape.value.span, origin);
+        Ok(model)
+    }
+
+    /// The model of `shape`, analysed once per compilation whatever asks for it
+    /// (`key` tells shapes, materials and settings apart). The outer error is the
+    /// load's time limit, reached before solving (at `span`).
+    pub(crate) fn shared_model(
+        &mut self,
+        key: String,
+        shape: &Shape,
+        material: &Material,
+        settings: &Settings,
+        span: Span,
+        origin: &Origin,
+    ) -> Result<Result<Arc<Model>, ModalError>, Diag> {
+        if let Some(model) = self.modal.models.get(&key) {
+            return Ok(Ok(model.clone()));
+        }
+        self.check_load_time(span, origin)?;
+        Ok(analyse(shape, material, settings).map(|model| {
+            let model = Arc::new(model);
+            self.modal.models.insert(key, model.clone());
+            model
+        }))
+    }
+
+    /// Reports a model's warnings (the voxelisation's, pieces dropped) at `span`.
+    pub(crate) fn modal_warnings(&mut self, model: &Model, span: Span, origin: &Origin) {
         for warning in &model.warnings {
             let help = if warning.contains("gives 4") {
                 "set :voxel to the size it names for bending modes within 2 % (a finer grid, a longer solve)"
@@ -505,11 +630,33 @@ impl Lowerer<'_> {
             };
             let diag = self
                 .diag("timbre::modal-warning", warning.clone(), origin)
-                .label(shape.value.span, "this shape")
+                .label(span, "this shape")
                 .help(help);
             self.warn(diag);
         }
-        Ok(model)
+    }
+
+    /// The sound of `model` struck at `strike` by the force bound to `force` (N):
+    /// `(combine (* G (resonz force F B)))`, an impulse of J N·s in the force
+    /// ringing as a strike of J does, times `gain`; and its longest T60 (s). `None`
+    /// when every mode is above 0.45 × the sample rate.
+    pub(crate) fn driven_model(
+        &self,
+        model: &Model,
+        strike: &Strike,
+        gain: f64,
+        span: Span,
+    ) -> Option<(Expr, f64)> {
+        let (pressures, _) = model.gains(strike, 1.0);
+        let rate = self.settings.sample_rate.unwrap_or(DEFAULT_RATE);
+        let bank = bank(model, &pressures, gain / FULL_SCALE_PA, rate);
+        let slowest = bank.decays.iter().fold(f64::INFINITY, |m, d| m.min(*d));
+        (!bank.frequencies.is_empty()).then(|| {
+            (
+                driven_tree(&bank, 1.0, span),
+                3.0 * std::f64::consts::LN_10 / slowest,
+            )
+        })
     }
 
     /// A diagnostic for an analysis that failed.
@@ -668,6 +815,47 @@ impl Lowerer<'_> {
     }
 }
 
+/// The material `modal` makes of one of the catalogue's (those `contacts` names):
+/// its elastic constants, damped by its loss factor.
+pub(crate) fn catalogue_material(material: &CatalogueMaterial) -> Material {
+    Material {
+        elastic: Elastic {
+            youngs: material.youngs,
+            poisson: material.poisson,
+            density: material.density,
+        },
+        damping: Damping::Loss(material.loss),
+    }
+}
+
+/// The mesh of a shot's node, as `modal` and `contacts` analyse it: scaled by the
+/// node's world scale at time 0, in the node's own frame (timbre axes).
+pub(crate) fn shot_mesh(shot: &Shot, node: NodeIndex) -> Option<TriangleMesh> {
+    let mesh = shot.mesh(node)?;
+    let scale = shot.pose(node, 0.0).scale;
+    Some(TriangleMesh {
+        positions: mesh
+            .vertices
+            .iter()
+            .map(|&v| (v * scale).to_array())
+            .collect(),
+        triangles: mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| i as usize))
+            .collect(),
+    })
+}
+
+/// The code of a diagnostic for an analysis that failed.
+pub(crate) fn modal_code(error: &ModalError) -> &'static str {
+    match error {
+        ModalError::Shape(_) => "timbre::modal-shape",
+        ModalError::Solve(_) => "timbre::modal-solve",
+        ModalError::Material(..) | ModalError::NoModes => "timbre::bad-modal",
+    }
+}
+
 /// The modes that sound at `rate`, with their pressures at 1 m times `scale`.
 fn bank(model: &Model, pressures: &[f64], scale: f64, rate: f64) -> Bank {
     let mut bank = Bank {
@@ -695,13 +883,13 @@ fn struck_tree(bank: &Bank, span: Span) -> Expr {
     call("combine", vec![product], span)
 }
 
-/// `(combine (* G (resonator force F B)))`. A resonator of unit peak gain and
+/// `(combine (* G (resonz force F B)))`. A resonator of unit peak gain and
 /// bandwidth B rings after an impulse J (a force of J·sr for one sample) with an
-/// envelope of 2π·B·J·e^(−π·B·t) (lang-spec/nodes.md, `resonator`); with B = D/π
+/// envelope of 2π·B·J·e^(−π·B·t) (lang-spec/nodes.md, `resonz`); with B = D/π
 /// it decays as the struck mode does, and G = A/(2π·B·J) gives it the struck
 /// amplitude A.
 fn driven_tree(bank: &Bank, impulse: f64, span: Span) -> Expr {
-    // `resonator` clamps its bandwidth to 0.001 Hz: an undamped mode rings that long.
+    // `resonz` clamps its bandwidth to 0.001 Hz: an undamped mode rings that long.
     let bandwidths: Vec<f64> = bank
         .decays
         .iter()

@@ -7,7 +7,7 @@ use std::path::Path;
 use super::ShapeError;
 
 /// A triangle mesh, in the coordinates of its file (metres).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
     /// The vertices.
     pub positions: Vec<[f64; 3]>,
