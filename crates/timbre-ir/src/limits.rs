@@ -41,6 +41,12 @@ pub struct Limits {
     /// Bytes of state for the sounds playing at once (delay lines, convolutions,
     /// buffers), estimated before rendering.
     pub memory: u64,
+    /// Degrees of freedom of one modal analysis (a `modal` node, an object of a
+    /// `contacts` form's `:modal`): a solid cube of 150 000 takes about two minutes
+    /// and 2 GiB to solve. A shape the default voxel would take past it is solved on
+    /// a coarser grid; one whose given voxel would, is refused before anything is
+    /// allocated.
+    pub modal_dofs: usize,
     /// Instances of a scene.
     pub instances: usize,
     /// Seconds rendered.
@@ -69,6 +75,7 @@ impl Default for Limits {
             total_lanes: 1 << 24,
             include_depth: 64,
             memory: 2 << 30,
+            modal_dofs: 150_000,
             instances: 100_000,
             duration: 24.0 * 3600.0,
             sample_rate: 768_000.0,
@@ -96,6 +103,7 @@ impl Limits {
             total_lanes: usize::MAX,
             include_depth: usize::MAX,
             memory: u64::MAX,
+            modal_dofs: usize::MAX,
             instances: usize::MAX,
             duration: f64::INFINITY,
             sample_rate: f64::INFINITY,

@@ -433,25 +433,56 @@ fn symbolic_factor(
     })
 }
 
-/// M·X for a block X, column by column.
+/// M·X for a block X: each row of M read once for up to [`SPMM_WIDTH`] columns,
+/// whose entries are summed in the same order as one column's would be (the same
+/// bits as [`Sparse::mul_into`], column by column).
 fn mass_times(mass: &Sparse, x: MatRef<'_, f64>) -> Mat<f64> {
     let (n, b) = (x.nrows(), x.ncols());
     let mut out = Mat::<f64>::zeros(n, b);
-    let (mut column, mut product) = (vec![0.0; n], vec![0.0; n]);
-    for c in 0..b {
-        column
-            .iter_mut()
-            .zip(x.col(c).iter())
-            .for_each(|(o, v)| *o = *v);
-        mass.mul_into(&column, &mut product);
-        out.as_mut()
-            .col_mut(c)
-            .iter_mut()
-            .zip(&product)
-            .for_each(|(o, p)| *o = *p);
+    // X's rows, interleaved: row i of the columns in hand at [i·width, (i+1)·width).
+    let mut rows = vec![0.0; n * SPMM_WIDTH.min(b.max(1))];
+    let mut sums = [0.0; SPMM_WIDTH];
+    for first in (0..b).step_by(SPMM_WIDTH) {
+        let width = SPMM_WIDTH.min(b - first);
+        for k in 0..width {
+            for (i, v) in x.col(first + k).iter().enumerate() {
+                rows[i * width + k] = *v;
+            }
+        }
+        for r in 0..n {
+            let entries = mass.rows[r]..mass.rows[r + 1];
+            let columns = &mass.columns[entries.clone()];
+            let values = &mass.values[entries];
+            if width == SPMM_WIDTH {
+                // Fixed width: the eight sums in registers.
+                let mut s = [0.0; SPMM_WIDTH];
+                for (&c, &m) in columns.iter().zip(values) {
+                    let row: &[f64; SPMM_WIDTH] = rows[c * SPMM_WIDTH..(c + 1) * SPMM_WIDTH]
+                        .try_into()
+                        .unwrap_or(&[0.0; SPMM_WIDTH]);
+                    for k in 0..SPMM_WIDTH {
+                        s[k] += m * row[k];
+                    }
+                }
+                sums = s;
+            } else {
+                sums[..width].fill(0.0);
+                for (&c, &m) in columns.iter().zip(values) {
+                    for k in 0..width {
+                        sums[k] += m * rows[c * width + k];
+                    }
+                }
+            }
+            for (k, s) in sums[..width].iter().enumerate() {
+                out[(r, first + k)] = *s;
+            }
+        }
     }
     out
 }
+
+/// Columns multiplied by M together in [`mass_times`]: the solver's block.
+const SPMM_WIDTH: usize = 8;
 
 /// √(xᵀMx) of each column.
 fn mass_norms(mass: &Sparse, x: MatRef<'_, f64>) -> Vec<f64> {

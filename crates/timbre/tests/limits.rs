@@ -177,3 +177,41 @@ fn a_scene_file_beyond_the_limits_is_refused_when_loaded() {
     assert_eq!(code(&error), "timbre::script-too-large");
     assert!(engine.load_library(&big).is_err());
 }
+
+/// A modal analysis stays within `Limits::modal_dofs`: a grid given finer is refused
+/// with the voxel that fits, before anything is allocated; without a voxel the shape
+/// is solved on the grid that fits, and it sounds.
+#[test]
+fn a_modal_analysis_stays_within_its_degrees_of_freedom() {
+    let bar = |voxel: &str| {
+        format!(
+            "(define-sound bar () (modal :material steel :box (0.2 0.02 0.02) {voxel} :modes 4))"
+        )
+    };
+    let start = |engine: &Engine, text: &str| -> Result<Vec<f64>, Error> {
+        let library = engine.load_library(text).map_err(Error::Script)?;
+        let mut scene = engine.scene(&library)?;
+        scene.start("bar", &[], 0.0)?;
+        scene.render_offline(0.1)
+    };
+    let small = limited(Limits {
+        modal_dofs: 3_000,
+        ..Limits::default()
+    });
+    let error = start(&small, &bar(":voxel 0.002")).expect_err("past 3 000 DOF");
+    assert_eq!(code(&error), "timbre::modal-shape");
+    assert!(
+        error.to_string().contains("3000") || error.to_string().contains("3 000"),
+        "{error}"
+    );
+    let Error::Script(d) = &error else {
+        unreachable!()
+    };
+    let help = d.0[0].help.as_deref().unwrap_or_default();
+    assert!(help.contains("fits: write :voxel"), "{help}");
+    // The same bar with the voxel chosen for it: within the limit, and it sounds.
+    let out = start(&small, &bar("")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(out.iter().any(|x| x.abs() > 1e-4), "silent");
+    // The default limit allows the finer grid.
+    assert!(start(&Engine::new(SR), &bar(":voxel 0.002")).is_ok());
+}

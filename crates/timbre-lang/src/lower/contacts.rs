@@ -1175,7 +1175,7 @@ impl Lowerer<'_> {
             modes,
             resolution: Resolution {
                 voxel: None,
-                max_dofs: CONTACT_MAX_DOFS,
+                max_dofs: CONTACT_MAX_DOFS.min(self.options.limits.modal_dofs),
             },
         };
         let key = format!(

@@ -149,7 +149,7 @@ impl Lowerer<'_> {
             modes,
             resolution: Resolution {
                 voxel,
-                ..Resolution::default()
+                max_dofs: self.options.limits.modal_dofs,
             },
         };
         let model = self.modal_model(call, &shape, &material, &settings, &options, origin)?;
