@@ -263,9 +263,9 @@ fn bad_input_is_a_diagnostic() {
 }
 
 #[test]
-fn a_wall_thinner_than_four_voxels_is_a_warning_that_names_a_voxel() {
+fn a_wall_thinner_than_two_voxels_is_a_warning_that_names_a_voxel() {
     let compiled = compile_with(
-        "(modal :material steel :box (0.1 0.02 0.004) :voxel 0.002 :modes 4)",
+        "(modal :material steel :box (0.1 0.02 0.002) :voxel 0.002 :modes 4)",
         &[],
         0,
     )
@@ -275,7 +275,7 @@ fn a_wall_thinner_than_four_voxels_is_a_warning_that_names_a_voxel() {
     };
     assert_eq!(warning.code, "timbre::modal-warning");
     assert!(
-        warning.message.contains("a voxel of 1 mm gives 4"),
+        warning.message.contains("a voxel of 1 mm gives 2"),
         "{}",
         warning.message
     );

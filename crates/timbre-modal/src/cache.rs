@@ -18,7 +18,7 @@ use crate::model::{ModalError, Mode, Model, Settings, Surface};
 use crate::shape::Shape;
 
 /// The first bytes of a cached model, with the format's version.
-const MAGIC: &[u8; 16] = b"timbre-modal\0\0\0\x01";
+const MAGIC: &[u8; 16] = b"timbre-modal\0\0\0\x02";
 
 /// A model and whether it came from the cache.
 #[derive(Clone, Debug)]

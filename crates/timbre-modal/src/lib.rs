@@ -3,13 +3,15 @@
 //! consistent mass M of the whole; the modes are the solutions of K·φ = ω²·M·φ.
 //!
 //! - **Elements** ([`hex8`]): exact 2×2×2 Gauss integration of BᵀDB and ρ·NᵀN over a
-//!   voxel of side h. A trilinear element represents every linear displacement field
-//!   exactly (uniform strain, rigid motion), so the patch test holds to rounding.
+//!   voxel of side h, with Wilson's nine incompatible modes condensed out of the
+//!   stiffness so that it does not lock in bending. It represents every linear
+//!   displacement field exactly (uniform strain, rigid motion), so the patch test
+//!   holds to rounding.
 //! - **Grids** ([`grid`]): the voxels a solid fills, the nodes they share numbered in
 //!   order (x fastest), K and M assembled as sparse symmetric matrices (3 degrees of
 //!   freedom per node, x, y, z).
 //! - **Shapes** ([`shape`]): boxes, spheres, cylinders, tubes and triangle meshes (OBJ)
-//!   turned into voxels, with a voxel size that puts 4 through the thinnest wall within a
+//!   turned into voxels, with a voxel size that puts 2 through the thinnest wall within a
 //!   budget of degrees of freedom; broken meshes (holes, non-manifold edges,
 //!   self-intersections) are voxelised by a vote of rays along three axes, with warnings.
 //! - **Ordering** ([`order`]): the grid's nodes in nested-dissection order, cut by

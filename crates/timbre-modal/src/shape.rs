@@ -38,17 +38,18 @@
 //!   surface it hits (`parry3d`); the wall is the 5th area-weighted percentile of those
 //!   lengths, misses left out, and at most the smallest side of the bounding box. A
 //!   100 × 100 × 4 mm plate gives 4 mm: all the rays from its two large faces cross it.
-//! - **Resolution**: trilinear hexahedra lock in bending, and need 4 voxels through a
-//!   wall for bending modes within 2 %. Unless a voxel size is given, it is
-//!   h = min(thinnest wall / 4, longest side / 32) (for a box, then enlarged to divide
+//! - **Resolution**: the elements do not lock in bending (their incompatible modes,
+//!   [`crate::hex8`]), but a wall needs 2 voxels through it to be joined face to face
+//!   where it curves. Unless a voxel size is given, it is
+//!   h = min(thinnest wall / 2, longest side / 32) (for a box, then enlarged to divide
 //!   its smallest side), enlarged just enough that the degrees of freedom (3 per node)
 //!   fit [`Resolution::max_dofs`]. The count is estimated before any grid is allocated
 //!   from the solid's volume V, the area S of the staircase its surface makes on a grid
 //!   (Σ (|nx| + |ny| + |nz|)·area) and the length E of its staircase edges:
 //!   nodes ≈ V/h³ + S/(2h²) + E/(4h) + 1 (exact for a box), then checked on the filled
 //!   grid. A given voxel size over the limit is refused; so is a bounding grid of more
-//!   than 2²⁸ voxels. Fewer than 4 voxels through the thinnest wall is a warning that
-//!   names the voxel size that would give 4 and the degrees of freedom it would take.
+//!   than 2²⁸ voxels. Fewer than 2 voxels through the thinnest wall is a warning that
+//!   names the voxel size that would give 2 and the degrees of freedom it would take.
 //!
 //! Everything is computed in one thread in a fixed order: the same input gives the
 //! same grid, bit for bit.
@@ -66,8 +67,11 @@ use crate::grid::VoxelGrid;
 /// The most voxels a bounding grid may hold (2²⁸), whatever the degrees of freedom.
 pub const MAX_GRID_VOXELS: usize = 1 << 28;
 
-/// Voxels through the thinnest wall below which bending modes are too stiff.
-pub const WALL_VOXELS: f64 = 4.0;
+/// Voxels through the thinnest wall below which bending modes are too stiff: with
+/// fewer, a thin curved wall is voxels that touch only at their edges (hinges). The
+/// element itself does not lock: a beam one voxel thick bends within 0.4 % of
+/// Euler–Bernoulli (tests/beam.rs).
+pub const WALL_VOXELS: f64 = 2.0;
 
 /// Voxels along the longest side when the thinnest wall asks for fewer.
 pub const LONGEST_SIDE_VOXELS: f64 = 32.0;
@@ -192,13 +196,13 @@ pub fn voxelize(shape: &Shape, resolution: &Resolution) -> Result<Voxelized, Sha
     }
     let voxels_across = solid.wall / h;
     if voxels_across < WALL_VOXELS * (1.0 - 1e-9) {
-        let voxel_for_four = solid.wall / WALL_VOXELS;
+        let voxel_for_wall = solid.wall / WALL_VOXELS;
         warnings.push(ShapeWarning::TooThin {
             wall: solid.wall,
             voxel: h,
             voxels_across,
-            voxel_for_four,
-            dofs_for_four: to_count(solid.estimate_dofs(voxel_for_four)),
+            voxel_for_wall,
+            dofs_for_wall: to_count(solid.estimate_dofs(voxel_for_wall)),
         });
     }
     Ok(Voxelized {

@@ -52,9 +52,9 @@ fn the_solver_finds_the_thin_rods_first_axial_mode_within_1_percent() {
     let rod = VoxelGrid::solid([n, 1, 1], h).assemble(&ALUMINIUM);
     let length = n as f64 * h;
     let expected = (ALUMINIUM.youngs / ALUMINIUM.density).sqrt() / (2.0 * length);
-    // A 1 m rod 1 cm thick bends at tens of hertz: sixteen bending modes (two planes)
-    // and a torsion mode lie below the first axial one at 2.5 kHz (it is mode 18).
-    let count = 32;
+    // A 1 m rod 1 cm thick bends at tens of hertz: twenty bending modes (two planes)
+    // and a torsion mode lie below the first axial one at 2.5 kHz (it is mode 22).
+    let count = 48;
     let modes = lowest_modes(&rod, &Options::new(count, -1e4)).expect("solved");
     // An axial mode moves along the axis (x): all but the lateral contraction,
     // a share of order (ν·π·h/L)² of its motion. A bending or torsion mode moves
@@ -69,30 +69,26 @@ fn the_solver_finds_the_thin_rods_first_axial_mode_within_1_percent() {
         along / total
     };
     let shares: Vec<f64> = (0..count).map(axial_share).collect();
-    let first = shares
-        .iter()
-        .position(|&s| s > 0.9)
-        .expect("an axial mode among the lowest 32");
-    let f = modes.values[first].sqrt() / (2.0 * PI);
-    eprintln!(
-        "axial mode: number {} of {count}, {f:.1} Hz against {expected:.1} Hz, axial share {:.4}",
-        first + 1,
-        shares[first]
-    );
-    assert!(
-        (f / expected - 1.0).abs() < 0.01,
-        "the first axial mode: {f} Hz, the rod's {expected} Hz"
-    );
-    // The only other mode this low that moves along the axis is the second axial one,
-    // at twice the frequency.
+    // The modes that move along the axis are the rod's axial modes, in order, at
+    // k·c/(2L): no other mode this low moves so.
     let axial: Vec<usize> = (0..count).filter(|&k| shares[k] > 0.1).collect();
-    assert_eq!(axial.len(), 2, "{shares:?}");
-    let second = modes.values[axial[1]].sqrt() / (2.0 * PI);
-    assert!(
-        (second / (2.0 * expected) - 1.0).abs() < 0.01,
-        "the second axial mode: {second} Hz, the rod's {} Hz",
-        2.0 * expected
-    );
+    assert!(axial.len() >= 2, "{shares:?}");
+    for (k, &mode) in axial.iter().enumerate() {
+        let f = modes.values[mode].sqrt() / (2.0 * PI);
+        let rod_f = (k + 1) as f64 * expected;
+        eprintln!(
+            "axial mode {}: number {} of {count}, {f:.1} Hz against {rod_f:.1} Hz, axial share {:.4}",
+            k + 1,
+            mode + 1,
+            shares[mode]
+        );
+        assert!(shares[mode] > 0.99, "{shares:?}");
+        assert!(
+            (f / rod_f - 1.0).abs() < 0.01,
+            "axial mode {}: {f} Hz, the rod's {rod_f} Hz",
+            k + 1
+        );
+    }
 }
 
 #[test]

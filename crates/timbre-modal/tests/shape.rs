@@ -175,71 +175,71 @@ fn a_box_side_that_is_not_whole_voxels_is_rounded_with_a_warning() {
 }
 
 #[test]
-fn a_plate_gets_4_voxels_through_its_thickness_when_the_budget_allows() {
-    // h = min(4 mm / 4, 100 mm / 32) = 1 mm: 3·101·101·5 = 153 015 degrees of freedom.
+fn a_plate_gets_2_voxels_through_its_thickness_when_the_budget_allows() {
+    // h = min(4 mm / 2, 100 mm / 32) = 2 mm: 3·51·51·3 = 23 409 degrees of freedom.
     let plate = Shape::Box {
         size: [0.1, 0.1, 0.004],
     };
-    let roomy = Resolution {
-        voxel: None,
-        max_dofs: 200_000,
-    };
-    let v = voxelize(&plate, &roomy).unwrap();
-    assert_eq!(v.grid.dims, [100, 100, 4]);
-    assert_eq!(v.dofs, 153_015);
+    let v = voxelize(&plate, &Resolution::default()).unwrap();
+    assert_eq!(v.grid.dims, [50, 50, 2]);
+    assert_eq!(v.dofs, 23_409);
     assert!(v.warnings.is_empty(), "{:?}", v.warnings);
 
-    // Over the default 150 000 the voxel grows to the next size that divides the
-    // thickness, 4/3 mm, and the warning names 1 mm and what it takes.
-    let v = voxelize(&plate, &Resolution::default()).unwrap();
+    // Five times as wide it would take 3·251·251·3 = 567 009 at 2 mm: over the
+    // default 150 000 the voxel grows to the next size that divides the thickness,
+    // 4 mm, and the warning names 2 mm and what it takes.
+    let wide = Shape::Box {
+        size: [0.5, 0.5, 0.004],
+    };
+    let v = voxelize(&wide, &Resolution::default()).unwrap();
     assert!(v.dofs <= 150_000);
-    assert_eq!(v.grid.dims[2], 3);
-    assert!((v.grid.h - 0.004 / 3.0).abs() < 1e-15);
+    assert_eq!(v.grid.dims[2], 1);
+    assert!((v.grid.h - 0.004).abs() < 1e-15);
     let thin = v
         .warnings
         .iter()
         .find_map(|w| match w {
             ShapeWarning::TooThin {
-                voxel_for_four,
-                dofs_for_four,
+                voxel_for_wall,
+                dofs_for_wall,
                 voxels_across,
                 ..
-            } => Some((*voxel_for_four, *dofs_for_four, *voxels_across)),
+            } => Some((*voxel_for_wall, *dofs_for_wall, *voxels_across)),
             _ => None,
         })
         .unwrap();
-    assert_eq!(thin.0, 0.001);
-    assert_eq!(thin.1, 153_015);
-    assert!((thin.2 - 3.0).abs() < 1e-9);
+    assert_eq!(thin.0, 0.002);
+    assert_eq!(thin.1, 567_009);
+    assert!((thin.2 - 1.0).abs() < 1e-9);
 }
 
 #[test]
-fn a_2_mm_plate_at_1_mm_voxels_warns_that_it_is_too_thin_and_suggests_half_a_millimetre() {
+fn a_1_mm_plate_at_1_mm_voxels_warns_that_it_is_too_thin_and_suggests_half_a_millimetre() {
     let v = voxelize(
         &Shape::Box {
-            size: [0.1, 0.1, 0.002],
+            size: [0.1, 0.1, 0.001],
         },
         &at(0.001),
     )
     .unwrap();
-    assert_eq!(v.grid.dims, [100, 100, 2]);
+    assert_eq!(v.grid.dims, [100, 100, 1]);
     assert_eq!(
         v.warnings,
         vec![ShapeWarning::TooThin {
-            wall: 0.002,
+            wall: 0.001,
             voxel: 0.001,
-            voxels_across: 2.0,
-            voxel_for_four: 0.0005,
-            // The box's exact count at 0.5 mm: 201 × 201 × 5 nodes.
-            dofs_for_four: 3 * 201 * 201 * 5,
+            voxels_across: 1.0,
+            voxel_for_wall: 0.0005,
+            // The box's exact count at 0.5 mm: 201 × 201 × 3 nodes.
+            dofs_for_wall: 3 * 201 * 201 * 3,
         }]
     );
     let text = v.warnings[0].to_string();
     assert!(
-        text.contains("2 mm")
-            && text.contains("2.0 voxels across")
-            && text.contains("500 µm gives 4")
-            && text.contains("606015 degrees of freedom"),
+        text.contains("1 mm")
+            && text.contains("1.0 voxels across")
+            && text.contains("500 µm gives 2")
+            && text.contains("363609 degrees of freedom"),
         "{text}"
     );
 }
@@ -661,7 +661,8 @@ fn from_text_err(name: &str, text: &str) -> ShapeError {
 
 #[test]
 fn a_shape_too_small_for_the_voxel_fills_nothing_and_says_what_would() {
-    // A 1 cm tube wall at 1 cm voxels: every centre falls in the bore or outside.
+    // A 0.2 mm tube wall at 1 cm voxels: every centre falls in the bore or outside; the
+    // voxel suggested puts 2 through the wall.
     let tube = Shape::Tube {
         outer: 0.0221,
         inner: 0.0219,
@@ -670,7 +671,7 @@ fn a_shape_too_small_for_the_voxel_fills_nothing_and_says_what_would() {
     let Err(ShapeError::NothingFilled { suggested, .. }) = voxelize(&tube, &at(0.01)) else {
         panic!("filled something");
     };
-    assert!((suggested - 0.0002 / 4.0).abs() < 1e-12);
+    assert!((suggested - 0.0002 / timbre_modal::shape::WALL_VOXELS).abs() < 1e-12);
 }
 
 #[test]

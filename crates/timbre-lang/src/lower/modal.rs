@@ -621,8 +621,8 @@ impl Lowerer<'_> {
     /// Reports a model's warnings (the voxelisation's, pieces dropped) at `span`.
     pub(crate) fn modal_warnings(&mut self, model: &Model, span: Span, origin: &Origin) {
         for warning in &model.warnings {
-            let help = if warning.contains("gives 4") {
-                "set :voxel to the size it names for bending modes within 2 % (a finer grid, a longer solve)"
+            let help = if warning.contains("gives 2") {
+                "set :voxel to the size it names for bending modes within 1 % (a finer grid, a longer solve)"
             } else if warning.contains("pieces") {
                 "only the largest piece sounds: join the parts, or give each its own `modal`"
             } else {

@@ -20,15 +20,16 @@ pub enum ShapeWarning {
     /// No inward ray hit another surface, so the thinnest wall was taken as the
     /// smallest side of the bounding box.
     WallGuessed { wall: f64 },
-    /// Fewer than 4 voxels through the thinnest wall: bending modes come out too high.
+    /// Fewer than [`crate::shape::WALL_VOXELS`] voxels through the thinnest wall:
+    /// bending modes come out too high.
     TooThin {
         wall: f64,
         voxel: f64,
         voxels_across: f64,
-        /// The voxel size that gives 4 voxels through the wall.
-        voxel_for_four: f64,
+        /// The voxel size that gives enough voxels through the wall.
+        voxel_for_wall: f64,
         /// The degrees of freedom that size would take (estimated).
-        dofs_for_four: usize,
+        dofs_for_wall: usize,
     },
     /// A box side that is not a whole number of voxels, rounded to the nearest.
     BoxSideRounded {
@@ -151,17 +152,17 @@ impl fmt::Display for ShapeWarning {
                 wall,
                 voxel,
                 voxels_across,
-                voxel_for_four,
-                dofs_for_four,
+                voxel_for_wall,
+                dofs_for_wall,
             } => write!(
                 f,
                 "the thinnest wall, {}, is only {voxels_across:.1} voxels across at a voxel \
-                 size of {}; with fewer than 4 the bending modes come out too high \
-                 (trilinear elements lock): a voxel of {} gives 4, at about \
-                 {dofs_for_four} degrees of freedom",
+                 size of {}; with fewer than 2 the wall is a sheet of voxels joined at \
+                 their edges, and its bending modes come out too high: a voxel of {} \
+                 gives 2, at about {dofs_for_wall} degrees of freedom",
                 length(wall),
                 length(voxel),
-                length(voxel_for_four)
+                length(voxel_for_wall)
             ),
             ShapeWarning::BoxSideRounded {
                 axis,
