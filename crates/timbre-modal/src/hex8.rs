@@ -190,34 +190,10 @@ fn trilinear_strain(p: [f64; 3], h: f64) -> [[f64; DOFS]; 6] {
 
 /// The plain trilinear element's stiffness, which locks in bending.
 fn trilinear_stiffness(material: &Elastic, h: f64) -> [[f64; DOFS]; DOFS] {
-    let (lambda, mu) = (material.lambda(), material.shear());
-    let mut d = [[0.0; 6]; 6];
-    for i in 0..3 {
-        for j in 0..3 {
-            d[i][j] = lambda;
-        }
-        d[i][i] += 2.0 * mu;
-        d[i + 3][i + 3] = mu;
-    }
-    let volume = (h / 2.0).powi(3);
+    let (d, volume) = (elasticity(material), (h / 2.0).powi(3));
     let mut k = [[0.0; DOFS]; DOFS];
     for p in gauss_points() {
-        let (_, dn) = shape(p);
-        // B: 6 × 24.
-        let mut b = [[0.0; DOFS]; 6];
-        for node in 0..8 {
-            let [dx, dy, dz] = dn[node].map(|v| v * 2.0 / h);
-            let c = 3 * node;
-            b[0][c] = dx;
-            b[1][c + 1] = dy;
-            b[2][c + 2] = dz;
-            b[3][c] = dy;
-            b[3][c + 1] = dx;
-            b[4][c + 1] = dz;
-            b[4][c + 2] = dy;
-            b[5][c] = dz;
-            b[5][c + 2] = dx;
-        }
+        let b = trilinear_strain(p, h);
         // D·B, then Bᵀ·(D·B).
         let mut db = [[0.0; DOFS]; 6];
         for i in 0..6 {

@@ -595,6 +595,33 @@ impl StatefulKernel for OnePoleLowpass {
     }
 }
 
+/// One block of `resonator` or `resonz` (arguments: input, frequency, bandwidth):
+/// each lane's filter, its coefficients made anew (`make(f, bw, sr)`) when the
+/// frequency or bandwidth change.
+fn resonate<S, C>(
+    lanes: &mut [(S, C, [f64; 2])],
+    inputs: &Inputs<'_>,
+    out: &mut Outputs<'_>,
+    make: fn(f64, f64, f64) -> C,
+    step: fn(&mut S, &C, f64) -> f64,
+) {
+    let sr = inputs.sample_rate;
+    for (lane, (filter, coeffs, last)) in lanes.iter_mut().enumerate() {
+        let (x, f, bw) = (
+            inputs.lane(0, lane),
+            inputs.lane(1, lane),
+            inputs.lane(2, lane),
+        );
+        for (k, y) in out.lane(lane).iter_mut().enumerate() {
+            if [f[k], bw[k]] != *last {
+                *last = [f[k], bw[k]];
+                *coeffs = make(f[k], bw[k], sr);
+            }
+            *y = step(filter, coeffs, x[k]);
+        }
+    }
+}
+
 /// The `resonz` node; arguments: input, frequency, bandwidth.
 #[derive(Debug)]
 pub struct Resonz;
@@ -616,21 +643,7 @@ impl StatefulKernel for Resonz {
     }
 
     fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
-        let sr = inputs.sample_rate;
-        for (lane, (filter, coeffs, last)) in lanes.iter_mut().enumerate() {
-            let (x, f, bw) = (
-                inputs.lane(0, lane),
-                inputs.lane(1, lane),
-                inputs.lane(2, lane),
-            );
-            for (k, y) in out.lane(lane).iter_mut().enumerate() {
-                if [f[k], bw[k]] != *last {
-                    *last = [f[k], bw[k]];
-                    *coeffs = ResonzCoeffs::new(f[k], bw[k], sr);
-                }
-                *y = filter.process(coeffs, x[k]);
-            }
-        }
+        resonate(lanes, inputs, out, ResonzCoeffs::new, ResonzState::process);
     }
 
     fn memory(&self, ctx: &StateContext) -> u64 {
@@ -660,21 +673,13 @@ impl StatefulKernel for Resonator {
     }
 
     fn process(&self, lanes: &mut Self::State, inputs: &Inputs<'_>, out: &mut Outputs<'_>) {
-        let sr = inputs.sample_rate;
-        for (lane, (filter, coeffs, last)) in lanes.iter_mut().enumerate() {
-            let (x, f, bw) = (
-                inputs.lane(0, lane),
-                inputs.lane(1, lane),
-                inputs.lane(2, lane),
-            );
-            for (k, y) in out.lane(lane).iter_mut().enumerate() {
-                if [f[k], bw[k]] != *last {
-                    *last = [f[k], bw[k]];
-                    *coeffs = ResonatorCoeffs::new(f[k], bw[k], sr);
-                }
-                *y = filter.process(coeffs, x[k]);
-            }
-        }
+        resonate(
+            lanes,
+            inputs,
+            out,
+            ResonatorCoeffs::new,
+            ResonatorState::process,
+        );
     }
 
     fn memory(&self, ctx: &StateContext) -> u64 {

@@ -437,15 +437,8 @@ impl Lowerer<'_> {
         node: Option<&Expr>,
         origin: &Origin,
     ) -> Result<(TriangleMesh, String), Diag> {
-        let dir = resolved.parent().map(|d| d.to_path_buf());
-        let loader = self.options.loader;
-        let mut resource = |uri: &str| {
-            loader
-                .load(uri, dir.as_deref())
-                .map(|(_, bytes)| bytes)
-                .map_err(|e| e.to_string())
-        };
-        let shot = Shot::read(bytes, &mut resource, &ShotOptions::default())
+        let shot = self
+            .read_shot(bytes, resolved, &ShotOptions::default())
             .map_err(|e| e.diag(value.span).in_source(&origin.source))?;
         let with_meshes: Vec<&str> = shot
             .node_names()

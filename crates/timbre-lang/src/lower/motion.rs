@@ -147,15 +147,8 @@ impl Lowerer<'_> {
                 .label(path_expr.span, "this file")
                 .help("give the path of a .glb or .gltf file, relative to this file")
             })?;
-        let dir = resolved.parent().map(|d| d.to_path_buf());
-        let loader = self.options.loader;
-        let mut resource = |uri: &str| {
-            loader
-                .load(uri, dir.as_deref())
-                .map(|(_, bytes)| bytes)
-                .map_err(|e| e.to_string())
-        };
-        let shot = Shot::read(&bytes, &mut resource, &ShotOptions { animation })
+        let shot = self
+            .read_shot(&bytes, &resolved, &ShotOptions { animation })
             .map_err(|e| e.diag(path_expr.span).in_source(&origin.source))?;
         let form = motion_form(&name, &resolved, options.get("animation"), start);
         self.names.motions.push(MotionFile {
@@ -166,6 +159,25 @@ impl Lowerer<'_> {
             form,
         });
         Ok(())
+    }
+
+    /// The glTF file `bytes`, read from `resolved`: its external buffers through the
+    /// host's loader, relative to it.
+    pub(crate) fn read_shot(
+        &self,
+        bytes: &[u8],
+        resolved: &std::path::Path,
+        options: &ShotOptions,
+    ) -> Result<Shot, timbre_motion::MotionError> {
+        let dir = resolved.parent().map(|d| d.to_path_buf());
+        let loader = self.options.loader;
+        let mut resource = |uri: &str| {
+            loader
+                .load(uri, dir.as_deref())
+                .map(|(_, bytes)| bytes)
+                .map_err(|e| e.to_string())
+        };
+        Shot::read(bytes, &mut resource, options)
     }
 
     /// A scene with motion files and no `:duration` lasts as long as its motion: to
