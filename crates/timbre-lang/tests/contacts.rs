@@ -233,11 +233,70 @@ fn modal_scene(extra: &str) -> String {
 /// A point left unscaled, or a normal left in the world's frame, gives others.
 #[test]
 fn an_object_of_modal_is_struck_by_each_impact_where_and_along_what_it_is_hit() {
+    struck_where_hit(&cube_drop());
+    // The same cube as a mesh half the size in a node scaled by 2: the same world,
+    // the same model, and each strike's point scaled back into it.
+    struck_where_hit(&with_scaled_cube(&cube_drop(), 2.0));
+}
+
+/// The shot with the cube's mesh divided by `k` and its node scaled by `k`: the same
+/// solid in the world.
+fn with_scaled_cube(glb: &[u8], k: f32) -> Vec<u8> {
+    let length = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + length]).unwrap();
+    let node = json["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|n| n["name"] == "Cube")
+        .unwrap();
+    json["nodes"][node]["scale"] = serde_json::json!([k, k, k]);
+    let mesh = json["nodes"][node]["mesh"].as_u64().unwrap() as usize;
+    let accessor = json["meshes"][mesh]["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap() as usize;
+    let view = json["accessors"][accessor]["bufferView"].as_u64().unwrap() as usize;
+    let count = json["accessors"][accessor]["count"].as_u64().unwrap() as usize;
+    let start = json["bufferViews"][view]["byteOffset"]
+        .as_u64()
+        .unwrap_or(0) as usize;
+    for bound in ["min", "max"] {
+        let values: Vec<f64> = json["accessors"][accessor][bound]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| (v.as_f64().unwrap() as f32 / k) as f64)
+            .collect();
+        json["accessors"][accessor][bound] = serde_json::json!(values);
+    }
+    let mut text = json.to_string().into_bytes();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    // The binary chunk: 8 bytes of header, then the buffer.
+    let mut bin = glb[20 + length..].to_vec();
+    for i in 0..3 * count {
+        let at = 8 + start + 4 * i;
+        let v = f32::from_le_bytes(bin[at..at + 4].try_into().unwrap()) / k;
+        bin[at..at + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + text.len() + bin.len()) as u32).to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(text);
+    out.extend(bin);
+    out
+}
+
+fn struck_where_hit(glb: &[u8]) {
     use glam::DVec3;
     use timbre_motion::contacts::{find_contacts, Body, ContactOptions};
     use timbre_motion::{Shot, ShotOptions};
 
-    let program = compile_shot(&modal_scene(":modal (\"Cube\") :modes 12"))
+    let program = compile_with_shot(&modal_scene(":modal (\"Cube\") :modes 12"), glb)
         .unwrap_or_else(|e| panic!("{e:?}"));
     let found = &program.contacts[0];
     assert_eq!(found.shapes.len(), 1);
@@ -249,7 +308,7 @@ fn an_object_of_modal_is_struck_by_each_impact_where_and_along_what_it_is_hit() 
     assert!((model.mass / 5.6 - 1.0).abs() < 0.06, "{} kg", model.mass);
 
     let shot = Shot::read(
-        &cube_drop(),
+        glb,
         &mut |_| Err("no resources".into()),
         &ShotOptions::default(),
     )
