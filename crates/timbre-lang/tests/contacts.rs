@@ -438,6 +438,14 @@ fn a_gltf_node_is_a_modal_shape_and_the_cube_rings_at_its_modes() {
     );
     assert_eq!(underlined, "\"drop.glb\"");
     assert!(help.contains("Cube") && help.contains("Floor"), "{help}");
+    let (code, message, underlined, help) =
+        error("(modal :mesh \"drop.glb\" :node \"Cub\" :material oak :modes 6)");
+    assert_eq!(code, "timbre::unknown-node");
+    assert_eq!(message, "the file has no node \"Cub\" with a mesh");
+    assert_eq!(
+        (underlined.as_str(), help.as_str()),
+        ("\"Cub\"", "did you mean \"Cube\"?")
+    );
 }
 
 #[test]

@@ -476,10 +476,7 @@ impl Lowerer<'_> {
             },
         };
         let span = node.map_or(value.span, |e| e.span);
-        let found = shot
-            .node(&name)
-            .and_then(|i| Some((i, shot_mesh(&shot, i)?)));
-        let Some((_, mesh)) = found else {
+        let Some(mesh) = shot.node(&name).and_then(|i| shot_mesh(&shot, i)) else {
             let help = match super::did_you_mean(&name, with_meshes.iter().copied()) {
                 Some(close) => format!("did you mean \"{close}\"?"),
                 None => format!("its nodes with meshes: {}", with_meshes.join(", ")),
