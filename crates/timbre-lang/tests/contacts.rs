@@ -190,11 +190,15 @@ fn with_wood(glb: &[u8]) -> Vec<u8> {
     for primitive in json["meshes"][cube]["primitives"].as_array_mut().unwrap() {
         primitive["material"] = serde_json::json!(0);
     }
+    glb_with(&json, &glb[20 + length..])
+}
+
+/// A GLB of the JSON `json` and the binary chunk `bin` (its 8-byte header included).
+fn glb_with(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     let mut text = json.to_string().into_bytes();
     while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
-    let bin = &glb[20 + length..];
     let mut out = Vec::new();
     out.extend(b"glTF");
     out.extend(2u32.to_le_bytes());
@@ -269,10 +273,6 @@ fn with_scaled_cube(glb: &[u8], k: f32) -> Vec<u8> {
             .collect();
         json["accessors"][accessor][bound] = serde_json::json!(values);
     }
-    let mut text = json.to_string().into_bytes();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
     // The binary chunk: 8 bytes of header, then the buffer.
     let mut bin = glb[20 + length..].to_vec();
     for i in 0..3 * count {
@@ -280,15 +280,7 @@ fn with_scaled_cube(glb: &[u8], k: f32) -> Vec<u8> {
         let v = f32::from_le_bytes(bin[at..at + 4].try_into().unwrap()) / k;
         bin[at..at + 4].copy_from_slice(&v.to_le_bytes());
     }
-    let mut out = Vec::new();
-    out.extend(b"glTF");
-    out.extend(2u32.to_le_bytes());
-    out.extend(((12 + 8 + text.len() + bin.len()) as u32).to_le_bytes());
-    out.extend((text.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(text);
-    out.extend(bin);
-    out
+    glb_with(&json, &bin)
 }
 
 fn struck_where_hit(glb: &[u8]) {
