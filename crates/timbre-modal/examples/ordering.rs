@@ -12,10 +12,11 @@ use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::sparse::SparseColMat;
 use faer::{Conj, Mat, Par, Side};
-use timbre_modal::grid::{Assembled, VoxelGrid};
+use timbre_modal::grid::VoxelGrid;
 use timbre_modal::order::nested_dissection_dofs;
+use timbre_modal::solve::shifted_lower;
 use timbre_modal::Elastic;
 
 const STEEL: Elastic = Elastic {
@@ -23,30 +24,6 @@ const STEEL: Elastic = Elastic {
     poisson: 0.3,
     density: 7850.0,
 };
-
-/// The lower triangle of K − σM in compressed columns.
-fn shifted(solid: &Assembled, shift: f64) -> SparseColMat<usize, f64> {
-    let (k, m) = (&solid.stiffness, &solid.mass);
-    let mut starts = vec![0usize];
-    let (mut rows, mut values) = (Vec::new(), Vec::new());
-    for r in 0..k.size {
-        let mass: std::collections::HashMap<usize, f64> = (m.rows[r]..m.rows[r + 1])
-            .map(|e| (m.columns[e], m.values[e]))
-            .collect();
-        for e in k.rows[r]..k.rows[r + 1] {
-            let c = k.columns[e];
-            if c >= r {
-                rows.push(c);
-                values.push(k.values[e] - shift * mass.get(&c).copied().unwrap_or(0.0));
-            }
-        }
-        starts.push(rows.len());
-    }
-    SparseColMat::new(
-        SymbolicSparseColMat::new_checked(k.size, k.size, starts, None, rows),
-        values,
-    )
-}
 
 fn median(mut times: Vec<Duration>) -> Duration {
     times.sort();
@@ -104,7 +81,7 @@ fn main() {
     ];
     for (name, dims, h) in cases {
         let solid = VoxelGrid::solid(dims, h).assemble(&STEEL);
-        let matrix = shifted(&solid, -1e6);
+        let matrix = shifted_lower(&solid, -1e6);
         println!("{name}: {} DOF", matrix.nrows());
         let started = Instant::now();
         let amd = factorize_symbolic_cholesky(

@@ -65,29 +65,17 @@ const BUBBLES: usize = 9;
 /// The element's stiffness for a voxel of side `h`, its incompatible modes condensed
 /// out (see the module docs).
 pub fn stiffness(material: &Elastic, h: f64) -> [[f64; DOFS]; DOFS] {
-    let (d, volume) = (elasticity(material), (h / 2.0).powi(3));
-    let mut k = trilinear_stiffness(material, h);
+    let d = elasticity(material);
+    let mut k = [[0.0; DOFS]; DOFS];
     // K_ab (24 × 9) and K_bb (9 × 9) by the same Gauss rule (exact: the bubbles'
     // strains are linear in ξ).
     let mut kab = [[0.0; BUBBLES]; DOFS];
     let mut kbb = [[0.0; BUBBLES]; BUBBLES];
     for p in gauss_points() {
-        let b = trilinear_strain(p, h);
-        let bubble = bubble_strain(p, h);
-        let mut db = [[0.0; BUBBLES]; 6];
-        for i in 0..6 {
-            for j in 0..BUBBLES {
-                db[i][j] = (0..6).map(|m| d[i][m] * bubble[m][j]).sum();
-            }
-        }
-        for j in 0..BUBBLES {
-            for i in 0..DOFS {
-                kab[i][j] += volume * (0..6).map(|m| b[m][i] * db[m][j]).sum::<f64>();
-            }
-            for i in 0..BUBBLES {
-                kbb[i][j] += volume * (0..6).map(|m| bubble[m][i] * db[m][j]).sum::<f64>();
-            }
-        }
+        let (b, bubble) = (trilinear_strain(p, h), bubble_strain(p, h));
+        add_weak_form(&mut k, &b, &d, &b, h);
+        add_weak_form(&mut kab, &b, &d, &bubble, h);
+        add_weak_form(&mut kbb, &bubble, &d, &bubble, h);
     }
     // K − K_ab·K_bb⁻¹·K_ba, K_bb⁻¹ by Gauss–Jordan on the 9 × 9 (symmetric positive
     // definite: each bubble strains the voxel).
@@ -188,26 +176,28 @@ fn trilinear_strain(p: [f64; 3], h: f64) -> [[f64; DOFS]; 6] {
     b
 }
 
-/// The plain trilinear element's stiffness, which locks in bending.
-fn trilinear_stiffness(material: &Elastic, h: f64) -> [[f64; DOFS]; DOFS] {
-    let (d, volume) = (elasticity(material), (h / 2.0).powi(3));
-    let mut k = [[0.0; DOFS]; DOFS];
-    for p in gauss_points() {
-        let b = trilinear_strain(p, h);
-        // D·B, then Bᵀ·(D·B).
-        let mut db = [[0.0; DOFS]; 6];
-        for i in 0..6 {
-            for j in 0..DOFS {
-                db[i][j] = (0..6).map(|m| d[i][m] * b[m][j]).sum();
-            }
-        }
-        for i in 0..DOFS {
-            for j in 0..DOFS {
-                k[i][j] += volume * (0..6).map(|m| b[m][i] * db[m][j]).sum::<f64>();
-            }
+/// out += Lᵀ·D·R·(h/2)³: one Gauss point's share of a stiffness block, between the
+/// strains L of one set of displacements and R of another.
+fn add_weak_form<const A: usize, const B: usize>(
+    out: &mut [[f64; B]; A],
+    left: &[[f64; A]; 6],
+    d: &[[f64; 6]; 6],
+    right: &[[f64; B]; 6],
+    h: f64,
+) {
+    let volume = (h / 2.0).powi(3);
+    // D·R, then Lᵀ·(D·R).
+    let mut dr = [[0.0; B]; 6];
+    for i in 0..6 {
+        for j in 0..B {
+            dr[i][j] = (0..6).map(|m| d[i][m] * right[m][j]).sum();
         }
     }
-    k
+    for i in 0..A {
+        for j in 0..B {
+            out[i][j] += volume * (0..6).map(|m| left[m][i] * dr[m][j]).sum::<f64>();
+        }
+    }
 }
 
 /// The element's consistent mass for a voxel of side `h`.

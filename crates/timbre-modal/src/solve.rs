@@ -322,6 +322,40 @@ fn finish(
     })
 }
 
+/// The lower triangle of K − σM in compressed columns, as [`lowest_modes`] factors it.
+pub fn shifted_lower(solid: &Assembled, shift: f64) -> SparseColMat<usize, f64> {
+    let (stiffness, mass) = (&solid.stiffness, &solid.mass);
+    let n = stiffness.size;
+    // The lower triangle, column by column: row r of a symmetric matrix in
+    // compressed rows is its column r, and its entries at or below the diagonal
+    // are those with a column ≥ r.
+    let mut starts = vec![0usize];
+    let mut rows = Vec::new();
+    let mut values = Vec::new();
+    for r in 0..n {
+        let mass_row = mass.rows[r]..mass.rows[r + 1];
+        let mut m = mass_row.start;
+        for k in stiffness.rows[r]..stiffness.rows[r + 1] {
+            let c = stiffness.columns[k];
+            while m < mass_row.end && mass.columns[m] < c {
+                m += 1;
+            }
+            let mass_value = if m < mass_row.end && mass.columns[m] == c {
+                mass.values[m]
+            } else {
+                0.0
+            };
+            if c >= r {
+                rows.push(c);
+                values.push(stiffness.values[k] - shift * mass_value);
+            }
+        }
+        starts.push(rows.len());
+    }
+    let pattern = SymbolicSparseColMat::new_checked(n, n, starts, None, rows);
+    SparseColMat::new(pattern, values)
+}
+
 /// The Cholesky factor of K − σM.
 struct Factor {
     symbolic: SymbolicCholesky<usize>,
@@ -330,36 +364,7 @@ struct Factor {
 
 impl Factor {
     fn new(solid: &Assembled, shift: f64) -> Result<Self, SolveError> {
-        let (stiffness, mass) = (&solid.stiffness, &solid.mass);
-        let n = stiffness.size;
-        // The lower triangle, column by column: row r of a symmetric matrix in
-        // compressed rows is its column r, and its entries at or below the diagonal
-        // are those with a column ≥ r.
-        let mut starts = vec![0usize];
-        let mut rows = Vec::new();
-        let mut values = Vec::new();
-        for r in 0..n {
-            let mass_row = mass.rows[r]..mass.rows[r + 1];
-            let mut m = mass_row.start;
-            for k in stiffness.rows[r]..stiffness.rows[r + 1] {
-                let c = stiffness.columns[k];
-                while m < mass_row.end && mass.columns[m] < c {
-                    m += 1;
-                }
-                let mass_value = if m < mass_row.end && mass.columns[m] == c {
-                    mass.values[m]
-                } else {
-                    0.0
-                };
-                if c >= r {
-                    rows.push(c);
-                    values.push(stiffness.values[k] - shift * mass_value);
-                }
-            }
-            starts.push(rows.len());
-        }
-        let pattern = SymbolicSparseColMat::new_checked(n, n, starts, None, rows);
-        let matrix = SparseColMat::new(pattern, values);
+        let matrix = shifted_lower(solid, shift);
         let symbolic = symbolic_factor(matrix.symbolic(), &solid.nodes)?;
         let mut factor = vec![0.0; symbolic.len_val()];
         let scratch = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());

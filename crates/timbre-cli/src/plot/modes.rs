@@ -156,20 +156,18 @@ fn fill_triangle(
     if area.abs() < 1e-12 {
         return;
     }
-    let x0 = (p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min).floor() as i64).max(0);
-    let x1 = (p
-        .iter()
-        .map(|q| q[0])
-        .fold(f64::NEG_INFINITY, f64::max)
-        .ceil() as i64)
-        .min(width - 1);
-    let y0 = (p.iter().map(|q| q[1]).fold(f64::INFINITY, f64::min).floor() as i64).max(0);
-    let y1 = (p
-        .iter()
-        .map(|q| q[1])
-        .fold(f64::NEG_INFINITY, f64::max)
-        .ceil() as i64)
-        .min(height - 1);
+    // The pixels the triangle's box covers along `axis`, within the canvas.
+    let covered = |axis: usize, pixels: i64| {
+        let along = p.map(|q| q[axis]);
+        let low = along.iter().copied().fold(f64::INFINITY, f64::min).floor() as i64;
+        let high = along
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as i64;
+        (low.max(0), high.min(pixels - 1))
+    };
+    let ((x0, x1), (y0, y1)) = (covered(0, width), covered(1, height));
     for y in y0..=y1 {
         for x in x0..=x1 {
             let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
