@@ -47,13 +47,21 @@ pub(crate) fn resonator_bank(
     bandwidths: &[f64],
     span: Span,
 ) -> Expr {
+    driven_bank(symbol("force", span), gains, frequencies, bandwidths, span)
+}
+
+/// `(combine (* gains (resonz input frequencies bandwidths)))`: the bank of
+/// [`resonator_bank`] driven by `input` (one lane, or one per resonator).
+pub(crate) fn driven_bank(
+    input: Expr,
+    gains: &[f64],
+    frequencies: &[f64],
+    bandwidths: &[f64],
+    span: Span,
+) -> Expr {
     let resonator = call(
         "resonz",
-        vec![
-            symbol("force", span),
-            vector(frequencies, span),
-            vector(bandwidths, span),
-        ],
+        vec![input, vector(frequencies, span), vector(bandwidths, span)],
         span,
     );
     let weighted = call("*", vec![vector(gains, span), resonator], span);

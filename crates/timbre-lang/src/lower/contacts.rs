@@ -466,6 +466,28 @@ impl Sounding<'_> {
         })
     }
 
+    /// Where an object with modes is struck at each key of a sustained contact, on
+    /// its `side`: the contact's point on it and the force's direction, as
+    /// [`Self::strike`] puts an impact's, at the times of the force's tracks
+    /// ([`sustained_times`]). `None` for an object without modes.
+    fn strikes_along(
+        &self,
+        object: &Object,
+        samples: &[ContactSample],
+        side: Side,
+    ) -> Option<Struck> {
+        let strike = |s: &ContactSample| match side {
+            Side::A => self.strike(object, s.point_a, -s.normal, s.time),
+            Side::B => self.strike(object, s.point_b, s.normal, s.time),
+        };
+        let mut strikes = vec![strike(samples.first()?)?];
+        for s in samples {
+            strikes.push(strike(s)?);
+        }
+        strikes.push(strike(samples.last()?)?);
+        Some(Struck::Along(sustained_times(samples, self.start), strikes))
+    }
+
     /// Whether a contact of `a` and `b` at shot time `t` sounds.
     fn keeps(&self, t: f64, a: &str, b: &str) -> bool {
         let t = t + self.start;
@@ -475,6 +497,31 @@ impl Sounding<'_> {
     }
 }
 
+/// Which body of a contact an object is: a or b.
+#[derive(Clone, Copy)]
+enum Side {
+    A,
+    B,
+}
+
+/// Where an object with modes is struck.
+#[derive(Clone)]
+enum Struck {
+    /// Once, at one point: an impact.
+    Once(Strike),
+    /// Where a sustained contact is at each of its keys (scene seconds).
+    Along(Vec<f64>, Vec<Strike>),
+}
+
+/// The keys of a sustained contact's tracks, in scene seconds (`start` is the
+/// shot's): each sample's time, and [`RAMP`] before the first and after the last.
+fn sustained_times(samples: &[ContactSample], start: f64) -> Vec<f64> {
+    let mut times = vec![samples[0].time + start - RAMP];
+    times.extend(samples.iter().map(|s| s.time + start));
+    times.push(samples[samples.len() - 1].time + start + RAMP);
+    times
+}
+
 /// One instance of a contact: its name and stem kind, the force that drives it, when
 /// and where.
 struct ContactSound {
@@ -482,7 +529,7 @@ struct ContactSound {
     kind: &'static str,
     force: NodeId,
     /// Where an object with modes is struck.
-    strike: Option<Strike>,
+    strike: Option<Struck>,
     start: f64,
     length: f64,
     place: Path,
@@ -842,9 +889,7 @@ impl Lowerer<'_> {
         if !samples.iter().any(|s| s.kind == kind) {
             return Ok(None);
         }
-        let mut times = vec![samples[0].time + start - RAMP];
-        times.extend(samples.iter().map(|s| s.time + start));
-        times.push(samples[samples.len() - 1].time + start + RAMP);
+        let times = sustained_times(samples, start);
         let values = |f: &dyn Fn(&ContactSample) -> f64| {
             let mut v = vec![0.0];
             v.extend(samples.iter().map(f));
@@ -865,6 +910,8 @@ impl Lowerer<'_> {
         let (Some(speed), Some(load)) = (speed, load) else {
             return Ok(None);
         };
+        // The tracks read scene time in an instance that starts at the first key.
+        self.time_offset = times[0];
         let speed = self.keyframe_node(speed);
         let load = self.keyframe_node(load);
         let mut scope: Scope = vec![("speed".to_owned(), speed), ("load".to_owned(), load)];
@@ -946,7 +993,9 @@ impl Lowerer<'_> {
                     name: format!("{}.impact-{k}.{}", form.name, object.name),
                     kind: "impacts",
                     force: force?,
-                    strike: form.strike(object, local, push, impact.time),
+                    strike: form
+                        .strike(object, local, push, impact.time)
+                        .map(Struck::Once),
                     start: time,
                     length: form.settings.length.unwrap_or(ring),
                     place: Path::Fixed(impact.point),
@@ -979,12 +1028,13 @@ impl Lowerer<'_> {
             }
             let from = samples[0].time + form.start - RAMP;
             let until = samples[samples.len() - 1].time + form.start + RAMP;
-            // Objects with modes are struck where the contact starts.
+            // The normal points from a toward b: b pushes a back along −normal.
             let first = &samples[0];
-            for (object, other, radius, local, push) in [
-                (a, b, first.radius_a, first.point_a, -first.normal),
-                (b, a, first.radius_b, first.point_b, first.normal),
+            for (object, other, radius, side) in [
+                (a, b, first.radius_a, Side::A),
+                (b, a, first.radius_b, Side::B),
             ] {
+                let struck = form.strikes_along(object, samples, side);
                 for (kind, stem) in [
                     (ContactKind::Slide, "sliding"),
                     (ContactKind::Roll, "rolling"),
@@ -1005,7 +1055,7 @@ impl Lowerer<'_> {
                         name: format!("{}.{stem}-{k}.{}", form.name, object.name),
                         kind: stem,
                         force,
-                        strike: form.strike(object, local, push, first.time),
+                        strike: struck.clone(),
                         start: from,
                         length: until - from + object.ring(form.nyquist).clamp(0.05, 2.0),
                         place: Path::Moving(
@@ -1045,19 +1095,29 @@ impl Lowerer<'_> {
         } = sound;
         let (span, origin) = (form.span, form.origin);
         let mut scope: Scope = vec![("force".to_owned(), force)];
+        // Keyframes of the sound (a moving strike's gains) read scene time.
+        self.time_offset = start;
         let call = match (&object.class, &object.model, strike) {
-            (Some(class), _, _) => list(
+            (Some(class), _, _) => Some(list(
                 vec![class.clone(), keyword("force", span), symbol("force", span)],
                 span,
-            ),
-            (None, Some(model), Some(strike)) => match self.driven_model(model, &strike, 1.0, span)
-            {
-                Some((tree, _)) => tree,
-                None => return Ok(false),
-            },
-            _ => object.preset.expr(span),
+            )),
+            (None, Some(model), Some(Struck::Once(strike))) => self
+                .driven_model(model, &strike, 1.0, span)
+                .map(|(tree, _)| tree),
+            (None, Some(model), Some(Struck::Along(times, strikes))) => self
+                .moving_driven_model(model, &times, &strikes, 1.0, span)
+                .map(|(tree, names)| {
+                    scope.extend(names);
+                    tree
+                }),
+            // A body so small that all its modes are above the sample rate's reach.
+            _ => (!object.preset.modes.is_empty()).then(|| object.preset.expr(span)),
         };
-        self.time_offset = start;
+        let Some(call) = call else {
+            self.time_offset = 0.0;
+            return Ok(false);
+        };
         let sound = self.lower(&call, origin, &mut scope);
         self.time_offset = 0.0;
         let mut sound = sound?;

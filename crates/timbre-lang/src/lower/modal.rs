@@ -20,6 +20,8 @@ use std::sync::Arc;
 
 use timbre_diag::Diag;
 use timbre_ir::dsp::materials::Material as CatalogueMaterial;
+use timbre_ir::keyframes::{Interpolation, KeyframeTrack};
+use timbre_ir::op::Op;
 use timbre_modal::model::{Damping, Material, ModalError, Model, Settings, Strike};
 use timbre_modal::shape::{Resolution, Shape, ShapeError, TriangleMesh};
 use timbre_modal::solve::SolveError;
@@ -27,7 +29,7 @@ use timbre_modal::Elastic;
 use timbre_motion::{NodeIndex, Shot, ShotOptions};
 use timbre_syntax::{Expr, ExprKind, Span};
 
-use super::build::{call, resonator_bank, symbol, vector};
+use super::build::{call, driven_bank, symbol, vector};
 use super::contacts::FULL_SCALE_PA;
 use super::scene::Options;
 use super::{Arg, Call, Lowerer, Origin, Scope};
@@ -649,6 +651,62 @@ impl Lowerer<'_> {
         })
     }
 
+    /// The sound of `model` struck where a sustained contact is at each of its keys
+    /// (`strikes[i]` at `times[i]`, scene seconds, read by an instance lowered at
+    /// `self.time_offset`), by the force bound to `force` (N), times `gain`:
+    /// `(combine (* S (resonz (* force gains) F B)))`. The modal force on mode k is
+    /// φₖ(p(t))·d(t)·f(t), so the gain moves on the resonator's input (a mode keeps
+    /// ringing with the gain of where it was struck): `gains` is one track per mode
+    /// of its pressure at 1 m per N·s where the contact is at each key, moving
+    /// linearly between keys (a constant where it never changes), and
+    /// S = gain/(full scale·2π·B) as in [`Self::driven_model`]. Returns the tree and
+    /// the names it reads besides `force`; a contact whose gains never change is
+    /// `driven_model`'s tree. `None` when every mode is above 0.45 × the sample
+    /// rate, or there are no keys.
+    pub(crate) fn moving_driven_model(
+        &mut self,
+        model: &Model,
+        times: &[f64],
+        strikes: &[Strike],
+        gain: f64,
+        span: Span,
+    ) -> Option<(Expr, Scope)> {
+        let rate = self.settings.sample_rate.unwrap_or(DEFAULT_RATE);
+        // Each key's pressures, of the modes that sound, in the bank's order.
+        let keyed: Vec<Vec<f64>> = strikes
+            .iter()
+            .map(|strike| bank(model, &model.gains(strike, 1.0).0, 1.0, rate).amplitudes)
+            .collect();
+        let first = keyed.first()?;
+        if keyed.iter().all(|k| k == first) {
+            let (tree, _) = self.driven_model(model, strikes.first()?, gain, span)?;
+            return Some((tree, Scope::new()));
+        }
+        let units = vec![1.0; model.modes.len()];
+        let scales = bank(model, &units, gain / FULL_SCALE_PA, rate);
+        let mut lanes = Vec::with_capacity(first.len());
+        for mode in 0..first.len() {
+            let values: Vec<f64> = keyed.iter().map(|k| k[mode]).collect();
+            let moves = values.iter().any(|v| *v != values[0]);
+            // Keys the force's own tracks would refuse too never come here.
+            let track = moves
+                .then(|| KeyframeTrack::new(times.to_vec(), values, Interpolation::Linear).ok())
+                .flatten();
+            lanes.push(match track {
+                Some(track) => self.keyframe_node(Arc::new(track)),
+                None => self.graph.constant(first[mode]),
+            });
+        }
+        let gains = self.graph.add(Op::Concat, lanes);
+        let input = call(
+            "*",
+            vec![symbol("force", span), symbol("gains", span)],
+            span,
+        );
+        let tree = driven_tree_of(input, &scales, 1.0, span);
+        Some((tree, vec![("gains".to_owned(), gains)]))
+    }
+
     /// A diagnostic for an analysis that failed.
     fn modal_error(
         &self,
@@ -879,6 +937,12 @@ fn struck_tree(bank: &Bank, span: Span) -> Expr {
 /// it decays as the struck mode does, and G = A/(2π·B·J) gives it the struck
 /// amplitude A.
 fn driven_tree(bank: &Bank, impulse: f64, span: Span) -> Expr {
+    driven_tree_of(symbol("force", span), bank, impulse, span)
+}
+
+/// [`driven_tree`] with its resonators driven by `input` (one lane, or one per
+/// mode) instead of the force.
+fn driven_tree_of(input: Expr, bank: &Bank, impulse: f64, span: Span) -> Expr {
     // `resonz` clamps its bandwidth to 0.001 Hz: an undamped mode rings that long.
     let bandwidths: Vec<f64> = bank
         .decays
@@ -891,5 +955,5 @@ fn driven_tree(bank: &Bank, impulse: f64, span: Span) -> Expr {
         .zip(&bandwidths)
         .map(|(a, b)| a / (2.0 * std::f64::consts::PI * b * impulse))
         .collect();
-    resonator_bank(&gains, &bank.frequencies, &bandwidths, span)
+    driven_bank(input, &gains, &bank.frequencies, &bandwidths, span)
 }
