@@ -719,19 +719,25 @@ fn mode_pictures(found: &[timbre_lang::FoundModal], dir: &Path) -> Result<(), St
     Ok(())
 }
 
+/// A voxel's sides along x, y and z in millimetres: "10.00 × 8.75 × 7.50 mm".
+fn voxel_sides(sides: [f64; 3]) -> String {
+    let [x, y, z] = sides.map(|s| s * 1e3);
+    format!("{x:.2} × {y:.2} × {z:.2} mm")
+}
+
 /// What `timbre check` says of a `modal` node: the solid solved, the point struck,
 /// and each mode's frequency, T60 and level there relative to the loudest.
 fn modal_listing(found: &timbre_lang::FoundModal) -> String {
     let [x, y, z] = found.strike;
     let mut text = format!(
-        "modal {}:{}: {}, {}: {} degrees of freedom, voxel {:.2} mm, {:.4} kg, struck at \
+        "modal {}:{}: {}, {}: {} degrees of freedom, voxel {}, {:.4} kg, struck at \
          ({x:.4}, {y:.4}, {z:.4}) m\n",
         found.file,
         found.line,
         found.shape,
         found.material,
         found.dofs,
-        found.voxel * 1e3,
+        voxel_sides(found.voxel),
         found.mass
     );
     text += "  mode  frequency Hz     T60 s   gain dB\n";
@@ -798,10 +804,10 @@ fn contact_listing(found: &timbre_lang::FoundContacts) -> String {
         let (low, high) =
             frequencies.fold((f64::INFINITY, 0.0f64), |(l, h), f| (l.min(f), h.max(f)));
         text += &format!(
-            "  {object} rings with {} modes of its shape, {low:.1} to {high:.1} Hz: {} degrees of freedom, voxel {:.2} mm, {:.4} kg\n",
+            "  {object} rings with {} modes of its shape, {low:.1} to {high:.1} Hz: {} degrees of freedom, voxel {}, {:.4} kg\n",
             model.modes.len(),
             model.dofs,
-            1e3 * model.surface.voxel,
+            voxel_sides(model.surface.sides),
             model.mass
         );
     }

@@ -357,7 +357,7 @@ fn struck_where_hit(glb: &[u8]) {
         // The point struck is on the cube's surface, near where the contact is.
         let distance = (DVec3::from(point) - local * scale).length();
         assert!(
-            distance < 2.0 * model.surface.voxel,
+            distance < 2.0 * model.surface.sides.iter().cloned().fold(0.0, f64::max),
             "{distance} m off the surface"
         );
         // G·B/P is one number for every mode: the impulse's and full scale's.
@@ -386,9 +386,10 @@ fn a_gltf_node_is_a_modal_shape_and_the_cube_rings_at_its_modes() {
     let program = compile_shot(&modal_scene(":modal (\"Cube\") :modes 6"))
         .unwrap_or_else(|e| panic!("{e:?}"));
     let contacts_model = program.contacts[0].shapes[0].1.clone();
+    // The cube's bricks are cubes: their side, asked for, gives the same grid.
     let text = format!(
         "(modal :mesh \"drop.glb\" :node \"Cube\" :material oak :modes 6 :voxel {})",
-        contacts_model.surface.voxel
+        contacts_model.surface.sides[0]
     );
     let node = compile_shot(&text).unwrap_or_else(|e| panic!("{e:?}"));
     let model = &node.modal[0].model;

@@ -18,7 +18,7 @@ use crate::model::{ModalError, Mode, Model, Settings, Surface};
 use crate::shape::Shape;
 
 /// The first bytes of a cached model, with the format's version.
-const MAGIC: &[u8; 16] = b"timbre-modal\0\0\0\x02";
+const MAGIC: &[u8; 16] = b"timbre-modal\0\0\0\x03";
 
 /// A model and whether it came from the cache.
 #[derive(Clone, Debug)]
@@ -138,7 +138,7 @@ fn encode(model: &Model) -> Vec<u8> {
         f64s(&mut out, &[mode.frequency, mode.radiation]);
     }
     let surface = &model.surface;
-    f64s(&mut out, &[surface.voxel]);
+    f64s(&mut out, &surface.sides);
     u64s(&mut out, &[surface.faces.len() as u64]);
     for face in &surface.faces {
         u64s(&mut out, &face.corners.map(|c| c as u64));
@@ -180,7 +180,7 @@ fn decode(bytes: &[u8]) -> Option<Model> {
             radiation,
         });
     }
-    let voxel = r.f64()?;
+    let sides = [r.f64()?, r.f64()?, r.f64()?];
     let faces_count = r.length(72)?;
     let mut faces = Vec::with_capacity(faces_count);
     for _ in 0..faces_count {
@@ -222,7 +222,7 @@ fn decode(bytes: &[u8]) -> Option<Model> {
         mass,
         bounds: (low, high),
         surface: Surface {
-            voxel,
+            sides,
             faces,
             points,
             shapes,

@@ -1,18 +1,20 @@
 //! A solid as filled voxels of one size, and its stiffness and mass assembled.
 //!
-//! Voxel (i, j, k) spans [i, i + 1]·h × [j, j + 1]·h × [k, k + 1]·h from the grid's
-//! origin. The nodes used by filled voxels are numbered in order, x fastest, then y,
+//! A voxel is a brick of sides hx × hy × hz (a cube when they are equal), so that a
+//! grid can span a shape's bounding box exactly. Voxel (i, j, k) spans
+//! [i, i + 1]·hx × [j, j + 1]·hy × [k, k + 1]·hz from the grid's origin. The nodes used by filled voxels are numbered in order, x fastest, then y,
 //! then z, so a grid gives the same matrices on every run; node n's displacement is
 //! degrees of freedom 3n, 3n + 1, 3n + 2 (x, y, z).
 
 use crate::{hex8, Elastic};
 
-/// Filled voxels of side `h` in a box of `dims` voxels.
+/// Filled voxels, bricks of `sides`, in a box of `dims` voxels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VoxelGrid {
     pub dims: [usize; 3],
-    /// Metres.
-    pub h: f64,
+    /// Each voxel's sides along x, y and z, m: the grid spans `dims[a]·sides[a]`
+    /// along axis a.
+    pub sides: [f64; 3],
     /// x fastest, then y, then z.
     pub filled: Vec<bool>,
 }
@@ -100,13 +102,28 @@ pub struct Assembled {
 }
 
 impl VoxelGrid {
-    /// A box of `dims` voxels, all filled.
+    /// A box of `dims` cubic voxels of side `h`, all filled.
     pub fn solid(dims: [usize; 3], h: f64) -> Self {
+        Self::solid_bricks(dims, [h; 3])
+    }
+
+    /// A box of `dims` voxels, bricks of `sides`, all filled.
+    pub fn solid_bricks(dims: [usize; 3], sides: [f64; 3]) -> Self {
         VoxelGrid {
             dims,
-            h,
+            sides,
             filled: vec![true; dims[0] * dims[1] * dims[2]],
         }
+    }
+
+    /// The grid's length along each axis, m: `dims[a]·sides[a]`.
+    pub fn lengths(&self) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.dims[a] as f64 * self.sides[a])
+    }
+
+    /// The position of lattice point (i, j, k), m, from the grid's corner.
+    pub fn point(&self, at: [usize; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| at[a] as f64 * self.sides[a])
     }
 
     fn voxel(&self, i: usize, j: usize, k: usize) -> bool {
@@ -152,7 +169,7 @@ impl VoxelGrid {
                     let n = &mut number[self.lattice([i, j, k])];
                     if *n == 0 {
                         *n = nodes.len();
-                        nodes.push([i, j, k].map(|v| v as f64 * self.h));
+                        nodes.push(self.point([i, j, k]));
                     }
                 }
             }
@@ -234,7 +251,7 @@ impl VoxelGrid {
                         corners,
                         axis,
                         outward,
-                        low: low.map(|x| x as f64 * self.h),
+                        low: self.point(low),
                     });
                 }
             }
@@ -255,8 +272,8 @@ impl VoxelGrid {
             voxels,
             nodes,
         } = numbering;
-        let element_k = hex8::stiffness(material, self.h);
-        let element_m = hex8::mass(material, self.h);
+        let element_k = hex8::stiffness(material, self.sides);
+        let element_m = hex8::mass(material, self.sides);
         let size = 3 * nodes.len();
         let mut k_rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); size];
         let mut m_rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); size];

@@ -1,10 +1,11 @@
-//! The sound of a shape: a solid cut into cubic voxels, each an 8-node trilinear
-//! hexahedron of an isotropic material, assembled into the stiffness K and the
-//! consistent mass M of the whole; the modes are the solutions of K·φ = ω²·M·φ.
+//! The sound of a shape: a solid cut into voxels (bricks that span its bounding box
+//! exactly, cubes when its sides allow), each an 8-node trilinear hexahedron of an
+//! isotropic material, assembled into the stiffness K and the consistent mass M of
+//! the whole; the modes are the solutions of K·φ = ω²·M·φ.
 //!
 //! - **Elements** ([`hex8`]): exact 2×2×2 Gauss integration of BᵀDB and ρ·NᵀN over a
-//!   voxel of side h, with Wilson's nine incompatible modes condensed out of the
-//!   stiffness so that it does not lock in bending. It represents every linear
+//!   brick of sides hx × hy × hz, with Wilson's nine incompatible modes condensed out
+//!   of the stiffness so that it does not lock in bending. It represents every linear
 //!   displacement field exactly (uniform strain, rigid motion), so the patch test
 //!   holds to rounding.
 //! - **Grids** ([`grid`]): the voxels a solid fills, the nodes they share numbered in

@@ -13,8 +13,9 @@
 //!
 //! **Radiation** (a far-field approximation, not a boundary-element solution). The
 //! surface's normal acceleration aₙ = q̈ᵢ·φᵢ·n is taken as a layer of point sources
-//! in free air, each voxel face one source of strength h²·aₙ at its centre:
-//! p(r, r̂) = ρ₀/(4πr)·Σ_faces h²·aₙ·e^(ik·r̂·x), k = ω/c₀. Its magnitude is
+//! in free air, each voxel face one source of strength A·aₙ at its centre, A its area
+//! (h_u·h_v, the brick's two sides across the face's axis):
+//! p(r, r̂) = ρ₀/(4πr)·Σ_faces A·aₙ·e^(ik·r̂·x), k = ω/c₀. Its magnitude is
 //! averaged (root mean square) over 64 directions r̂. This keeps what sets the
 //! relative levels of a small object's modes: the cancellation between parts of
 //! the surface that move in opposite ways (a bending mode of a bar whose
@@ -28,7 +29,7 @@
 //!
 //! The pressure of mode i at 1 m after an impulse J at p along d is then
 //! Pᵢ·e^(−ξωt)·sin ω_d t with Pᵢ = Rᵢ·ωᵢ·(φᵢ(p)·d)·J, Rᵢ the RMS of
-//! ρ₀/(4π)·|Σ h²·(φᵢ·n)·e^(ik·r̂·x)| (q̈ of a mode ringing with amplitude J/ω is
+//! ρ₀/(4π)·|Σ A·(φᵢ·n)·e^(ik·r̂·x)| (q̈ of a mode ringing with amplitude J/ω is
 //! ω·J).
 
 #![allow(clippy::needless_range_loop)]
@@ -116,8 +117,8 @@ impl Mode {
 /// The solid's surface and its modes' shapes on it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Surface {
-    /// The voxel side, m.
-    pub voxel: f64,
+    /// The voxel's sides along x, y and z, m (a brick; see [`crate::shape`]).
+    pub sides: [f64; 3],
     /// The exposed voxel faces; corners index `points`.
     pub faces: Vec<ExposedFace>,
     /// Each surface node's position in the shape's coordinates, m.
@@ -234,20 +235,20 @@ impl Model {
         }
         let numbering = grid.numbering();
         let solid = grid.assemble_numbered(&numbering, &material.elastic);
-        let lengths = (0..3).map(|a| grid.dims[a] as f64 * grid.h);
-        let longest = lengths.fold(0.0, f64::max);
+        let longest = grid.lengths().into_iter().fold(0.0, f64::max);
         let options = solve::Options::new(settings.modes, shift(&material.elastic, longest));
         let eigen = lowest_modes(&solid, &options).map_err(ModalError::Solve)?;
         let faces = grid.exposed_faces(&numbering);
         let surface = Surface::new(&grid, voxelized.origin, faces, &numbering.nodes, &eigen);
         let count = numbering.voxels.len();
-        let mass = material.elastic.density * count as f64 * grid.h.powi(3);
+        let [hx, hy, hz] = grid.sides;
+        let mass = material.elastic.density * count as f64 * (hx * hy * hz);
         let mut low = [f64::INFINITY; 3];
         let mut high = [f64::NEG_INFINITY; 3];
         for &v in &numbering.voxels {
             for a in 0..3 {
-                low[a] = low[a].min(voxelized.origin[a] + v[a] as f64 * grid.h);
-                high[a] = high[a].max(voxelized.origin[a] + (v[a] + 1) as f64 * grid.h);
+                low[a] = low[a].min(voxelized.origin[a] + v[a] as f64 * grid.sides[a]);
+                high[a] = high[a].max(voxelized.origin[a] + (v[a] + 1) as f64 * grid.sides[a]);
             }
         }
         let centres = surface.face_centres();
@@ -389,7 +390,7 @@ impl Surface {
             .map(|&n| [0, 1, 2].map(|a| origin[a] + nodes[n][a]))
             .collect();
         Surface {
-            voxel: grid.h,
+            sides: grid.sides,
             faces,
             points,
             shapes,
@@ -400,7 +401,7 @@ impl Surface {
     /// given and any do), the nearest point on it, and the bilinear weights of its
     /// corners there.
     fn nearest(&self, target: [f64; 3], only: Option<(usize, i8)>) -> (usize, [f64; 3], [f64; 4]) {
-        let h = self.voxel;
+        let h = self.sides;
         let wanted =
             |f: &ExposedFace| only.is_none_or(|(axis, out)| f.axis == axis && f.outward == out);
         let any = self.faces.iter().any(wanted);
@@ -411,10 +412,10 @@ impl Surface {
             }
             let (u, v) = other_axes(face.axis);
             let mut point = face.low;
-            let su = ((target[u] - face.low[u]) / h).clamp(0.0, 1.0);
-            let sv = ((target[v] - face.low[v]) / h).clamp(0.0, 1.0);
-            point[u] += su * h;
-            point[v] += sv * h;
+            let su = ((target[u] - face.low[u]) / h[u]).clamp(0.0, 1.0);
+            let sv = ((target[v] - face.low[v]) / h[v]).clamp(0.0, 1.0);
+            point[u] += su * h[u];
+            point[v] += sv * h[v];
             let distance: f64 = (0..3).map(|a| (point[a] - target[a]).powi(2)).sum();
             if distance < best.3 {
                 let weights = [
@@ -431,14 +432,14 @@ impl Surface {
 
     /// The centre of each face, m.
     fn face_centres(&self) -> Vec<[f64; 3]> {
-        let h = self.voxel;
+        let h = self.sides;
         self.faces
             .iter()
             .map(|face| {
                 let (u, v) = other_axes(face.axis);
                 let mut centre = face.low;
-                centre[u] += 0.5 * h;
-                centre[v] += 0.5 * h;
+                centre[u] += 0.5 * h[u];
+                centre[v] += 0.5 * h[v];
                 centre
             })
             .collect()
@@ -454,7 +455,11 @@ impl Surface {
         centres: &[[f64; 3]],
         directions: &[[f64; 3]],
     ) -> f64 {
-        let area = self.voxel * self.voxel;
+        // A face's area: the brick's two sides across its axis.
+        let areas = [0, 1, 2].map(|axis| {
+            let (u, v) = other_axes(axis);
+            self.sides[u] * self.sides[v]
+        });
         let k = omega / SPEED_OF_SOUND;
         // Each face's normal displacement per unit modal coordinate, times its area.
         let strengths: Vec<f64> = self
@@ -468,7 +473,7 @@ impl Surface {
                     .sum::<f64>()
                     * 0.25
                     * face.outward as f64;
-                normal * area
+                normal * areas[face.axis]
             })
             .collect();
         let mut power = 0.0;

@@ -1,11 +1,16 @@
 //! A shape turned into voxels for the finite elements of [`crate::grid`].
 //!
+//! - **Bricks**: the grid spans the shape's bounding box exactly. Along each axis a of
+//!   length L_a it has n_a = max(1, round(L_a/h)) voxels of side h_a = L_a/n_a, h the
+//!   voxel size asked for (or chosen), so a voxel is a brick whose sides differ from h
+//!   by at most a quarter along an axis of 2 voxels or more. A box is filled
+//!   exactly at any voxel size (its volume and mass are exact); a sphere's bricks are
+//!   cubes; a mesh's volume is off only by the staircase of its boundary, not by up to
+//!   half a voxel per side.
 //! - **Primitives** (box, sphere, solid cylinder, tube): a voxel is filled when its
-//!   centre is inside the shape. The grid is centred on the shape's centre, so a box
-//!   whose sides are whole numbers of voxels is filled exactly, and a sphere, cylinder
-//!   or tube is symmetric under the reflections of its axes (voxel centres are computed
-//!   as (2i + 1 − n)·h/2, exactly opposite on either side). A box side that is not a
-//!   whole number of voxels is rounded to the nearest (at least 1), with a warning.
+//!   centre is inside the shape. The grid is centred on the shape's centre, so a
+//!   sphere, cylinder or tube is symmetric under the reflections of its axes (voxel
+//!   centres are computed as (2i + 1 − n_a)·h_a/2, exactly opposite on either side).
 //! - **Meshes**: inside and outside by rays along scanlines through the voxel centres,
 //!   cast along x, y and z (Nooruddin & Turk, "Simplification and repair of polygonal
 //!   models using volumetric techniques", IEEE TVCG 9(2), 2003). Along each scanline the
@@ -40,16 +45,21 @@
 //!   100 × 100 × 4 mm plate gives 4 mm: all the rays from its two large faces cross it.
 //! - **Resolution**: the elements do not lock in bending (their incompatible modes,
 //!   [`crate::hex8`]), but a wall needs 2 voxels through it to be joined face to face
-//!   where it curves. Unless a voxel size is given, it is
-//!   h = min(thinnest wall / 2, longest side / 32) (for a box, then enlarged to divide
-//!   its smallest side), enlarged just enough that the degrees of freedom (3 per node)
-//!   fit [`Resolution::max_dofs`]. The count is estimated before any grid is allocated
-//!   from the solid's volume V, the area S of the staircase its surface makes on a grid
-//!   (Σ (|nx| + |ny| + |nz|)·area) and the length E of its staircase edges:
-//!   nodes ≈ V/h³ + S/(2h²) + E/(4h) + 1 (exact for a box), then checked on the filled
-//!   grid. A given voxel size over the limit is refused; so is a bounding grid of more
-//!   than 2²⁸ voxels. Fewer than 2 voxels through the thinnest wall is a warning that
-//!   names the voxel size that would give 2 and the degrees of freedom it would take.
+//!   where it curves. The voxels across a wall are counted along each axis with the
+//!   brick's side there: a primitive's thickness along each axis (a box's sides; a
+//!   tube's wall across x and y, its length along z), and a mesh's thinnest wall
+//!   along every axis (its walls have no one direction; the largest side never
+//!   overcounts). Unless a voxel size is given, it is h = min(h_wall, longest side /
+//!   32), h_wall the largest voxel size that puts 2 across every wall, enlarged just
+//!   enough that the degrees of freedom (3 per node) fit [`Resolution::max_dofs`]. The
+//!   count is estimated before any grid is allocated from the solid's volume V, the
+//!   area S of the staircase its surface makes on a grid (Σ (|nx| + |ny| + |nz|)·area)
+//!   and the length E of its staircase edges, with ĥ = ∛(hx·hy·hz):
+//!   nodes ≈ V/(hx·hy·hz) + S/(2ĥ²) + E/(4ĥ) + 1 (for a box, exactly
+//!   (nx + 1)(ny + 1)(nz + 1)), then checked on the filled grid. A given voxel size
+//!   over the limit is refused; so is a bounding grid of more than 2²⁸ voxels. Fewer
+//!   than 2 voxels through a wall is a warning that names h_wall and the degrees of
+//!   freedom it would take.
 //!
 //! Everything is computed in one thread in a fixed order: the same input gives the
 //! same grid, bit for bit.
@@ -94,7 +104,8 @@ pub enum Shape {
 /// How fine the grid is.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Resolution {
-    /// The voxel side, m; None: chosen (see the module docs).
+    /// The voxel size h asked for, m: each axis of length L gets round(L/h) voxels
+    /// (at least 1), bricks of side L/round(L/h); None: chosen (see the module docs).
     pub voxel: Option<f64>,
     /// The most degrees of freedom (3 per node) allowed; more is refused before the
     /// grid is allocated.
@@ -121,7 +132,8 @@ pub struct Voxelized {
     pub origin: [f64; 3],
     /// The thinnest wall of the shape, m (an estimate for meshes, exact for primitives).
     pub thinnest_wall: f64,
-    /// How many voxels cross the thinnest wall: `thinnest_wall / grid.h`.
+    /// How many voxels cross the walls: the least along an axis of the shape's
+    /// thickness there over the brick's side (see the module docs).
     pub voxels_across_wall: f64,
     /// The degrees of freedom of the filled grid: 3 per node of a filled voxel.
     pub dofs: usize,
@@ -164,15 +176,12 @@ pub fn voxelize(shape: &Shape, resolution: &Resolution) -> Result<Voxelized, Sha
             });
         }
         h = larger;
-        if let Shape::Box { size } = shape {
-            h = divide_smallest(*size, h);
-        }
     };
     let filled = grid.filled.iter().filter(|&&f| f).count();
     if filled == 0 {
         return Err(ShapeError::NothingFilled {
             voxel: h,
-            suggested: solid.wall / WALL_VOXELS,
+            suggested: solid.voxel_for_wall(),
         });
     }
     if not_unanimous > 0 {
@@ -181,25 +190,12 @@ pub fn voxelize(shape: &Shape, resolution: &Resolution) -> Result<Voxelized, Sha
             filled,
         });
     }
-    if let Shape::Box { size } = shape {
-        for (axis, &side) in size.iter().enumerate() {
-            let voxels = grid.dims[axis];
-            if (voxels as f64 * h - side).abs() > 1e-9 * side {
-                warnings.push(ShapeWarning::BoxSideRounded {
-                    axis,
-                    size: side,
-                    voxel: h,
-                    voxels,
-                });
-            }
-        }
-    }
-    let voxels_across = solid.wall / h;
+    let (voxels_across, wall_across, side_across) = solid.voxels_across(h);
     if voxels_across < WALL_VOXELS * (1.0 - 1e-9) {
-        let voxel_for_wall = solid.wall / WALL_VOXELS;
+        let voxel_for_wall = solid.voxel_for_wall();
         warnings.push(ShapeWarning::TooThin {
-            wall: solid.wall,
-            voxel: h,
+            wall: wall_across,
+            voxel: side_across,
             voxels_across,
             voxel_for_wall,
             dofs_for_wall: to_count(solid.estimate_dofs(voxel_for_wall)),
@@ -218,11 +214,15 @@ pub fn voxelize(shape: &Shape, resolution: &Resolution) -> Result<Voxelized, Sha
 /// A shape checked and measured: what choosing a grid needs before allocating one.
 struct Solid<'a> {
     shape: &'a Shape,
-    /// The bounding box's sides and centre, m.
+    /// The bounding box's sides and its lowest corner, m.
     extent: [f64; 3],
-    centre: [f64; 3],
-    /// The thinnest wall, m.
+    low: [f64; 3],
+    /// The thinnest wall, m: the least of `walls`.
     wall: f64,
+    /// The thickness the voxels cross along each axis, m: a primitive's along that
+    /// axis (a box's side; a tube's wall across x and y, its length along z); for a
+    /// mesh, whose walls have no one direction, its thinnest wall along every axis.
+    walls: [f64; 3],
     /// Volume V, staircase area S and staircase edge length E (see the module docs).
     volume: f64,
     staircase_area: f64,
@@ -232,11 +232,12 @@ struct Solid<'a> {
 impl<'a> Solid<'a> {
     fn measure(shape: &'a Shape, warnings: &mut Vec<ShapeWarning>) -> Result<Self, ShapeError> {
         use std::f64::consts::PI;
-        let solid = |extent: [f64; 3], wall: f64, volume, area, edges| Solid {
+        let solid = |extent: [f64; 3], walls: [f64; 3], volume, area, edges| Solid {
             shape,
             extent,
-            centre: [0.0; 3],
-            wall,
+            low: extent.map(|s| -0.5 * s),
+            wall: walls.iter().cloned().fold(f64::INFINITY, f64::min),
+            walls,
             volume,
             staircase_area: area,
             staircase_edges: edges,
@@ -247,10 +248,9 @@ impl<'a> Solid<'a> {
                     positive("box", name, value)?;
                 }
                 let [x, y, z] = size;
-                let wall = x.min(y).min(z);
                 solid(
                     size,
-                    wall,
+                    size,
                     x * y * z,
                     2.0 * (x * y + y * z + z * x),
                     4.0 * (x + y + z),
@@ -259,7 +259,13 @@ impl<'a> Solid<'a> {
             Shape::Sphere { radius: r } => {
                 positive("sphere", "radius", r)?;
                 let d = 2.0 * r;
-                solid([d; 3], d, 4.0 / 3.0 * PI * r.powi(3), 6.0 * PI * r * r, 0.0)
+                solid(
+                    [d; 3],
+                    [d; 3],
+                    4.0 / 3.0 * PI * r.powi(3),
+                    6.0 * PI * r * r,
+                    0.0,
+                )
             }
             Shape::Cylinder { radius: r, height } => {
                 positive("cylinder", "radius", r)?;
@@ -268,7 +274,7 @@ impl<'a> Solid<'a> {
                 let area = 8.0 * r * height + 2.0 * PI * r * r;
                 solid(
                     [d, d, height],
-                    d.min(height),
+                    [d, d, height],
                     PI * r * r * height,
                     area,
                     16.0 * r,
@@ -297,7 +303,7 @@ impl<'a> Solid<'a> {
                 let wall = if inner > 0.0 { outer - inner } else { d };
                 solid(
                     [d, d, length],
-                    wall.min(length),
+                    [wall, wall, length],
                     annulus * length,
                     area,
                     16.0 * (outer + inner),
@@ -344,33 +350,67 @@ impl<'a> Solid<'a> {
         Ok(Solid {
             shape,
             extent,
-            centre: [0, 1, 2].map(|a| 0.5 * (low[a] + high[a])),
+            low,
             wall,
+            walls: [wall; 3],
             volume: mesh.volume().abs().min(bounding_volume),
             staircase_area: mesh.projected_area(),
             staircase_edges: 4.0 * (extent[0] + extent[1] + extent[2]),
         })
     }
 
-    /// The grid's size in voxels at voxel side `h`, as reals (may be huge).
+    /// The grid's size in voxels at voxel size `h`, as reals (may be huge): each side
+    /// of the bounding box rounded to a whole number of voxels, at least 1.
     fn dims(&self, h: f64) -> [f64; 3] {
-        match self.shape {
-            // Rounded: a side within half a voxel of a whole number of voxels.
-            Shape::Box { size } => size.map(|s| (s / h).round().max(1.0)),
-            // Enough to hold every voxel centre inside; 1e-9 absorbs the rounding of
-            // a side that is a whole number of voxels.
-            _ => self.extent.map(|s| (s / h - 1e-9).ceil().max(1.0)),
-        }
+        self.extent.map(|s| (s / h).round().max(1.0))
     }
 
-    /// About how many degrees of freedom a grid of side `h` takes (see the module docs).
+    /// The bricks' sides at voxel size `h`: each side of the bounding box over its
+    /// voxels.
+    fn sides(&self, h: f64) -> [f64; 3] {
+        let dims = self.dims(h);
+        [0, 1, 2].map(|a| self.extent[a] / dims[a])
+    }
+
+    /// The voxels across the walls at voxel size `h`: the least along an axis of
+    /// its wall over its brick side, with that wall and side.
+    fn voxels_across(&self, h: f64) -> (f64, f64, f64) {
+        let sides = self.sides(h);
+        (0..3)
+            .map(|a| (self.walls[a] / sides[a], self.walls[a], sides[a]))
+            .fold((f64::INFINITY, 0.0, 0.0), |least, x| {
+                if x.0 < least.0 {
+                    x
+                } else {
+                    least
+                }
+            })
+    }
+
+    /// The largest voxel size that puts [`WALL_VOXELS`] across every wall: the least
+    /// of L_a/m_a, m_a = ⌈2·L_a/wall_a⌉ (at that size each axis gets at least m_a
+    /// voxels, each at most half its wall).
+    fn voxel_for_wall(&self) -> f64 {
+        (0..3)
+            .map(|a| {
+                let length = self.extent[a];
+                let most = self.walls[a] / WALL_VOXELS;
+                length / (length / most - 1e-9).ceil().max(1.0)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// About how many degrees of freedom a grid of voxel size `h` takes (see the
+    /// module docs).
     fn estimate_dofs(&self, h: f64) -> f64 {
         let nodes = match self.shape {
             Shape::Box { .. } => self.dims(h).iter().map(|n| n + 1.0).product(),
             _ => {
-                self.volume / h.powi(3)
-                    + self.staircase_area / (2.0 * h * h)
-                    + self.staircase_edges / (4.0 * h)
+                let [hx, hy, hz] = self.sides(h);
+                let mean = (hx * hy * hz).cbrt();
+                self.volume / (hx * hy * hz)
+                    + self.staircase_area / (2.0 * mean * mean)
+                    + self.staircase_edges / (4.0 * mean)
                     + 1.0
             }
         };
@@ -409,29 +449,20 @@ impl<'a> Solid<'a> {
         Ok(())
     }
 
-    /// h = min(wall/4, longest/32), enlarged until the grid fits.
+    /// h = min(h_wall, longest/32), enlarged until the grid fits.
     fn choose_voxel(&self, max_dofs: usize) -> Result<f64, ShapeError> {
         let longest = self.extent.iter().cloned().fold(0.0, f64::max);
-        let first = (self.wall / WALL_VOXELS).min(longest / LONGEST_SIDE_VOXELS);
-        let mut h = if self.fits(first, max_dofs) {
-            first
-        } else {
-            match self.smallest_fitting(first, max_dofs) {
-                Some(h) => h,
-                None => {
-                    return Err(ShapeError::TooManyDofs {
-                        voxel: first,
-                        estimated: to_count(self.estimate_dofs(first)),
-                        limit: max_dofs,
-                        fitting_voxel: None,
-                    })
-                }
-            }
-        };
-        if let Shape::Box { size } = self.shape {
-            h = divide_smallest(*size, h);
+        let first = self.voxel_for_wall().min(longest / LONGEST_SIDE_VOXELS);
+        if self.fits(first, max_dofs) {
+            return Ok(first);
         }
-        Ok(h)
+        self.smallest_fitting(first, max_dofs)
+            .ok_or_else(|| ShapeError::TooManyDofs {
+                voxel: first,
+                estimated: to_count(self.estimate_dofs(first)),
+                limit: max_dofs,
+                fitting_voxel: None,
+            })
     }
 
     /// The smallest voxel side above `h` (to a part in 10⁶) whose grid fits, found by
@@ -458,11 +489,14 @@ impl<'a> Solid<'a> {
         Some(high)
     }
 
-    /// The filled grid at side `h`, its corner, and the voxels the axes did not agree on.
+    /// The filled grid at voxel size `h`, its corner (the bounding box's lowest), and
+    /// the voxels the axes did not agree on.
     fn fill(&self, h: f64) -> (VoxelGrid, [f64; 3], usize) {
         let dims = self.dims(h).map(|n| n as usize);
-        let origin = [0, 1, 2].map(|a| self.centre[a] - 0.5 * dims[a] as f64 * h);
-        let centres = |inside: &dyn Fn(f64, f64, f64) -> bool| (fill_centres(dims, h, inside), 0);
+        let sides = self.sides(h);
+        let origin = self.low;
+        let centres =
+            |inside: &dyn Fn(f64, f64, f64) -> bool| (fill_centres(dims, sides, inside), 0);
         let (filled, not_unanimous) = match *self.shape {
             Shape::Box { .. } => centres(&|_, _, _| true),
             Shape::Sphere { radius } => {
@@ -480,38 +514,47 @@ impl<'a> Solid<'a> {
                 inner * inner <= rho2 && rho2 <= outer * outer && 2.0 * z.abs() <= length
             }),
             Shape::Mesh(ref mesh) => {
-                let scanned = scan::scan(mesh, &scan::Placement { origin, h, dims });
+                let placement = scan::Placement {
+                    origin,
+                    sides,
+                    dims,
+                };
+                let scanned = scan::scan(mesh, &placement);
                 (scanned.filled, scanned.not_unanimous)
             }
         };
-        (VoxelGrid { dims, h, filled }, origin, not_unanimous)
+        (
+            VoxelGrid {
+                dims,
+                sides,
+                filled,
+            },
+            origin,
+            not_unanimous,
+        )
     }
 }
 
 /// Whether each voxel's centre, relative to the grid's centre, is `inside`. The
-/// centres are (2i + 1 − n)·h/2, exactly opposite on either side of the centre.
-fn fill_centres(dims: [usize; 3], h: f64, inside: &dyn Fn(f64, f64, f64) -> bool) -> Vec<bool> {
-    let centre = |i: usize, n: usize| (2 * i + 1) as f64 * (0.5 * h) - n as f64 * (0.5 * h);
+/// centres are (2i + 1 − n_a)·h_a/2, exactly opposite on either side of the centre.
+fn fill_centres(
+    dims: [usize; 3],
+    sides: [f64; 3],
+    inside: &dyn Fn(f64, f64, f64) -> bool,
+) -> Vec<bool> {
+    let centre = |i: usize, a: usize| {
+        let half = 0.5 * sides[a];
+        (2 * i + 1) as f64 * half - dims[a] as f64 * half
+    };
     let mut filled = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
     for k in 0..dims[2] {
         for j in 0..dims[1] {
             for i in 0..dims[0] {
-                filled.push(inside(
-                    centre(i, dims[0]),
-                    centre(j, dims[1]),
-                    centre(k, dims[2]),
-                ));
+                filled.push(inside(centre(i, 0), centre(j, 1), centre(k, 2)));
             }
         }
     }
     filled
-}
-
-/// The smallest side of a box divided into a whole number of voxels of side ≥ `h`
-/// (its thickness exact: the one bending depends on most).
-fn divide_smallest(size: [f64; 3], h: f64) -> f64 {
-    let smallest = size.iter().cloned().fold(f64::INFINITY, f64::min);
-    smallest / (smallest / h + 1e-9).floor().max(1.0)
 }
 
 /// The degrees of freedom of a grid: 3 per lattice node that a filled voxel uses.

@@ -30,7 +30,8 @@ fn filled(v: &Voxelized) -> usize {
 }
 
 fn volume(v: &Voxelized) -> f64 {
-    filled(v) as f64 * v.grid.h.powi(3)
+    let [hx, hy, hz] = v.grid.sides;
+    filled(v) as f64 * (hx * hy * hz)
 }
 
 /// A box's 8 corners and 12 triangles, wound counter-clockwise seen from outside.
@@ -149,7 +150,7 @@ fn a_box_whose_sides_are_whole_voxels_is_filled_exactly_and_centred() {
 }
 
 #[test]
-fn a_box_side_that_is_not_whole_voxels_is_rounded_with_a_warning() {
+fn a_box_side_that_is_not_whole_voxels_gets_bricks_that_span_it_exactly() {
     let v = voxelize(
         &Shape::Box {
             size: [0.1, 0.064, 0.04],
@@ -157,21 +158,12 @@ fn a_box_side_that_is_not_whole_voxels_is_rounded_with_a_warning() {
         &at(0.01),
     )
     .unwrap();
+    // 6.4 voxels round to 6, each 64/6 mm long along y.
     assert_eq!(v.grid.dims, [10, 6, 4]);
-    assert_eq!(
-        v.warnings,
-        vec![ShapeWarning::BoxSideRounded {
-            axis: 1,
-            size: 0.064,
-            voxel: 0.01,
-            voxels: 6
-        }]
-    );
-    let text = v.warnings[0].to_string();
-    assert!(
-        text.contains("y side, 64 mm") && text.contains("6 voxels, 60 mm"),
-        "{text}"
-    );
+    assert_eq!(v.grid.sides, [0.1 / 10.0, 0.064 / 6.0, 0.04 / 4.0]);
+    assert_eq!(v.origin, [-0.05, -0.032, -0.02]);
+    assert!((volume(&v) / (0.1 * 0.064 * 0.04) - 1.0).abs() < 1e-12);
+    assert!(v.warnings.is_empty(), "{:?}", v.warnings);
 }
 
 #[test]
@@ -186,15 +178,17 @@ fn a_plate_gets_2_voxels_through_its_thickness_when_the_budget_allows() {
     assert!(v.warnings.is_empty(), "{:?}", v.warnings);
 
     // Five times as wide it would take 3·251·251·3 = 567 009 at 2 mm: over the
-    // default 150 000 the voxel grows to the next size that divides the thickness,
-    // 4 mm, and the warning names 2 mm and what it takes.
+    // default 150 000 the voxel grows until the grid fits, which leaves one brick
+    // through the thickness (two would need 3·(n + 1)²·3 ≤ 150 000 with n ≥ 188),
+    // and the warning names 2 mm and what it takes.
     let wide = Shape::Box {
         size: [0.5, 0.5, 0.004],
     };
     let v = voxelize(&wide, &Resolution::default()).unwrap();
-    assert!(v.dofs <= 150_000);
+    assert!(v.dofs <= 150_000, "{}", v.dofs);
     assert_eq!(v.grid.dims[2], 1);
-    assert!((v.grid.h - 0.004).abs() < 1e-15);
+    assert_eq!(v.grid.sides[2], 0.004);
+    assert_eq!(v.dofs, 3 * (v.grid.dims[0] + 1) * (v.grid.dims[1] + 1) * 2);
     let thin = v
         .warnings
         .iter()

@@ -77,9 +77,10 @@ pub struct FoundModal {
     pub shape: String,
     /// The material's name, or "custom".
     pub material: String,
-    /// Degrees of freedom solved, the voxel side (m) and the mass (kg).
+    /// Degrees of freedom solved, the voxel's sides along x, y and z (m; a brick
+    /// that spans the shape's bounding box) and the mass (kg).
     pub dofs: usize,
-    pub voxel: f64,
+    pub voxel: [f64; 3],
     pub mass: f64,
     /// The surface point struck, m, in the shape's coordinates.
     pub strike: [f64; 3],
@@ -853,7 +854,7 @@ impl Lowerer<'_> {
             shape,
             material,
             dofs: model.dofs,
-            voxel: model.surface.voxel,
+            voxel: model.surface.sides,
             mass: model.mass,
             strike: point,
             dropped: model.modes.len() - modes.len(),

@@ -23,21 +23,17 @@ pub enum ShapeWarning {
     /// Fewer than [`crate::shape::WALL_VOXELS`] voxels through the thinnest wall:
     /// bending modes come out too high.
     TooThin {
+        /// The wall with the fewest voxels across (a primitive's thickness along
+        /// one axis, a mesh's thinnest wall), m.
         wall: f64,
+        /// The brick's side across the wall, m.
         voxel: f64,
+        /// How many bricks cross the wall.
         voxels_across: f64,
-        /// The voxel size that gives enough voxels through the wall.
+        /// The voxel size that puts 2 across every wall.
         voxel_for_wall: f64,
         /// The degrees of freedom that size would take (estimated).
         dofs_for_wall: usize,
-    },
-    /// A box side that is not a whole number of voxels, rounded to the nearest.
-    BoxSideRounded {
-        /// 0, 1, 2 for x, y, z.
-        axis: usize,
-        size: f64,
-        voxel: f64,
-        voxels: usize,
     },
 }
 
@@ -156,27 +152,13 @@ impl fmt::Display for ShapeWarning {
                 dofs_for_wall,
             } => write!(
                 f,
-                "the thinnest wall, {}, is only {voxels_across:.1} voxels across at a voxel \
-                 size of {}; with fewer than 2 the wall is a sheet of voxels joined at \
+                "a wall {} thick is only {voxels_across:.1} voxels across, each {} \
+                 long across it; with fewer than 2 the wall is a sheet of voxels joined at \
                  their edges, and its bending modes come out too high: a voxel of {} \
                  gives 2, at about {dofs_for_wall} degrees of freedom",
                 length(wall),
                 length(voxel),
                 length(voxel_for_wall)
-            ),
-            ShapeWarning::BoxSideRounded {
-                axis,
-                size,
-                voxel,
-                voxels,
-            } => write!(
-                f,
-                "the box's {} side, {}, is not a whole number of {} voxels; it was \
-                 voxelised as {voxels} voxels, {}",
-                AXES[axis],
-                length(size),
-                length(voxel),
-                length(voxels as f64 * voxel)
             ),
         }
     }
@@ -238,7 +220,7 @@ impl fmt::Display for ShapeError {
             ShapeError::NothingFilled { voxel, suggested } => write!(
                 f,
                 "no voxel centre falls inside the shape at a voxel size of {}; a voxel of \
-                 {} (a quarter of its thinnest wall) would fill it",
+                 {} (bricks at most half its thinnest wall) would fill it",
                 length(*voxel),
                 length(*suggested)
             ),

@@ -13,11 +13,11 @@ pub(crate) struct Scanned {
     pub not_unanimous: usize,
 }
 
-/// The grid: its lowest corner, voxel side and size in voxels.
+/// The grid: its lowest corner, its bricks' sides and its size in voxels.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Placement {
     pub origin: [f64; 3],
-    pub h: f64,
+    pub sides: [f64; 3],
     pub dims: [usize; 3],
 }
 
@@ -33,7 +33,7 @@ pub(crate) fn scan(mesh: &TriangleMesh, place: &Placement) -> Scanned {
     let points: Vec<[f64; 3]> = mesh
         .positions
         .iter()
-        .map(|p| [0, 1, 2].map(|a| (p[a] - place.origin[a]) / place.h))
+        .map(|p| [0, 1, 2].map(|a| (p[a] - place.origin[a]) / place.sides[a]))
         .collect();
     let [nx, ny, nz] = place.dims;
     let mut votes = vec![0u8; nx * ny * nz];
