@@ -4,6 +4,8 @@
 //! thickness: the elements' incompatible modes keep them from locking, so even one
 //! voxel through is within 0.4 % (a plain trilinear element needs 4 for 2 %).
 
+mod common;
+
 use std::f64::consts::PI;
 use std::time::Instant;
 
@@ -35,24 +37,5 @@ fn bends_within_2_percent(thick: usize) {
     eprintln!("{} DOF, {:?}", beam.stiffness.size, started.elapsed());
     let freqs: Vec<f64> = modes.values.iter().map(|l| l.sqrt() / (2.0 * PI)).collect();
     eprintln!("{freqs:?}");
-    let area = side * side;
-    let inertia = side.powi(4) / 12.0;
-    let scale = (STEEL.youngs * inertia / (STEEL.density * area)).sqrt() / (2.0 * PI * l * l);
-    // A square bar bends alike in y and z: each bending mode comes twice.
-    for (n, beta) in [4.7300, 7.8532, 10.9956].iter().enumerate() {
-        let expected = beta * beta * scale;
-        for copy in 0..2 {
-            let f = freqs[2 * n + copy];
-            eprintln!(
-                "{thick} voxels: mode {} {:+.3} %",
-                n + 1,
-                100.0 * (f / expected - 1.0)
-            );
-            assert!(
-                (f / expected - 1.0).abs() < 0.02,
-                "bending mode {} ({copy}): {f} Hz, Euler–Bernoulli {expected} Hz",
-                n + 1
-            );
-        }
-    }
+    common::assert_bends_as_euler_bernoulli(&freqs, &STEEL, l, side, &format!("{thick} voxels"));
 }

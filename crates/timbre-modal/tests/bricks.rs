@@ -5,10 +5,10 @@
 //! With cubic voxels each of these was off by the rounding of a side: up to half a
 //! voxel.
 
-use std::f64::consts::PI;
+mod common;
 
 use timbre_modal::model::{Damping, Material, Model, Settings};
-use timbre_modal::shape::{voxelize, Resolution, Shape, TriangleMesh};
+use timbre_modal::shape::{voxelize, Resolution, Shape};
 use timbre_modal::Elastic;
 
 const STEEL: Material = Material {
@@ -90,36 +90,12 @@ fn a_box_whose_sides_are_not_whole_voxels_keeps_its_volume_mass_and_modes() {
     }
 }
 
-/// A box's 8 corners and 12 triangles, counter-clockwise seen from outside.
-fn box_mesh(half: [f64; 3]) -> TriangleMesh {
-    let positions = (0..8)
-        .map(|c: usize| [0, 1, 2].map(|a| if c >> a & 1 == 1 { half[a] } else { -half[a] }))
-        .collect();
-    // Each face's corners in order around its outward normal (bits: x 1, y 2, z 4).
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    let triangles = faces
-        .iter()
-        .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
-        .collect();
-    TriangleMesh {
-        positions,
-        triangles,
-    }
-}
-
 /// The oak cube of `examples/cube-drop.tt`, 0.2 m a side, at 10.14 mm voxels: 20
 /// bricks of exactly 10 mm a side, as a mesh and as the box primitive. Cubes of
 /// 10.14 mm made it 0.2028 m a side, 5.84 kg, its modes 1.4 % low.
 #[test]
 fn a_mesh_box_weighs_its_volume_and_rings_as_the_box_primitive() {
-    let mesh = box_mesh([0.1; 3]);
+    let mesh = common::cube([-0.1; 3], [0.1; 3]);
     assert!((mesh.volume() - 0.008).abs() < 1e-15);
     let settings = settings(8, 0.01014);
     let from_mesh = Model::analyse(&Shape::Mesh(mesh), &OAK, &settings).unwrap();
@@ -154,25 +130,6 @@ fn a_beam_whose_sides_are_not_whole_voxels_bends_at_euler_bernoulli_s_modes() {
         model.surface.sides,
         [length / 101.0, side / 3.0, side / 3.0]
     );
-    let e = &STEEL.elastic;
-    let inertia = side.powi(4) / 12.0;
-    let area = side * side;
-    let scale = (e.youngs * inertia / (e.density * area)).sqrt() / (2.0 * PI * length * length);
     let found = frequencies(&model);
-    for (n, beta) in [4.7300f64, 7.8532, 10.9956].iter().enumerate() {
-        let expected = beta * beta * scale;
-        for copy in 0..2 {
-            let f = found[2 * n + copy];
-            eprintln!(
-                "bending mode {}: {:+.3} %",
-                n + 1,
-                100.0 * (f / expected - 1.0)
-            );
-            assert!(
-                (f / expected - 1.0).abs() < 0.02,
-                "bending mode {} ({copy}): {f} Hz, Euler–Bernoulli {expected} Hz",
-                n + 1
-            );
-        }
-    }
+    common::assert_bends_as_euler_bernoulli(&found, &STEEL.elastic, length, side, "bricks");
 }

@@ -3,6 +3,8 @@
 //! edges and vertices) against the primitives and exact lattice counts, the thinnest
 //! wall, and the refusals and warnings about the grid.
 
+mod common;
+
 use std::f64::consts::PI;
 use std::path::PathBuf;
 
@@ -36,27 +38,7 @@ fn volume(v: &Voxelized) -> f64 {
 
 /// A box's 8 corners and 12 triangles, wound counter-clockwise seen from outside.
 fn cube(low: [f64; 3], high: [f64; 3]) -> TriangleMesh {
-    let positions: Vec<[f64; 3]> = (0..8)
-        .map(|c| [0, 1, 2].map(|a| if c >> a & 1 == 1 { high[a] } else { low[a] }))
-        .collect();
-    // Each face's corners in order around it (bits: x = 1, y = 2, z = 4).
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    let mut triangles = Vec::new();
-    for f in faces {
-        triangles.push([f[0], f[1], f[2]]);
-        triangles.push([f[0], f[2], f[3]]);
-    }
-    outward(TriangleMesh {
-        positions,
-        triangles,
-    })
+    outward(common::cube(low, high))
 }
 
 /// A sphere of `stacks` rings from pole to pole and `slices` around, poles shared.
