@@ -2,9 +2,10 @@
 //!
 //! A voxel is a brick of sides hx × hy × hz (a cube when they are equal), so that a
 //! grid can span a shape's bounding box exactly. Voxel (i, j, k) spans
-//! [i, i + 1]·hx × [j, j + 1]·hy × [k, k + 1]·hz from the grid's origin. The nodes used by filled voxels are numbered in order, x fastest, then y,
-//! then z, so a grid gives the same matrices on every run; node n's displacement is
-//! degrees of freedom 3n, 3n + 1, 3n + 2 (x, y, z).
+//! [i, i + 1]·hx × [j, j + 1]·hy × [k, k + 1]·hz from the grid's origin. The nodes
+//! used by filled voxels are numbered in order, x fastest, then y, then z, so a grid
+//! gives the same matrices on every run; node n's displacement is degrees of freedom
+//! 3n, 3n + 1, 3n + 2 (x, y, z).
 
 use crate::{hex8, Elastic};
 

@@ -5,12 +5,13 @@
 //! Node k sits at the corner ((k & 1)·hx, (k >> 1 & 1)·hy, (k >> 2 & 1)·hz); its shape
 //! function in the brick's natural coordinates ξ, η, ζ ∈ [−1, 1] is
 //! N_k = (1 + ξ·ξ_k)(1 + η·η_k)(1 + ζ·ζ_k)/8. The Jacobian is diag(hx, hy, hz)/2, so
-//! ∂N/∂x_a = (2/h_a)·∂N/∂ξ_a and dV = (hx·hy·hz/8)·dξ·dη·dζ. Strains in Voigt order (εxx, εyy, εzz, γxy, γyz, γzx);
-//! D = λ·m·mᵀ + μ·diag(2, 2, 2, 1, 1, 1) with m = (1, 1, 1, 0, 0, 0).
+//! ∂N/∂x_a = (2/h_a)·∂N/∂ξ_a and dV = (hx·hy·hz/8)·dξ·dη·dζ. Strains in Voigt order
+//! (εxx, εyy, εzz, γxy, γyz, γzx); D = λ·m·mᵀ + μ·diag(2, 2, 2, 1, 1, 1) with
+//! m = (1, 1, 1, 0, 0, 0).
 //!
-//! K = Σ_g Bᵀ·D·B·hx·hy·hz/8 and M = ρ·Σ_g Nᵀ·N·hx·hy·hz/8 over the 2 × 2 × 2 Gauss points
-//! ±1/√3 (weights 1): exact for both, as their integrands are of degree at most 2 in
-//! each coordinate.
+//! K = Σ_g Bᵀ·D·B·hx·hy·hz/8 and M = ρ·Σ_g Nᵀ·N·hx·hy·hz/8 over the 2 × 2 × 2 Gauss
+//! points ±1/√3 (weights 1): exact for both, as their integrands are of degree at most
+//! 2 in each coordinate.
 //!
 //! **Incompatible modes.** A trilinear element bent has shear strain it should not
 //! (it cannot curve), so it is too stiff in bending ("locks"): 4 across a beam's
@@ -340,7 +341,8 @@ mod tests {
             });
             assert!((quadratic(&m, &u) / total - 1.0).abs() < 1e-12);
         }
-        // A rotation about the brick's x edge: ∫ρ(y² + z²)dV = ρ·hx·hy·hz·(hy² + hz²)/3.
+        // A rotation about the brick's x edge:
+        // ∫ρ(y² + z²)dV = ρ·hx·hy·hz·(hy² + hz²)/3.
         let u = nodal(BRICK, |[_, y, z]| [0.0, -z, y]);
         let expected = total * (hy * hy + hz * hz) / 3.0;
         assert!((quadratic(&m, &u) / expected - 1.0).abs() < 1e-12);

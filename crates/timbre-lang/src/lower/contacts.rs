@@ -1102,9 +1102,9 @@ impl Lowerer<'_> {
                 vec![class.clone(), keyword("force", span), symbol("force", span)],
                 span,
             )),
-            (None, Some(model), Some(Struck::Once(strike))) => self
-                .driven_model(model, &strike, 1.0, span)
-                .map(|(tree, _)| tree),
+            (None, Some(model), Some(Struck::Once(strike))) => {
+                self.driven_model(model, &strike, 1.0, span)
+            }
             (None, Some(model), Some(Struck::Along(times, strikes))) => self
                 .moving_driven_model(model, &times, &strikes, 1.0, span)
                 .map(|(tree, names)| {

@@ -631,25 +631,19 @@ impl Lowerer<'_> {
 
     /// The sound of `model` struck at `strike` by the force bound to `force` (N):
     /// `(combine (* G (resonz force F B)))`, an impulse of J N·s in the force
-    /// ringing as a strike of J does, times `gain`; and its longest T60 (s). `None`
-    /// when every mode is above 0.45 × the sample rate.
+    /// ringing as a strike of J does, times `gain`. `None` when every mode is above
+    /// 0.45 × the sample rate.
     pub(crate) fn driven_model(
         &self,
         model: &Model,
         strike: &Strike,
         gain: f64,
         span: Span,
-    ) -> Option<(Expr, f64)> {
+    ) -> Option<Expr> {
         let (pressures, _) = model.gains(strike, 1.0);
         let rate = self.settings.sample_rate.unwrap_or(DEFAULT_RATE);
         let bank = bank(model, &pressures, gain / FULL_SCALE_PA, rate);
-        let slowest = bank.decays.iter().fold(f64::INFINITY, |m, d| m.min(*d));
-        (!bank.frequencies.is_empty()).then(|| {
-            (
-                driven_tree(&bank, 1.0, span),
-                3.0 * std::f64::consts::LN_10 / slowest,
-            )
-        })
+        (!bank.frequencies.is_empty()).then(|| driven_tree(&bank, 1.0, span))
     }
 
     /// The sound of `model` struck where a sustained contact is at each of its keys
@@ -680,7 +674,7 @@ impl Lowerer<'_> {
             .collect();
         let first = keyed.first()?;
         if keyed.iter().all(|k| k == first) {
-            let (tree, _) = self.driven_model(model, strikes.first()?, gain, span)?;
+            let tree = self.driven_model(model, strikes.first()?, gain, span)?;
             return Some((tree, Scope::new()));
         }
         let units = vec![1.0; model.modes.len()];
