@@ -335,15 +335,7 @@ fn an_obj_cube_written_one_face_at_a_time_voxelises_to_the_box() {
     // 24 vertices (each face its own four) and quads: welding finds it closed.
     let mut text = String::from("o cube\n");
     let c = |bit: usize, v: usize| if v >> bit & 1 == 1 { 0.05 } else { -0.05 };
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    for (f, face) in faces.iter().enumerate() {
+    for (f, face) in common::CUBE_FACES.iter().enumerate() {
         for &v in face {
             text += &format!("v {} {} {}\n", c(0, v), c(1, v), c(2, v));
         }

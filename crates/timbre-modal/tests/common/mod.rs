@@ -8,21 +8,23 @@ use std::f64::consts::PI;
 use timbre_modal::shape::TriangleMesh;
 use timbre_modal::Elastic;
 
+/// A box's six faces: each one's corners, counter-clockwise seen from outside
+/// (corner bits: x = 1, y = 2, z = 4).
+pub const CUBE_FACES: [[usize; 4]; 6] = [
+    [0, 4, 6, 2],
+    [1, 3, 7, 5],
+    [0, 1, 5, 4],
+    [2, 6, 7, 3],
+    [0, 2, 3, 1],
+    [4, 5, 7, 6],
+];
+
 /// A box's 8 corners and 12 triangles, wound counter-clockwise seen from outside.
 pub fn cube(low: [f64; 3], high: [f64; 3]) -> TriangleMesh {
     let positions: Vec<[f64; 3]> = (0..8)
         .map(|c| [0, 1, 2].map(|a| if c >> a & 1 == 1 { high[a] } else { low[a] }))
         .collect();
-    // Each face's corners in order around it (bits: x = 1, y = 2, z = 4).
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    let triangles = faces
+    let triangles = CUBE_FACES
         .iter()
         .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
         .collect();
