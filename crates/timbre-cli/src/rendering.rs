@@ -56,11 +56,7 @@ pub(crate) fn plan<'p>(source: &'p Source, args: &SoundArgs) -> Result<Plan<'p>,
         ));
     }
     let sample_rate = args.sample_rate.or(file.sample_rate()).unwrap_or(48_000.0);
-    // A scene without a duration lasts until its last instance has ended (as a
-    // Csound score does), up to OPEN_SCENE_LIMIT; a file's one sound, 1 s.
-    let duration = args.duration.or(file.duration());
-    let open_ended = duration.is_none() && !file.is_sound();
-    let duration = duration.unwrap_or(if open_ended { OPEN_SCENE_LIMIT } else { 1.0 });
+    let (duration, open_ended) = file.render_length(args.duration);
     if !open_ended && !args.quiet {
         for (name, start) in file.instances().filter(|(_, start)| *start >= duration) {
             eprintln!(

@@ -162,15 +162,7 @@ fn render_source(script: Script, options: &Options) -> Result<(Vec<f32>, usize),
         ));
     }
     let rate = options.rate.or(file.sample_rate()).unwrap_or(DEFAULT_RATE);
-    let duration = options.duration.or(file.duration());
-    // As on the command line: a scene without a duration ends with its last
-    // instance (at most OPEN_SCENE_SECONDS), a file's one sound lasts 1 s.
-    let open_ended = duration.is_none() && !file.is_sound();
-    let duration = duration.unwrap_or(if open_ended {
-        timbre::OPEN_SCENE_SECONDS
-    } else {
-        1.0
-    });
+    let (duration, open_ended) = file.render_length(options.duration);
     let engine = engine.with_sample_rate(rate).with_backend(options.backend);
     let mut scene = engine.scene_from(&file, duration)?;
     let threads = options
@@ -237,20 +229,23 @@ fn positive(name: &str, value: f64) -> PyResult<f64> {
 }
 
 fn sample_rate(rate: f64) -> PyResult<f64> {
-    if (1000.0..=1_536_000.0).contains(&rate) && rate.fract() == 0.0 {
+    use timbre::{MAX_SAMPLE_RATE, MIN_SAMPLE_RATE};
+    if (MIN_SAMPLE_RATE..=MAX_SAMPLE_RATE).contains(&rate) && rate.fract() == 0.0 {
         Ok(rate)
     } else {
         Err(PyValueError::new_err(format!(
-            "rate={rate}: not a sample rate (a whole number of Hz from 1000 to 1536000)"
+            "rate={rate}: not a sample rate (a whole number of Hz from {MIN_SAMPLE_RATE} to \
+             {MAX_SAMPLE_RATE})"
         )))
     }
 }
 
 fn thread_count(threads: i64) -> PyResult<usize> {
     match usize::try_from(threads) {
-        Ok(n) if (1..=1024).contains(&n) => Ok(n),
+        Ok(n) if (1..=timbre::MAX_THREADS).contains(&n) => Ok(n),
         _ => Err(PyValueError::new_err(format!(
-            "threads={threads}: must be from 1 to 1024"
+            "threads={threads}: must be from 1 to {}",
+            timbre::MAX_THREADS
         ))),
     }
 }
@@ -313,7 +308,7 @@ fn error_with(py: Python<'_>, text: String, parts: Parts) -> PyErr {
 /// `timbre.Error` for `diagnostics`: the text the command line prints, and the first
 /// one's parts as attributes.
 fn diagnostics_error(py: Python<'_>, diagnostics: &[Diag]) -> PyErr {
-    let text = cli_report(diagnostics).trim_end().to_owned();
+    let text = timbre::report_plain(diagnostics).trim_end().to_owned();
     let parts = diagnostics.first().map_or_else(Parts::default, |first| {
         let (line, column) = position(first).unzip();
         Parts {
@@ -336,28 +331,6 @@ fn message_error(py: Python<'_>, message: &str) -> PyErr {
         ..Parts::default()
     };
     error_with(py, format!("error: {message}"), parts)
-}
-
-/// Diagnostics as `timbre render` prints them to standard error when that is not a
-/// terminal (as from a script, or in a notebook): miette's graphical report, ASCII
-/// characters, no colour, 80 columns wide; at most [`timbre::MAX_DIAGNOSTICS_SHOWN`],
-/// then how many more.
-fn cli_report(diagnostics: &[Diag]) -> String {
-    let handler =
-        miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::none()).with_width(80);
-    let mut out = String::new();
-    for diag in diagnostics.iter().take(timbre::MAX_DIAGNOSTICS_SHOWN) {
-        // Writing to a String cannot fail.
-        let _ = handler.render_report(&mut out, diag);
-        out.push('\n');
-    }
-    if diagnostics.len() > timbre::MAX_DIAGNOSTICS_SHOWN {
-        out.push_str(&format!(
-            "… and {} more not shown: fix the ones above first (later ones often follow from them)\n",
-            diagnostics.len() - timbre::MAX_DIAGNOSTICS_SHOWN
-        ));
-    }
-    out
 }
 
 /// Line and column (1-based, in characters) where `diag`'s primary label starts.

@@ -51,10 +51,36 @@ impl Error {
 pub fn report(diagnostics: &[Diag]) -> String {
     let handler =
         miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::unicode_nocolor());
+    draw(&handler, diagnostics, "")
+}
+
+/// Diagnostics as `timbre` prints them to a standard error that is not a terminal (a
+/// pipe, a log, a notebook): ASCII characters, no colour, 80 columns, each report
+/// followed by an empty line.
+///
+/// ```
+/// let engine = timbre::Engine::new(48_000.0);
+/// let diagnostics = engine.load_library("(define-sound s () (sinee t))").unwrap_err();
+/// assert!(timbre::report_plain(&diagnostics.0).is_ascii());
+/// ```
+pub fn report_plain(diagnostics: &[Diag]) -> String {
+    let handler =
+        miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::none()).with_width(80);
+    draw(&handler, diagnostics, "\n")
+}
+
+/// At most [`MAX_DIAGNOSTICS_SHOWN`] reports, each followed by `after_each`, then how
+/// many more there were.
+fn draw(
+    handler: &miette::GraphicalReportHandler,
+    diagnostics: &[Diag],
+    after_each: &str,
+) -> String {
     let mut out = String::new();
     for diag in diagnostics.iter().take(MAX_DIAGNOSTICS_SHOWN) {
         // Writing to a String cannot fail.
         let _ = handler.render_report(&mut out, diag);
+        out.push_str(after_each);
     }
     if diagnostics.len() > MAX_DIAGNOSTICS_SHOWN {
         out.push_str(&format!(

@@ -40,7 +40,7 @@ mod arguments;
 
 pub use arguments::{MAX_BLOCK_SIZE, MAX_CHANNELS, MAX_SAMPLE_RATE, MAX_THREADS, MIN_SAMPLE_RATE};
 pub use engine::Engine;
-pub use error::{report, Error, MAX_DIAGNOSTICS_SHOWN};
+pub use error::{report, report_plain, Error, MAX_DIAGNOSTICS_SHOWN};
 pub use library::SoundLibrary;
 pub use play::Play;
 pub use realtime::{Control, Renderer};

@@ -204,6 +204,26 @@ impl SceneFile {
         self.program.settings.duration
     }
 
+    /// How long a render of the file lasts, seconds, and whether it is open-ended:
+    /// `asked`, else the file's `(scene :duration …)`; without either, a scene lasts
+    /// until its last instance has ended (as a Csound score does), at most
+    /// [`crate::OPEN_SCENE_SECONDS`] (open-ended), and a file's one sound 1 s.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0);
+    /// assert_eq!(engine.read_scene("(sine (* t 440))").unwrap().render_length(None), (1.0, false));
+    /// let scene = engine.read_scene("(define-sound s () (sine (* t 440))) (instance a (s))").unwrap();
+    /// assert_eq!(scene.render_length(None), (timbre::OPEN_SCENE_SECONDS, true));
+    /// assert_eq!(scene.render_length(Some(2.0)), (2.0, false));
+    /// ```
+    pub fn render_length(&self, asked: Option<f64>) -> (f64, bool) {
+        match asked.or(self.duration()) {
+            Some(seconds) => (seconds, false),
+            None if self.is_sound() => (1.0, false),
+            None => (crate::OPEN_SCENE_SECONDS, true),
+        }
+    }
+
     /// Output channels (`(scene :channels …)`, else 1).
     ///
     /// ```
