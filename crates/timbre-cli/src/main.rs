@@ -816,7 +816,7 @@ fn contact_listing(found: &timbre_lang::FoundContacts) -> String {
             "  {:<6} {:>9.6} s (frame {:>8.3})  {} / {}",
             r.kind,
             r.time,
-            r.time * found.frame_rate,
+            found.frame_of(r.time),
             r.a,
             r.b
         );

@@ -84,6 +84,40 @@ fn the_issue_s_scene_renders_as_written_one_instance_per_object_per_contact() {
     assert_eq!(tsv.lines().count(), 1 + found.rows.len());
 }
 
+/// The score's frame column counts frames as `:frame-rate` and `:first-frame` say: a
+/// shot whose scene time 0 is Blender's frame 1 (as the Blender extension writes it)
+/// lists each impact on the frame Blender shows it, 1 + t × 24.
+#[test]
+fn the_score_counts_frames_from_the_first_frame() {
+    let score = |options: &str| {
+        let text = format!(
+            "{HEAD}(contacts shot :materials ((\"Cube\" oak) (\"Floor\" concrete)) {options})"
+        );
+        let program = compile_shot(&text).unwrap_or_else(|e| panic!("{e:?}"));
+        let tsv = timbre_lang::contact_score(&program.contacts);
+        let rows: Vec<(f64, f64)> = tsv
+            .lines()
+            .skip(1)
+            .map(|line| {
+                let cells: Vec<&str> = line.split('\t').collect();
+                (cells[1].parse().unwrap(), cells[2].parse().unwrap())
+            })
+            .collect();
+        rows
+    };
+    let from_zero = score(":frame-rate 24");
+    let from_one = score(":frame-rate 24 :first-frame 1");
+    assert!(!from_zero.is_empty());
+    for ((t0, f0), (t1, f1)) in from_zero.iter().zip(&from_one) {
+        assert_eq!(t0, t1);
+        assert!((f0 - t0 * 24.0).abs() < 1e-3, "{t0} s is frame {f0}");
+        assert!(
+            (f1 - (1.0 + t1 * 24.0)).abs() < 1e-3,
+            "{t1} s is frame {f1}"
+        );
+    }
+}
+
 #[test]
 fn a_mode_at_the_preset_s_bandwidth_decays_60_db_in_the_material_s_t60() {
     // The presets give a mode of f Hz the bandwidth η·f: a resonator of bandwidth B

@@ -85,12 +85,21 @@ pub struct FoundContacts {
     /// The motion file's name.
     pub shot: String,
     pub frame_rate: f64,
+    /// The frame at scene time 0 (`:first-frame`).
+    pub first_frame: f64,
     /// In time order.
     pub rows: Vec<ContactRow>,
     /// How many instances the form made.
     pub instances: usize,
     /// The objects of `:modal`, each with the model of its shape.
     pub shapes: Vec<(String, Arc<Model>)>,
+}
+
+impl FoundContacts {
+    /// The frame, counted as `:frame-rate` and `:first-frame` say, shown at `time`.
+    pub fn frame_of(&self, time: f64) -> f64 {
+        self.first_frame + time * self.frame_rate
+    }
 }
 
 /// The contact score of `found` as tab-separated values, one header line then one
@@ -105,7 +114,7 @@ pub fn contact_score(found: &[FoundContacts]) -> String {
                 "{}\t{:.6}\t{:.3}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.6}\t{:.3}\t{:.4}\t{:.4}\t{:.4}\t{:.4}\n",
                 f.shot,
                 r.time,
-                r.time * f.frame_rate,
+                f.frame_of(r.time),
                 r.kind,
                 r.a,
                 r.b,
@@ -275,6 +284,7 @@ impl Lowerer<'_> {
                 "gain",
                 "length",
                 "frame-rate",
+                "first-frame",
                 "roughness",
                 "grain",
                 "modal",
@@ -414,6 +424,7 @@ impl Lowerer<'_> {
         self.scene.found_contacts.push(FoundContacts {
             shot: shot_name.clone(),
             frame_rate: settings.frame_rate,
+            first_frame: settings.first_frame,
             rows,
             instances: made,
             shapes,
@@ -429,6 +440,8 @@ struct Settings {
     /// Seconds each impact's sound lasts (default: its preset's longest T60).
     length: Option<f64>,
     frame_rate: f64,
+    /// The frame at scene time 0, for the frames shown.
+    first_frame: f64,
     /// The surfaces' rms roughness and shortest wavelength (m), for `scrape` and
     /// `roll` ([`DEFAULT_ROUGHNESS`], and their default grain, when not given).
     roughness: Option<f64>,
@@ -693,6 +706,7 @@ impl Lowerer<'_> {
         let length = number(self, "length", "how long each impact sounds (s)", 1e-3)?;
         let frame_rate =
             number(self, "frame-rate", "frames per second", 1e-3)?.unwrap_or(DEFAULT_FRAME_RATE);
+        let first_frame = number(self, "first-frame", "the frame at time 0", -1e9)?.unwrap_or(0.0);
         if let Some(e) = options.get("gravity") {
             let value = self.lower(e, origin, &mut Scope::new())?;
             match self.graph.const_value(value) {
@@ -716,6 +730,7 @@ impl Lowerer<'_> {
             gain,
             length,
             frame_rate,
+            first_frame,
             roughness,
             grain,
         })
