@@ -1,0 +1,242 @@
+"""timbre's Blender extension, in real Blender (bpy 5.0.1, headless): installed from
+its zip, it renders the soundtrack of a cube dropped on a floor by Blender's own
+rigid-body simulation, and the impacts are heard when the motion says they happen."""
+
+import os
+import struct
+import subprocess
+
+import bpy
+import numpy as np
+import pytest
+
+from conftest import SHOTS, enable, load_script, timbre_command
+
+make_contacts = load_script("make_contacts", os.path.join(SHOTS, "make-contacts.py"))
+contact_reference = make_contacts.contact_reference
+
+
+def read_wav(path):
+    """(samples as float64 frames × channels, rate) of a 32-bit float WAV file."""
+    data = open(path, "rb").read()
+    assert data[:4] == b"RIFF" and data[8:12] == b"WAVE", path
+    at, fmt, samples = 12, None, None
+    while at + 8 <= len(data):
+        tag, size = struct.unpack_from("<4sI", data, at)
+        body = data[at + 8:at + 8 + size]
+        if tag == b"fmt ":
+            fmt = struct.unpack_from("<HHI", body)
+        elif tag == b"data":
+            samples = np.frombuffer(body, dtype="<f4")
+        at += 8 + size + (size & 1)
+    kind, channels, rate = fmt
+    assert kind in (3, 0xFFFE), f"{path}: not float samples (format {kind})"
+    return samples.reshape(-1, channels).astype(np.float64), rate
+
+
+def cube_drop(tmp_path, installed, fps=24, fps_base=1.0, frames=(1, 72)):
+    """The cube-drop shot of examples/shots/make-contacts.py, left as Blender's live
+    rigid-body simulation (not baked), with the extension's settings on it; at another
+    frame rate and range if asked."""
+    scene, _objects, _moving = make_contacts.build_cube_drop()
+    enable(installed)
+    scene = bpy.context.scene
+    scene.render.fps, scene.render.fps_base = fps, fps_base
+    scene.frame_start, scene.frame_end = frames
+    cache = scene.rigidbody_world.point_cache
+    cache.frame_start, cache.frame_end = frames
+    scene.objects["Cube"].timbre.material = "oak"
+    scene.objects["Floor"].timbre.material = "concrete"
+    scene.timbre.output_dir = str(tmp_path / "out")
+    return scene
+
+
+def reference_impacts(scene):
+    """The impacts that examples/shots/contact_reference.py (physics and geometry, no
+    timbre) derives from the cube's motion as Blender simulates it, in seconds from
+    the start frame."""
+    fps = scene.render.fps / scene.render.fps_base
+    frames = list(range(scene.frame_start, scene.frame_end + 1))
+    track = []
+    for frame in frames:
+        scene.frame_set(frame)
+        location, rotation, _ = scene.objects["Cube"].matrix_world.decompose()
+        track.append({"frame": frame, "position": list(location),
+                      "rotation_wxyz": list(rotation)})
+    scene.frame_set(scene.frame_start)
+    floor = scene.objects["Floor"]
+    location, rotation, _ = floor.matrix_world.decompose()
+    shot = {
+        "fps": fps, "frame_start": frames[0], "frame_end": frames[-1],
+        "gravity": list(scene.gravity),
+        "objects": {
+            "Floor": {"shape": "box", "size": [4.0, 4.0, 0.2], "static": True,
+                      "margin": make_contacts.BOX_MARGIN, "top_z": 0.0,
+                      "position": list(location), "rotation_wxyz": list(rotation)},
+            "Cube": make_contacts.body_entry(scene.objects["Cube"], "box", [0.2, 0.2, 0.2],
+                                             make_contacts.BOX_MARGIN),
+        },
+        "frames": {"Cube": track},
+    }
+    impacts = contact_reference.analyse(shot)["impacts"]
+    # The landings of flights of 0.1 s or more (the cube then tumbles on in hops of two
+    # frames, whose times a fit of so few frames does not pin down to a millisecond).
+    # The reference's times are glTF's, frame / fps; the soundtrack starts at the
+    # start frame.
+    long = [i for i in impacts
+            if (i["flight_before_frames"][1] - i["flight_before_frames"][0]) / fps >= 0.1]
+    return [impact["time"] - scene.frame_start / fps for impact in long]
+
+
+def onsets(samples, rate, after=0.002, rise=30.0):
+    """Sample indices where the sound starts anew: the first sample whose level is
+    `rise` times the mean level of the `after` seconds before it, found on the
+    high-passed (first difference) mono sum, which the ringing of an earlier impact
+    (low modes, decaying) feeds little and a new strike's broadband force much."""
+    x = np.diff(samples.sum(axis=1), prepend=0.0)
+    level = x * x
+    window = int(after * rate)
+    before = np.convolve(level, np.ones(window) / window, mode="full")[:len(level)]
+    floor = 1e-9 * level.max()
+    found, k = [], 0
+    while k < len(level):
+        prior = before[k - 1] if k > 0 else 0.0
+        if level[k] > floor and level[k] > rise * max(prior, floor):
+            found.append(k)
+            k += int(0.02 * rate)  # one strike, not its every sample
+        else:
+            k += 1
+    return found
+
+
+def soundtrack_strips(scene):
+    return [s for s in scene.sequence_editor.strips_all if s.get("timbre_soundtrack")]
+
+
+def test_the_extension_installs_and_enables(installed):
+    import addon_utils
+
+    enabled = {addon.module for addon in bpy.context.preferences.addons}
+    assert installed in enabled
+    assert addon_utils.check(installed) == (True, True)
+    assert hasattr(bpy.ops.timbre, "render_soundtrack")
+    assert hasattr(bpy.ops.timbre, "save_scene")
+    materials = bpy.types.Object.bl_rna.properties["timbre"].fixed_type.properties["material"]
+    assert {"oak", "steel", "concrete", "NONE"} <= {item.identifier for item in
+                                                     materials.enum_items}
+
+
+@pytest.mark.parametrize("fps, fps_base, frames", [
+    (24, 1.0, (1, 72)),
+    # NTSC (29.97 fps), from frame 5.
+    (30, 1.001, (5, 95)),
+])
+def test_a_rigid_body_drop_sounds_its_impacts_when_they_happen(tmp_path, installed, fps,
+                                                              fps_base, frames):
+    scene = cube_drop(tmp_path, installed, fps, fps_base, frames)
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    strips = soundtrack_strips(scene)
+    assert len(strips) == 1
+    strip = strips[0]
+    assert strip.type == "SOUND"
+    assert strip.frame_start == scene.frame_start
+    assert strip.frame_final_duration == scene.frame_end - scene.frame_start + 1
+    samples, rate = read_wav(bpy.path.abspath(strip.sound.filepath))
+    assert rate == scene.timbre.sample_rate
+    seconds = (frames[1] - frames[0] + 1) * fps_base / fps
+    assert samples.shape == (round(seconds * rate), 2)
+    expected = reference_impacts(scene)
+    assert len(expected) == 3, expected
+    heard = [k / rate for k in onsets(samples, rate)]
+    for t in expected:
+        nearest = min(heard, key=lambda h: abs(h - t))
+        assert abs(nearest - t) <= 0.001, (
+            f"the impact at {t:.5f} s (frame {frames[0] + t * fps / fps_base:.2f}) is heard at "
+            f"{nearest:.5f} s; onsets heard: {[round(h, 4) for h in heard]}")
+    # Nothing before the first impact: the cube falls in silence.
+    assert np.abs(samples[: int((expected[0] - 0.001) * rate)]).max() == 0.0
+
+    # A second render replaces the first: still one strip.
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    assert len(soundtrack_strips(scene)) == 1
+
+
+def test_the_saved_scene_renders_the_same_bits_with_the_command_line(tmp_path, installed):
+    scene = cube_drop(tmp_path, installed)
+    scene.timbre.receiver = "MONO"
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    panel, _ = read_wav(bpy.path.abspath(soundtrack_strips(scene)[0].sound.filepath))
+    saved = tmp_path / "saved" / "drop.tt"
+    assert bpy.ops.timbre.save_scene(filepath=str(saved)) == {"FINISHED"}
+    assert (tmp_path / "saved" / "drop.glb").is_file()
+    out = tmp_path / "cli.wav"
+    run = subprocess.run([timbre_command(), "render", str(saved), "-o", str(out), "--format",
+                          "f32"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    cli, _ = read_wav(str(out))
+    assert cli.shape == panel.shape
+    assert np.array_equal(cli.view(np.uint64), panel.view(np.uint64))
+    assert np.abs(panel).max() > 0.01
+
+
+def test_stems_are_strips_on_the_channels_above(tmp_path, installed):
+    scene = cube_drop(tmp_path, installed)
+    scene.timbre.stems = True
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    strips = sorted(soundtrack_strips(scene), key=lambda s: s.channel)
+    mix = strips[0]
+    assert mix.channel == scene.timbre.channel and not mix.mute
+    names = [s.name for s in strips[1:]]
+    assert any("objects/Cube" in n for n in names) and any("kinds/impacts" in n for n in names)
+    assert all(s.mute for s in strips[1:])
+    assert [s.channel for s in strips] == list(range(mix.channel, mix.channel + len(strips)))
+    total, _ = read_wav(bpy.path.abspath(mix.sound.filepath))
+    objects = sum(read_wav(bpy.path.abspath(s.sound.filepath))[0]
+                  for s in strips[1:] if "objects/" in s.name)
+    assert np.array_equal(objects, total)
+
+
+def render_fails(match):
+    with pytest.raises(RuntimeError, match=match):
+        bpy.ops.timbre.render_soundtrack()
+
+
+def test_a_broken_setting_is_an_error_report_and_blender_goes_on(tmp_path, installed):
+    scene = cube_drop(tmp_path, installed)
+    library = tmp_path / "sounds.tt"
+    library.write_text("(define-sound knock (force) (* 0.001 force (sine (* t 700))))\n")
+    cube = scene.objects["Cube"].timbre
+    cube.sound, cube.sound_class = "CLASS", "knok"
+    # A class, but no library to find it in.
+    render_fails("names no library")
+    scene.timbre.library = str(library)
+    # A class the library does not have: timbre's diagnostic, naming it.
+    render_fails("knok")
+    # A library that is not timbre.
+    library.write_text("(define-sound knock (force)\n  (* force (sinee (* t 700))))\n")
+    cube.sound_class = "knock"
+    render_fails(r"sinee.*sounds\.tt:2:")
+    # No camera to hear from.
+    camera, scene.camera = scene.camera, None
+    render_fails("no camera")
+    scene.camera = camera
+    assert len(soundtrack_strips(scene)) == 0 if scene.sequence_editor else True
+    # Mended, it renders.
+    library.write_text("(define-sound knock (force) (* 0.001 force (sine (* t 700))))\n")
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    assert len(soundtrack_strips(scene)) == 1
+
+
+def test_a_cancelled_render_stops(tmp_path, installed):
+    import importlib
+
+    operators = importlib.import_module(installed + ".operators")
+    scene = cube_drop(tmp_path, installed)
+    folder = operators.output_folder(scene)
+    operators.write_scene(bpy.context, folder)
+    job = operators.Job(folder, stems=False)
+    job.cancelled = True
+    job.run()
+    import timbre
+
+    assert isinstance(job.error, timbre.Cancelled)
