@@ -196,6 +196,64 @@ def test_stems_are_strips_on_the_channels_above(tmp_path, installed):
     assert np.array_equal(objects, total)
 
 
+def frequency(samples, rate, start, length):
+    """The frequency (Hz) of the strongest partial of samples[start:start+length]:
+    the peak of a Hann-windowed spectrum, refined by a parabola through its log
+    magnitudes."""
+    x = samples[start:start + length].sum(axis=1)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(len(x)), 16 * len(x)))
+    k = int(np.argmax(spectrum))
+    a, b, c = np.log(spectrum[k - 1:k + 2])
+    return (k + 0.5 * (a - c) / (a - 2 * b + c)) * rate / (16 * len(x))
+
+
+@pytest.mark.parametrize("unit_scale", [1.0, 0.5])
+def test_an_object_emits_a_class_as_it_moves_with_its_doppler_shift(tmp_path, installed,
+                                                                     unit_scale):
+    """An empty driven past the camera at 20 m/s emits a 440 Hz tone from the library:
+    heard higher as it comes and lower as it goes, as f = f0 / (1 - v.u / c) says
+    (u the direction from it to the listener when it emitted what is heard, c 343
+    m/s). With a unit scale of 0.5 the scene is modelled in units of half a metre and
+    sounds the same."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    enable(installed)
+    scene = bpy.context.scene
+    scene.render.fps, scene.frame_start, scene.frame_end = 24, 1, 97
+    scene.unit_settings.system = "METRIC"
+    scene.unit_settings.scale_length = unit_scale
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Lens"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    car = bpy.data.objects.new("Car", None)
+    scene.collection.objects.link(car)
+    start, end, v = np.array([-40.0, 10.0, 0.0]), np.array([40.0, 10.0, 0.0]), 20.0
+    for frame, where in ((1, start), (97, end)):
+        car.location = tuple(where / unit_scale)
+        car.keyframe_insert("location", frame=frame)
+    make_contacts.car_pass.set_interpolation(car, "LINEAR")
+    library = tmp_path / "tones.tt"
+    library.write_text("(define-sound tone () (* 0.5 (sine (* t 440))))\n")
+    scene.timbre.library = str(library)
+    scene.timbre.receiver = "MONO"
+    scene.timbre.subframes = 2
+    scene.timbre.output_dir = str(tmp_path / "out")
+    car.timbre.emit_class = "tone"
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    strip = soundtrack_strips(scene)[0]
+    samples, rate = read_wav(bpy.path.abspath(strip.sound.filepath))
+    c = 343.0
+    for at in (0.5, 3.5):
+        # The emission time of what is heard at `at`, and the car's direction then.
+        emitted = at
+        for _ in range(50):
+            where = start + (end - start) * emitted / 4.0
+            emitted = at - np.linalg.norm(where) / c
+        u = -where / np.linalg.norm(where)
+        expected = 440.0 / (1.0 - np.dot(np.array([v, 0.0, 0.0]), u) / c)
+        measured = frequency(samples, rate, int((at - 0.1) * rate), int(0.2 * rate))
+        assert abs(measured / expected - 1.0) < 1e-3, (at, measured, expected)
+
+
 def render_fails(match):
     with pytest.raises(RuntimeError, match=match):
         bpy.ops.timbre.render_soundtrack()
