@@ -3,6 +3,8 @@ properties, and the sequencer's sidebar)."""
 
 import bpy
 
+from . import soundtrack
+
 
 def draw_soundtrack(layout, scene):
     settings = scene.timbre
@@ -26,8 +28,7 @@ def draw_soundtrack(layout, scene):
     column.prop(settings, "output_dir")
     column.prop(settings, "channel")
     column.prop(settings, "stems")
-    sounding = [obj for obj in scene.objects
-                if obj.timbre.material != "NONE" or obj.timbre.emit_class.strip()]
+    sounding = soundtrack.objects_of(scene)
     column.label(text=f"{len(sounding)} objects sound", icon="OBJECT_DATA")
     row = layout.row(align=True)
     row.scale_y = 1.4

@@ -76,9 +76,10 @@ def library_path(scene, abspath):
 
 
 def objects_of(scene):
-    """The objects that take part: those with a material or an emitted class."""
-    return [obj for obj in scene.objects
-            if obj.timbre.material != "NONE" or obj.timbre.emit_class.strip()]
+    """The objects that take part: those with a material or an emitted class, unless
+    they are hidden in renders (as they are from the picture)."""
+    return [obj for obj in scene.objects if not obj.hide_render
+            and (obj.timbre.material != "NONE" or obj.timbre.emit_class.strip())]
 
 
 def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION_FILE):

@@ -298,3 +298,57 @@ def test_a_cancelled_render_stops(tmp_path, installed):
     import timbre
 
     assert isinstance(job.error, timbre.Cancelled)
+
+
+class Layout:
+    """Stands in for Blender's UILayout (a panel draws only in a window): records what
+    a panel draws and checks that each property and operator it names exists."""
+
+    def __init__(self, drawn):
+        self.drawn = drawn
+        self.use_property_split = self.use_property_decorate = self.active = False
+        self.scale_y = 1.0
+
+    def column(self, **_):
+        return self
+
+    row = column
+
+    def prop(self, data, name, **_):
+        assert name in data.bl_rna.properties, f"{data!r} has no property {name!r}"
+        self.drawn.append(name)
+
+    def operator(self, idname, **_):
+        family, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, family), name), idname
+        self.drawn.append(idname)
+
+    def label(self, **_):
+        pass
+
+    def separator(self, **_):
+        pass
+
+
+def test_the_panels_draw_every_setting(tmp_path, installed):
+    import importlib
+
+    panels = importlib.import_module(installed + ".panels")
+    scene = cube_drop(tmp_path, installed)
+    drawn = []
+    panels.draw_soundtrack(Layout(drawn), scene)
+    settings = set(scene.timbre.bl_rna.properties.keys()) - {"rna_type", "name"}
+    assert settings <= set(drawn), settings - set(drawn)
+    assert "timbre.render_soundtrack" in drawn and "timbre.save_scene" in drawn
+
+    class Context:
+        object = scene.objects["Cube"]
+
+    class Panel:
+        layout = Layout(drawn)
+
+    drawn.clear()
+    scene.objects["Cube"].timbre.sound = "CLASS"
+    panels.TIMBRE_PT_object.draw(Panel(), Context())
+    fields = set(scene.objects["Cube"].timbre.bl_rna.properties.keys()) - {"rna_type", "name"}
+    assert fields <= set(drawn), fields - set(drawn)
