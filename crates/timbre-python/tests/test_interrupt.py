@@ -33,3 +33,20 @@ def test_ctrl_c_interrupts_a_long_render():
         child.kill()
     assert out == "interrupted\n"
     assert child.returncode == 3
+
+
+def test_ctrl_c_interrupts_a_render_with_a_progress_callback():
+    child = subprocess.Popen(
+        [sys.executable, "-c", LONG_RENDER.replace("threads=1)", "threads=1, progress=float)")],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert child.stdout.readline() == "rendering\n"
+        time.sleep(1)
+        child.send_signal(signal.SIGINT)
+        out, _ = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    assert out == "interrupted\n"
+    assert child.returncode == 3

@@ -133,3 +133,106 @@ def test_a_path_that_cannot_be_read_is_an_error(tmp_path):
     with pytest.raises(timbre.Error) as raised:
         timbre.render(tmp_path / "nowhere.tt")
     assert "cannot read" in str(raised.value)
+
+
+# Open-ended (it lasts until the second ping has decayed), so a fade-out needs the
+# length found first; stereo, for the mix-down to one channel.
+PINGS = """(scene :channels 2)
+(define-sound ping (f) (* 0.7 (sine (* t f)) (damp (* t 15))))
+(instance a (ping :f 440) :pan -0.6)
+(instance b (ping :f 660) :start 0.2 :pan 0.4)
+"""
+
+
+@pytest.mark.parametrize(
+    "flags, options",
+    [
+        (["--fade-out", "0.25"], {"fade_out": 0.25}),
+        (["--gain", "0.5"], {"gain": 0.5}),
+        (["--normalize"], {"normalize": True}),
+        (["--normalize", "-6", "--fade-out", "0.1"], {"normalize": -6.0, "fade_out": 0.1}),
+        (["--channels", "1", "--gain", "2"], {"channels": 1, "gain": 2.0}),
+        (["-d", "0.5", "--fade-out", "0.2"], {"duration": 0.5, "fade_out": 0.2}),
+    ],
+)
+def test_gain_fade_normalize_and_channels_are_the_command_lines(tmp_path, flags, options):
+    script = tmp_path / "pings.tt"
+    script.write_text(PINGS)
+    wav = tmp_path / "pings.wav"
+    cli("render", str(script), "-r", "8000", "--format", "f32", "-q", "-o", str(wav), *flags)
+    expected = read_f32_wav(wav)
+    samples = timbre.render(script, rate=8000, **options)
+    assert samples.shape == expected.shape
+    assert samples.tobytes() == expected.tobytes()
+    assert numpy.abs(samples).max() > 0.1
+
+
+def test_a_fade_out_ends_in_silence_and_normalize_sets_the_peak():
+    faded = timbre.render("(* 0.5 (sine (* t 440)))", duration=1, rate=8000, fade_out=0.5)
+    assert faded[-1, 0] == 0.0 and numpy.abs(faded[:4000]).max() > 0.49
+    assert numpy.abs(faded[-400:]).max() < 0.05
+    loud = timbre.render("(* 0.1 (sine (* t 440)))", duration=1, rate=8000, normalize=-1)
+    assert abs(20 * numpy.log10(numpy.abs(loud).max()) - -1.0) < 1e-4
+
+
+def test_channels_copy_a_mono_sound_and_refuse_what_cannot_be_mixed():
+    stereo = timbre.render("(* 0.5 (sine (* t 440)))", duration=0.1, rate=8000, channels=2)
+    assert stereo.shape == (800, 2) and (stereo[:, 0] == stereo[:, 1]).all()
+    with pytest.raises(ValueError, match="channels=3: the sound has 2 channels"):
+        timbre.render(PINGS, rate=8000, channels=3)
+
+
+@pytest.mark.parametrize(
+    "options, error, words",
+    [
+        ({"gain": float("nan")}, ValueError, "gain=NaN: must be a finite number"),
+        ({"normalize": float("inf")}, ValueError, "normalize=inf"),
+        ({"normalize": "loud"}, TypeError, "normalize: expected a peak in dBFS"),
+        ({"fade_out": 0.0}, ValueError, "fade_out=0: must be a finite number greater than 0"),
+        ({"channels": 65}, ValueError, "channels=65: must be from 1 to 64"),
+        ({"progress": 3}, TypeError, "progress: expected a callable"),
+    ],
+)
+def test_the_new_options_refuse_what_makes_no_sense(options, error, words):
+    with pytest.raises(error) as raised:
+        timbre.render("(sine (* t 440))", **options)
+    assert words in str(raised.value)
+
+
+def test_progress_is_reported_between_chunks_up_to_one():
+    fractions = []
+    samples = timbre.render(PINGS, rate=8000, normalize=True, fade_out=0.1,
+                            progress=fractions.append)
+    assert len(fractions) >= 4, "chunks of 8192 frames, over three passes"
+    assert all(0 < f <= 1 for f in fractions)
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    assert samples.shape[0] > 8192
+    stems = []
+    timbre.render(PINGS, rate=8000, stems=True, progress=stems.append)
+    assert stems[-1] == 1.0 and stems == sorted(stems)
+
+
+def test_a_progress_callback_that_returns_false_cancels_the_render():
+    calls = []
+
+    def stop(fraction):
+        calls.append(fraction)
+        return False
+
+    with pytest.raises(timbre.Cancelled) as raised:
+        timbre.render("(sine (* t 440))", duration=10, rate=8000, progress=stop)
+    assert len(calls) == 1 and calls[0] < 0.2, "stopped at the first chunk"
+    assert not isinstance(raised.value, timbre.Error)
+    assert "cancelled" in str(raised.value)
+    with pytest.raises(timbre.Cancelled):
+        timbre.render(PINGS, rate=8000, stems=True, progress=lambda f: f < 0.5)
+    # Only False cancels: None (a callback that returns nothing) goes on.
+    assert timbre.render("(sine (* t 440))", rate=8000, progress=lambda f: None).shape == (8000, 1)
+
+
+def test_what_a_progress_callback_raises_stops_the_render():
+    def broken(fraction):
+        raise RuntimeError("the user interface is gone")
+
+    with pytest.raises(RuntimeError, match="the user interface is gone"):
+        timbre.render("(sine (* t 440))", duration=10, rate=8000, progress=broken)

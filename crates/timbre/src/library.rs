@@ -49,6 +49,29 @@ impl Engine {
         self.load(source, dir.as_deref())
     }
 
+    /// Reads sound classes from a text the host has read itself (a file it trusts, an
+    /// editor's buffer …): `source` names it in diagnostics, and the files it names
+    /// (`include`, `sample` …) are read through the engine's loader, relative to
+    /// `dir`. [`Engine::load_library_file`] reads the file itself through the loader
+    /// too; this is for a host that reads it otherwise.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0);
+    /// let source = timbre::SourceFile::new("tones.tt", "(define-sound tone (f) (sine (* t f)))");
+    /// let library = engine.load_library_source(source, None).unwrap();
+    /// assert_eq!(library.classes()[0].0, "tone");
+    /// let typo = timbre::SourceFile::new("typo.tt", "(define-sound tone (f) (sinee (* t f)))");
+    /// let error = engine.load_library_source(typo, None).unwrap_err();
+    /// assert!(timbre::report(&error.0).contains("typo.tt"), "named as the host named it");
+    /// ```
+    pub fn load_library_source(
+        &self,
+        source: Arc<SourceFile>,
+        dir: Option<&Path>,
+    ) -> Result<SoundLibrary, Diagnostics> {
+        self.load(source, dir)
+    }
+
     fn load(
         &self,
         source: Arc<SourceFile>,

@@ -333,6 +333,21 @@ impl SceneFile {
         &self.program.definitions
     }
 
+    /// The name the file defines that `name` is likely a misspelling of, if one is
+    /// close (as the diagnostics' "did you mean"): for a host that reports an unused
+    /// binding ([`SceneFile::unused_bindings`]) with a hint.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0).with_binding("pich", 440.0);
+    /// let file = engine.read_scene("(define pitch 220) (sine (* t pitch))").unwrap();
+    /// assert_eq!(file.unused_bindings(), ["pich"]);
+    /// assert_eq!(file.closest_definition("pich"), Some("pitch"));
+    /// assert_eq!(file.closest_definition("volume"), None);
+    /// ```
+    pub fn closest_definition(&self, name: &str) -> Option<&str> {
+        timbre_lang::did_you_mean(name, self.definitions().iter().map(String::as_str))
+    }
+
     /// The lowered program, for tools that look inside it (printing its graph,
     /// drawing it): the nodes, their spans and the instances.
     ///

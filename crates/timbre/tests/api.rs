@@ -296,6 +296,42 @@ fn a_library_file_is_read_only_through_the_engines_loader() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+#[test]
+fn a_library_the_host_read_reads_its_includes_through_the_loader() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tones.tt"),
+        "(define-sound beep (f) (sine (* t f)))",
+    )
+    .unwrap();
+    let text = "(include \"tones.tt\") (define-sound buzz () (sawtooth (* t 90)))";
+    let source = || timbre::SourceFile::new("host.tt", text);
+    let library = Engine::new(48_000.0)
+        .with_file_access_within([dir.path()])
+        .unwrap()
+        .load_library_source(source(), Some(dir.path()))
+        .expect("the include found beside the text, inside the sandbox");
+    let names: Vec<String> = library.classes().into_iter().map(|(c, _)| c).collect();
+    assert!(names.contains(&"beep".to_owned()) && names.contains(&"buzz".to_owned()));
+    let refused = Engine::new(48_000.0)
+        .load_library_source(source(), Some(dir.path()))
+        .expect_err("the include is read through the loader, which reads no files");
+    assert!(timbre::report(&refused.0).contains("host.tt"));
+}
+
+#[test]
+fn an_unused_binding_is_matched_to_the_definition_it_misspells() {
+    let engine = Engine::new(48_000.0)
+        .with_binding("nominal-frq", 200.0)
+        .with_binding("loudness", 1.0);
+    let file = engine
+        .read_scene("(define nominal-freq 180) (* 0.5 (sine (* t nominal-freq)))")
+        .unwrap();
+    assert_eq!(file.unused_bindings(), ["loudness", "nominal-frq"]);
+    assert_eq!(file.closest_definition("nominal-frq"), Some("nominal-freq"));
+    assert_eq!(file.closest_definition("loudness"), None);
+}
+
 /// A node written by the host: a slow wobble of its input, stateless.
 struct Wobble;
 
