@@ -11,6 +11,7 @@ traceback.
 
 import os
 import threading
+import warnings
 
 import bpy
 from bpy.props import StringProperty
@@ -45,29 +46,48 @@ def describe(error):
     return f"timbre: {type(error).__name__}: {error}"
 
 
+def warning_line(text):
+    """The message of a warning as the command line prints it ("warning: …" with its
+    source lines after): its first line that says something."""
+    for line in text.splitlines():
+        line = line.strip().lstrip("⚠!").strip()
+        if line and not line.startswith("timbre::"):
+            return line.removeprefix("warning:").strip()
+    return text.strip()
+
+
 class Job:
     """One render: where its files go and what it was asked."""
 
-    def __init__(self, folder, stems):
+    def __init__(self, folder, stems, on_progress=None):
         self.folder = folder
+        self.on_progress = on_progress
         self.scene_path = os.path.join(folder, soundtrack.SCENE_FILE)
         self.stems = stems
         self.fraction = 0.0
         self.cancelled = False
         self.result = None
         self.error = None
+        # The script's warnings (timbre.Warning), reported once the render is done.
+        self.warnings = []
 
     def progress(self, fraction):
         """The render's callback: keeps the fraction, and says whether to go on."""
         self.fraction = fraction
+        if self.on_progress is not None:
+            self.on_progress(fraction)
         return not self.cancelled
 
     def run(self):
         """Renders the scene file (on any thread)."""
         timbre = _timbre()
         try:
-            self.result = timbre.render(self.scene_path, stems=self.stems,
-                                        progress=self.progress)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", timbre.Warning)
+                self.result = timbre.render(self.scene_path, stems=self.stems,
+                                            progress=self.progress)
+            self.warnings = [str(w.message) for w in caught
+                             if issubclass(w.category, timbre.Warning)]
         except Exception as error:  # reported on the main thread
             self.error = error
 
@@ -161,7 +181,7 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
     _thread = None
     _timer = None
 
-    def prepare(self, context):
+    def prepare(self, context, on_progress=None):
         folder = output_folder(context.scene)
         wm = context.window_manager
         wm.progress_begin(0, 100)
@@ -169,7 +189,7 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
             write_scene(context, folder, progress=lambda f: wm.progress_update(int(20 * f)))
         finally:
             wm.progress_end()
-        return Job(folder, context.scene.timbre.stems)
+        return Job(folder, context.scene.timbre.stems, on_progress)
 
     def fail(self, error):
         self.report({"ERROR"}, describe(error))
@@ -177,14 +197,22 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
             print(str(error))
         return {"CANCELLED"}
 
+    def done(self, job):
+        """Reports the script's warnings (their first line; the console has them
+        whole) and where the soundtrack went."""
+        for text in job.warnings:
+            print(text)
+            self.report({"WARNING"}, "timbre: " + warning_line(text))
+        self.report({"INFO"}, f"timbre: soundtrack written to {job.folder}")
+        return {"FINISHED"}
+
     def execute(self, context):
         """From a script: renders in place, with Blender's progress in the status bar."""
+        wm = context.window_manager
         try:
-            job = self.prepare(context)
-            wm = context.window_manager
+            job = self.prepare(context, lambda f: wm.progress_update(20 + int(80 * f)))
             wm.progress_begin(0, 100)
             try:
-                job.progress = lambda f: wm.progress_update(20 + int(80 * f)) or True
                 job.run()
             finally:
                 wm.progress_end()
@@ -193,8 +221,7 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
             finish(context, job)
         except Exception as error:
             return self.fail(error)
-        self.report({"INFO"}, f"timbre: soundtrack written to {job.folder}")
-        return {"FINISHED"}
+        return self.done(job)
 
     def invoke(self, context, event):
         """From the interface: renders on a thread; Esc cancels."""
@@ -236,8 +263,7 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
             finish(context, job)
         except Exception as error:
             return self.fail(error)
-        self.report({"INFO"}, f"timbre: soundtrack written to {job.folder}")
-        return {"FINISHED"}
+        return self.done(job)
 
 
 class TIMBRE_OT_save_scene(bpy.types.Operator, ExportHelper):
