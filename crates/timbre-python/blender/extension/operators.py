@@ -10,6 +10,7 @@ traceback.
 """
 
 import os
+import shutil
 import threading
 import warnings
 
@@ -59,8 +60,9 @@ def warning_line(text):
 class Job:
     """One render: where its files go and what it was asked."""
 
-    def __init__(self, folder, stems, on_progress=None):
+    def __init__(self, folder, rate, stems, on_progress=None):
         self.folder = folder
+        self.rate = rate
         self.on_progress = on_progress
         self.scene_path = os.path.join(folder, soundtrack.SCENE_FILE)
         self.stems = stems
@@ -104,8 +106,8 @@ def output_folder(scene):
     return folder
 
 
-def write_scene(context, folder, motion_name=soundtrack.MOTION_FILE, scene_name=soundtrack.SCENE_FILE,
-                progress=None):
+def write_scene(context, folder, motion_name=soundtrack.MOTION_FILE,
+                scene_name=soundtrack.SCENE_FILE, progress=None):
     """Reads the motion and writes the timbre scene and its motion into `folder`;
     returns the scene file's path."""
     scene = context.scene
@@ -126,9 +128,7 @@ def write_scene(context, folder, motion_name=soundtrack.MOTION_FILE, scene_name=
 def finish(context, job):
     """Writes the rendered sound and puts its strips in the sequencer."""
     scene = context.scene
-    settings = scene.timbre
-    result = job.result
-    rate = settings.sample_rate
+    result, rate = job.result, job.rate
     if job.stems:
         mix = result.mix
         families = {"objects": result.objects, "kinds": result.kinds}
@@ -136,6 +136,8 @@ def finish(context, job):
         mix, families = result, {}
     sound_path = os.path.join(job.folder, soundtrack.SOUND_FILE)
     soundtrack.write_wav(sound_path, mix, rate)
+    # The last render's stems go: their objects may not be this one's.
+    shutil.rmtree(os.path.join(job.folder, soundtrack.STEMS_DIR), ignore_errors=True)
     stems = []
     for family, parts in families.items():
         folder = os.path.join(job.folder, soundtrack.STEMS_DIR, family)
@@ -189,7 +191,8 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
             write_scene(context, folder, progress=lambda f: wm.progress_update(int(20 * f)))
         finally:
             wm.progress_end()
-        return Job(folder, context.scene.timbre.stems, on_progress)
+        settings = context.scene.timbre
+        return Job(folder, settings.sample_rate, settings.stems, on_progress)
 
     def fail(self, error):
         self.report({"ERROR"}, describe(error))

@@ -97,7 +97,16 @@ def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION
         raise SettingError(
             f"only `{sounding[0].name}` has a material: contacts need two objects with "
             "one (give the floor or what it hits a material too)")
+    if scene.render.frame_map_old != scene.render.frame_map_new:
+        raise SettingError(
+            "the scene's Time Stretching (Output properties, Frame Range) plays frames at "
+            "other times than the motion's: set Old and New equal")
     for obj in objects:
+        for name in (obj.timbre.sound_class, obj.timbre.emit_class):
+            if any(c in name.strip() for c in ' \t\n()";'):
+                raise SettingError(
+                    f"`{obj.name}` names the class `{name.strip()}`: a class's name has no "
+                    "spaces, parentheses, quotes or semicolons")
         uses_class = (obj.timbre.material != "NONE" and obj.timbre.sound == "CLASS") or \
             obj.timbre.emit_class.strip()
         if uses_class and library is None:

@@ -274,6 +274,10 @@ def test_a_broken_setting_is_an_error_report_and_blender_goes_on(tmp_path, insta
     library.write_text("(define-sound knock (force)\n  (* force (sinee (* t 700))))\n")
     cube.sound_class = "knock"
     render_fails(r"sinee.*sounds\.tt:2:")
+    # A name that is not a name.
+    cube.sound_class = "knock it"
+    render_fails("knock it.*no spaces")
+    cube.sound_class = "knock"
     # No camera to hear from.
     camera, scene.camera = scene.camera, None
     render_fails("no camera")
@@ -292,7 +296,7 @@ def test_a_cancelled_render_stops(tmp_path, installed):
     scene = cube_drop(tmp_path, installed)
     folder = operators.output_folder(scene)
     operators.write_scene(bpy.context, folder)
-    job = operators.Job(folder, stems=False)
+    job = operators.Job(folder, scene.timbre.sample_rate, stems=False)
     job.cancelled = True
     job.run()
     import timbre
@@ -352,3 +356,24 @@ def test_the_panels_draw_every_setting(tmp_path, installed):
     panels.TIMBRE_PT_object.draw(Panel(), Context())
     fields = set(scene.objects["Cube"].timbre.bl_rna.properties.keys()) - {"rna_type", "name"}
     assert fields <= set(drawn), fields - set(drawn)
+
+
+def test_a_scripts_warnings_are_warning_reports(tmp_path, installed, capfd):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    enable(installed)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 12
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Lens"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    horn = bpy.data.objects.new("Horn", None)
+    horn.location = (0.0, 5.0, 0.0)
+    scene.collection.objects.link(horn)
+    library = tmp_path / "horns.tt"
+    library.write_text("(define-sound flat () (* 0.1 (sine 440)))\n")
+    scene.timbre.library = str(library)
+    scene.timbre.output_dir = str(tmp_path / "out")
+    horn.timbre.emit_class = "flat"
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    out = capfd.readouterr().out
+    assert "Warning: timbre: `(sine 440)` has a constant phase" in out, out
