@@ -142,8 +142,13 @@ def finish(context, job):
     for family, parts in families.items():
         folder = os.path.join(job.folder, soundtrack.STEMS_DIR, family)
         os.makedirs(folder, exist_ok=True)
+        used = set()
         for label, samples in sorted(parts.items()):
-            path = os.path.join(folder, soundtrack.safe_file_name(label) + ".wav")
+            name = soundtrack.safe_file_name(label)
+            while name in used:  # two labels made one name ("a b", "a_b")
+                name += "_"
+            used.add(name)
+            path = os.path.join(folder, name + ".wav")
             soundtrack.write_wav(path, samples, rate)
             stems.append((f"{family}/{label}", path))
     add_strips(scene, sound_path, stems)

@@ -135,9 +135,9 @@ class _Buffer:
         return len(self.accessors) - 1
 
 
-def write_glb(path, scene, depsgraph, objects, subframes=1, progress=None):
+def write_glb(out, scene, depsgraph, objects, subframes=1, progress=None):
     """Step `scene` through its frame range and write the world motion, meshes and
-    cameras of `objects` (a list of Blender objects) to `path`. The scene is left at
+    cameras of `objects` (a list of Blender objects) to the binary file `out`. The scene is left at
     the frame it was on. `progress(fraction)` is called as frames go by."""
     unit_scale = scene.unit_settings.scale_length if scene.unit_settings.system != "NONE" else 1.0
     if not (unit_scale > 0.0 and math.isfinite(unit_scale)):
@@ -236,9 +236,8 @@ def write_glb(path, scene, depsgraph, objects, subframes=1, progress=None):
     chunks = struct.pack("<I4s", len(text), b"JSON") + text
     if buffer.data:
         chunks += struct.pack("<I4s", len(buffer.data), b"BIN\0") + bytes(buffer.data)
-    with open(path, "wb") as out:
-        out.write(struct.pack("<4sII", b"glTF", 2, 12 + len(chunks)))
-        out.write(chunks)
+    out.write(struct.pack("<4sII", b"glTF", 2, 12 + len(chunks)))
+    out.write(chunks)
 
 
 def _continuous(quaternions):

@@ -222,17 +222,8 @@ def write_text(path, text):
 
 def write_motion(path, scene, depsgraph, objects, subframes, progress=None):
     """The shot's motion into `path`, written atomically."""
-    folder = os.path.dirname(path) or "."
-    handle, temporary = tempfile.mkstemp(prefix=".timbre-", suffix=".glb", dir=folder)
-    os.close(handle)
-    try:
-        shot.write_glb(temporary, scene, depsgraph, objects, subframes, progress)
-        os.chmod(temporary, FILE_MODE)
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-        raise
+    write_atomically(
+        path, lambda out: shot.write_glb(out, scene, depsgraph, objects, subframes, progress))
 
 
 def safe_file_name(label):
