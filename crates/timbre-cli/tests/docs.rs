@@ -45,6 +45,14 @@ fn every_lisp_block_in_the_guide_checks() {
         )
         .unwrap();
     }
+    // …and the scene the Blender extension writes for the cube drop, which reads its
+    // motion as `soundtrack.glb`: the cube-drop shot has the same nodes (Cube, Floor,
+    // Camera).
+    std::fs::copy(
+        examples.join("shots").join("cube-drop.glb"),
+        dir.path().join("soundtrack.glb"),
+    )
+    .unwrap();
     let mut checked = 0;
     let mut failures = vec![];
     for entry in std::fs::read_dir(&docs).unwrap() {
