@@ -115,7 +115,11 @@ def write_scene(context, folder, motion_name=soundtrack.MOTION_FILE,
     library = soundtrack.library_path(scene, bpy.path.abspath)
     objects = soundtrack.objects_of(scene)
     blend = os.path.basename(bpy.data.filepath) if bpy.data.filepath else None
-    text = soundtrack.scene_text(scene, objects, listener, library, blend, motion_name)
+    classes = None
+    if library is not None:
+        engine = _timbre().Engine(file_access=True)
+        classes = engine.load_library_file(library).classes()
+    text = soundtrack.scene_text(scene, objects, listener, library, blend, motion_name, classes)
     exported = objects + ([listener] if listener not in objects else [])
     depsgraph = context.evaluated_depsgraph_get()
     soundtrack.write_motion(os.path.join(folder, motion_name), scene, depsgraph, exported,

@@ -59,7 +59,9 @@ class TimbreObject(bpy.types.PropertyGroup):
     emit_class: StringProperty(
         name="Emits",
         description="A class of the scene's library played for the whole shot from this "
-                    "object as it moves (an engine, a siren), called with no arguments",
+                    "object as it moves (an engine, a siren). Its parameters are the "
+                    "object's motion, by name: speed (m/s), angular-speed (rad/s), height "
+                    "(m), distance (m to the listener), approach (m/s toward it)",
     )
 
 

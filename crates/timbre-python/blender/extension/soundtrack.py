@@ -19,6 +19,17 @@ STEMS_DIR = "stems"
 FILE_MODE = 0o644
 
 
+# What an emitted class's parameters may be, by name: the object's motion, read from
+# the shot as the sound plays (lang-spec/motion.md, quantities of motion).
+MOTION_PARAMETERS = {
+    "speed": '(speed {obj})',
+    "angular-speed": '(angular-speed {obj})',
+    "height": '(index (position {obj}) 2)',
+    "distance": '(distance {obj} {listener})',
+    "approach": '(approach {obj} {listener})',
+}
+
+
 class SettingError(Exception):
     """A setting that cannot make a soundtrack; the message names it and says what to
     do."""
@@ -82,9 +93,10 @@ def objects_of(scene):
             and (obj.timbre.material != "NONE" or obj.timbre.emit_class.strip())]
 
 
-def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION_FILE):
+def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION_FILE,
+               classes=None):
     """The timbre scene of the soundtrack, reading its motion from `motion_file`
-    (beside it)."""
+    (beside it). `classes` maps the library's classes to their parameters' names."""
     settings = scene.timbre
     fps = scene.render.fps / scene.render.fps_base
     sounding = [obj for obj in objects if obj.timbre.material != "NONE"]
@@ -164,10 +176,28 @@ def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION
         lines += ["          " + option for option in options]
         lines[-1] += ")"
     for k, obj in enumerate(emitters, 1):
+        name = obj.timbre.emit_class.strip()
+        call = " ".join([name] + [f":{p} {value}" for p, value in
+                                  emitted_parameters(obj, name, listener, classes or {})])
         lines.append(f"(source emitter-{k} :object {quoted(obj.name)})")
-        lines.append(f"(instance emits-{k} ({obj.timbre.emit_class.strip()}) "
-                     f":source emitter-{k})")
+        lines.append(f"(instance emits-{k} ({call}) :source emitter-{k} "
+                     f":stop {number(seconds_of(scene))})")
     return "\n".join(lines) + "\n"
+
+
+def emitted_parameters(obj, name, listener, classes):
+    """(parameter, expression) for each parameter of the class `obj` emits: its
+    motion, by the parameter's name (MOTION_PARAMETERS)."""
+    if name not in classes:
+        return []  # timbre's own diagnostic names the class the library lacks
+    unknown = [p for p in classes[name] if p not in MOTION_PARAMETERS]
+    if unknown:
+        raise SettingError(
+            f"`{obj.name}` emits `{name}`, whose parameters {', '.join(unknown)} the motion "
+            f"cannot give: an emitted class's parameters are named "
+            f"{', '.join(MOTION_PARAMETERS)}")
+    return [(p, MOTION_PARAMETERS[p].format(obj=quoted(obj.name), listener=quoted(listener.name)))
+            for p in classes[name]]
 
 
 def mass_of(obj):

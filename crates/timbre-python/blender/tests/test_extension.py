@@ -274,6 +274,7 @@ def test_a_broken_setting_is_an_error_report_and_blender_goes_on(tmp_path, insta
     library.write_text("(define-sound knock (force)\n  (* force (sinee (* t 700))))\n")
     cube.sound_class = "knock"
     render_fails(r"sinee.*sounds\.tt:2:")
+    library.write_text("(define-sound knock (force) (* 0.001 force (sine (* t 700))))\n")
     # A name that is not a name.
     cube.sound_class = "knock it"
     render_fails("knock it.*no spaces")
@@ -284,7 +285,6 @@ def test_a_broken_setting_is_an_error_report_and_blender_goes_on(tmp_path, insta
     scene.camera = camera
     assert len(soundtrack_strips(scene)) == 0 if scene.sequence_editor else True
     # Mended, it renders.
-    library.write_text("(define-sound knock (force) (* 0.001 force (sine (* t 700))))\n")
     assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
     assert len(soundtrack_strips(scene)) == 1
 
@@ -356,6 +356,46 @@ def test_the_panels_draw_every_setting(tmp_path, installed):
     panels.TIMBRE_PT_object.draw(Panel(), Context())
     fields = set(scene.objects["Cube"].timbre.bl_rna.properties.keys()) - {"rna_type", "name"}
     assert fields <= set(drawn), fields - set(drawn)
+
+
+def test_an_emitted_class_reads_its_objects_motion_by_parameter_name(tmp_path, installed):
+    """A whine whose pitch is 20 × its speed, on an empty 10 m from the camera, carried
+    round it once in 4 s by a rotating parent: no Doppler shift (its distance does not
+    change), speed 2π·10/4 = 15.71 m/s through the hierarchy, so 314.2 Hz; a class
+    with a parameter the motion cannot give is a report naming it."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    enable(installed)
+    scene = bpy.context.scene
+    scene.render.fps, scene.frame_start, scene.frame_end = 24, 1, 97
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Lens"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    arm = bpy.data.objects.new("Arm", None)
+    scene.collection.objects.link(arm)
+    for frame, angle in ((1, 0.0), (97, 2.0 * np.pi)):
+        arm.rotation_euler = (0.0, 0.0, angle)
+        arm.keyframe_insert("rotation_euler", frame=frame)
+    make_contacts.car_pass.set_interpolation(arm, "LINEAR")
+    drone = bpy.data.objects.new("Drone", None)
+    scene.collection.objects.link(drone)
+    drone.parent = arm
+    drone.location = (10.0, 0.0, 0.0)
+    library = tmp_path / "drones.tt"
+    library.write_text("(define-sound whine (speed distance) "
+                       "(* 0.3 (/ 10 distance) (sine (* t (* 20 speed)))))\n"
+                       "(define-sound buzz (speed wings) (* 0.3 (sine (* t wings))))\n")
+    scene.timbre.library = str(library)
+    scene.timbre.receiver = "MONO"
+    scene.timbre.output_dir = str(tmp_path / "out")
+    drone.timbre.emit_class = "buzz"
+    render_fails("buzz.*wings")
+    drone.timbre.emit_class = "whine"
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    samples, rate = read_wav(bpy.path.abspath(soundtrack_strips(scene)[0].sound.filepath))
+    expected = 20.0 * 2.0 * np.pi * 10.0 / 4.0
+    for at in (1.0, 3.0):
+        measured = frequency(samples, rate, int((at - 0.25) * rate), int(0.5 * rate))
+        assert abs(measured / expected - 1.0) < 1e-3, (at, measured, expected)
 
 
 def test_a_scripts_warnings_are_warning_reports(tmp_path, installed, capfd):
