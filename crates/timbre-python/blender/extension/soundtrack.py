@@ -160,10 +160,11 @@ def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION
             options.append(":modal ({})".format(" ".join(quoted(obj.name) for obj in modal)))
             if settings.modes != 32:
                 options.append(f":modes {settings.modes}")
-        classes = [obj for obj in sounding if obj.timbre.sound == "CLASS"]
-        if classes:
+        sounding_classes = [obj for obj in sounding if obj.timbre.sound == "CLASS"]
+        if sounding_classes:
             options.append(":sounds ({})".format(" ".join(
-                f"({quoted(obj.name)} {obj.timbre.sound_class.strip()})" for obj in classes)))
+                f"({quoted(obj.name)} {obj.timbre.sound_class.strip()})"
+                for obj in sounding_classes)))
         masses = [(obj, mass_of(obj)) for obj in sounding]
         masses = [(obj, m) for obj, m in masses if m is not None]
         if masses:

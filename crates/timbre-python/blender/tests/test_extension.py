@@ -380,6 +380,11 @@ def test_an_emitted_class_reads_its_objects_motion_by_parameter_name(tmp_path, i
     scene.collection.objects.link(drone)
     drone.parent = arm
     drone.location = (10.0, 0.0, 0.0)
+    # Two blocks that never touch, so that the scene has contacts too.
+    for k, name in enumerate(("Left", "Right")):
+        block = make_contacts.add_object(name, make_contacts.box_mesh(name, (1.0, 1.0, 1.0)),
+                                         (-50.0 + 100.0 * k, 0.0, 0.0))
+        block.timbre.material = "stone"
     library = tmp_path / "drones.tt"
     library.write_text("(define-sound whine (speed distance) "
                        "(* 0.3 (/ 10 distance) (sine (* t (* 20 speed)))))\n"
