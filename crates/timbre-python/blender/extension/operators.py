@@ -191,6 +191,15 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
     _job = None
     _thread = None
     _timer = None
+    # A render on its thread, started from the interface: one at a time.
+    rendering = False
+
+    @classmethod
+    def poll(cls, context):
+        if cls.rendering:
+            cls.poll_message_set("a soundtrack is rendering (Esc cancels it)")
+            return False
+        return True
 
     def prepare(self, context, on_progress=None):
         folder = output_folder(context.scene)
@@ -243,6 +252,7 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
             return self.fail(error)
         self._thread = threading.Thread(target=self._job.run, name="timbre render", daemon=True)
         self._thread.start()
+        TIMBRE_OT_render_soundtrack.rendering = True
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.progress_begin(0, 100)
@@ -252,7 +262,8 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
     def modal(self, context, event):
         job = self._job
         if event.type == "ESC":
-            job.cancelled = True
+            job.cancelled = True  # the render stops at its next chunk
+            return {"RUNNING_MODAL"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         wm = context.window_manager
@@ -262,6 +273,7 @@ class TIMBRE_OT_render_soundtrack(bpy.types.Operator):
                 f"timbre: rendering the soundtrack, {100 * job.fraction:.0f} % (Esc cancels)")
         if self._thread.is_alive():
             return {"RUNNING_MODAL"}
+        TIMBRE_OT_render_soundtrack.rendering = False
         wm.event_timer_remove(self._timer)
         wm.progress_end()
         if context.workspace is not None:
