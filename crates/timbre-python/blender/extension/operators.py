@@ -316,12 +316,4 @@ class TIMBRE_OT_save_scene(bpy.types.Operator, ExportHelper):
 
 CLASSES = (TIMBRE_OT_render_soundtrack, TIMBRE_OT_save_scene)
 
-
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -88,12 +88,4 @@ class TIMBRE_PT_object(bpy.types.Panel):
 
 CLASSES = (TIMBRE_PT_scene, TIMBRE_PT_sequencer, TIMBRE_PT_object)
 
-
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)
