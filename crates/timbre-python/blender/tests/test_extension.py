@@ -422,3 +422,18 @@ def test_a_scripts_warnings_are_warning_reports(tmp_path, installed, capfd):
     assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
     out = capfd.readouterr().out
     assert "Warning: timbre: `(sine 440)` has a constant phase" in out, out
+
+
+def test_an_object_can_sound_the_modes_of_its_shape(tmp_path, installed):
+    """The cube sounds the modes of its own mesh: the scene names it in `:modal` with
+    the panel's count of modes, and renders (the modes themselves are checked against
+    closed forms in crates/timbre-modal)."""
+    scene = cube_drop(tmp_path, installed)
+    scene.objects["Cube"].timbre.sound = "MODAL"
+    scene.timbre.modes = 8
+    scene.timbre.receiver = "MONO"
+    assert bpy.ops.timbre.render_soundtrack() == {"FINISHED"}
+    text = open(os.path.join(scene.timbre.output_dir, "Scene", "soundtrack.tt")).read()
+    assert ':modal ("Cube")' in text and ":modes 8" in text, text
+    samples, _ = read_wav(bpy.path.abspath(soundtrack_strips(scene)[0].sound.filepath))
+    assert np.abs(samples).max() > 0.01
