@@ -7,7 +7,9 @@ command (default: target/release/timbre). Blender's user folders are a temporary
 folder, so the tests leave the user's Blender alone.
 """
 
+import atexit
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -22,6 +24,7 @@ SHOTS = os.path.join(REPO, "examples", "shots")
 # imported: a fresh one per run.
 _home = tempfile.mkdtemp(prefix="timbre-blender-home-")
 os.environ["HOME"] = _home
+atexit.register(shutil.rmtree, _home, ignore_errors=True)
 
 import bpy  # noqa: E402  (after HOME is set)
 
