@@ -193,20 +193,14 @@ impl<'p> Pass<'p> {
                 return Err("a sample that is not finite".into());
             }
         }
-        for (k, (y, x)) in out
-            .chunks_exact_mut(to)
-            .zip(self.rendered.chunks_exact(from))
-            .enumerate()
-        {
-            let frame = first + k as u64;
-            let fade = fade_gain(frame, self.length, plan.fade_frames);
-            let gain = plan.gain * self.scale * fade;
-            match (from, to) {
-                (a, b) if a == b => y.iter_mut().zip(x).for_each(|(y, x)| *y = x * gain),
-                (1, _) => y.fill(x[0] * gain),
-                _ => y[0] = x.iter().sum::<f64>() / from as f64 * gain,
-            }
-        }
+        let mixdown = timbre::Mixdown {
+            gain: plan.gain * self.scale,
+            fade_frames: plan.fade_frames,
+            length: self.length,
+            from,
+            to,
+        };
+        mixdown.apply(first, &self.rendered, out);
         self.progress.advance(n as u64);
         // An open-ended scene is over once its last instance has ended.
         Ok((plan.open_ended && self.scene.finished())
@@ -221,15 +215,6 @@ impl<'p> Pass<'p> {
             None => Failure::Message(message),
         }
     }
-}
-
-/// A raised-cosine fade over the last `fade` frames of `length`.
-fn fade_gain(frame: u64, length: u64, fade: u64) -> f64 {
-    if fade == 0 || frame + fade < length {
-        return 1.0;
-    }
-    let left = length.saturating_sub(frame + 1) as f64 / fade as f64;
-    0.5 - 0.5 * (std::f64::consts::PI * left.clamp(0.0, 1.0)).cos()
 }
 
 /// Renders without writing: the sound's length in frames and its peak, for

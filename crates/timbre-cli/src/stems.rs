@@ -51,23 +51,7 @@ pub(crate) struct Layout {
 impl Layout {
     /// The stems of `file` in `dir`, named with `extension` (the mix's).
     pub(crate) fn new(file: &SceneFile, dir: &Path, extension: &str) -> Layout {
-        let mut stems: Vec<Stem> = vec![];
-        for instance in &file.program().instances {
-            if !stems.contains(&instance.stem) {
-                stems.push(instance.stem.clone());
-            }
-        }
-        let cells: Vec<(Stem, SceneFile)> = if file.is_sound() || stems.len() <= 1 {
-            // The whole file is one cell: a sound, or instances of one stem.
-            vec![(stems.pop().unwrap_or_default(), file.clone())]
-        } else {
-            (stems.into_iter())
-                .map(|stem| {
-                    let part = file.with_instances(|i| i.stem == stem);
-                    (stem, part)
-                })
-                .collect()
-        };
+        let cells = file.stem_cells();
         let mut files = vec![];
         for family in ["objects", "kinds"] {
             let label_of = |stem: &Stem| match family {

@@ -314,20 +314,14 @@ impl<'p> Pass<'p> {
                 return Err(Failure::Diagnostics(vec![self.scene.explain(&fault)]));
             }
         }
-        for (k, (y, x)) in out
-            .chunks_exact_mut(to)
-            .zip(self.rendered.chunks_exact(from))
-            .enumerate()
-        {
-            let frame = first + k as u64;
-            let fade = fade_gain(frame, self.length, plan.fade_frames);
-            let gain = plan.gain * self.scale * fade;
-            match (from, to) {
-                (a, b) if a == b => y.iter_mut().zip(x).for_each(|(y, x)| *y = x * gain),
-                (1, _) => y.fill(x[0] * gain),
-                _ => y[0] = x.iter().sum::<f64>() / from as f64 * gain,
-            }
-        }
+        let mixdown = timbre::Mixdown {
+            gain: plan.gain * self.scale,
+            fade_frames: plan.fade_frames,
+            length: self.length,
+            from,
+            to,
+        };
+        mixdown.apply(first, &self.rendered, out);
         // An open-ended scene is over once its last instance has ended.
         Ok((plan.open_ended && self.scene.finished())
             .then(|| self.scene.ended_at_frame().saturating_sub(first) as usize))
@@ -359,15 +353,6 @@ impl<'p> Pass<'p> {
             ));
         }
     }
-}
-
-/// A raised-cosine fade over the last `fade` frames of `length`.
-fn fade_gain(frame: u64, length: u64, fade: u64) -> f64 {
-    if fade == 0 || frame + fade < length {
-        return 1.0;
-    }
-    let left = length.saturating_sub(frame + 1) as f64 / fade as f64;
-    0.5 - 0.5 * (std::f64::consts::PI * left.clamp(0.0, 1.0)).cos()
 }
 
 /// Whether a render must measure the scene first (its length or its peak), and how
@@ -602,23 +587,7 @@ struct Layout {
 
 impl Layout {
     fn new(file: &SceneFile) -> Layout {
-        let mut stems: Vec<Stem> = vec![];
-        for instance in &file.program().instances {
-            if !stems.contains(&instance.stem) {
-                stems.push(instance.stem.clone());
-            }
-        }
-        let cells: Vec<(Stem, SceneFile)> = if file.is_sound() || stems.len() <= 1 {
-            // The whole file is one cell: a sound, or instances of one stem.
-            vec![(stems.pop().unwrap_or_default(), file.clone())]
-        } else {
-            (stems.into_iter())
-                .map(|stem| {
-                    let part = file.with_instances(|i| i.stem == stem);
-                    (stem, part)
-                })
-                .collect()
-        };
+        let cells = file.stem_cells();
         let family = |label_of: &dyn Fn(&Stem) -> Option<Arc<str>>| {
             let mut labels: Vec<Option<Arc<str>>> = vec![];
             for (stem, _) in &cells {

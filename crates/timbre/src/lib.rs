@@ -30,6 +30,7 @@
 mod engine;
 mod error;
 mod library;
+mod mixdown;
 mod play;
 mod realtime;
 mod scene;
@@ -42,6 +43,7 @@ pub use arguments::{MAX_BLOCK_SIZE, MAX_CHANNELS, MAX_SAMPLE_RATE, MAX_THREADS, 
 pub use engine::Engine;
 pub use error::{report, report_plain, Error, MAX_DIAGNOSTICS_SHOWN};
 pub use library::SoundLibrary;
+pub use mixdown::Mixdown;
 pub use play::Play;
 pub use realtime::{Control, Renderer};
 pub use scene::Scene;

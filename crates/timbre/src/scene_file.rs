@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use timbre_ir::Instance;
+use timbre_ir::{Instance, Stem};
 use timbre_lang::Compiled;
 use timbre_lang::Library;
 use timbre_scene::SceneRenderer;
@@ -296,6 +296,41 @@ impl SceneFile {
         SceneFile {
             program: Arc::new(program),
         }
+    }
+
+    /// The file shared out into the cells a stem render renders apart: one per stem
+    /// (object and kind) in the order its first instance comes, each a scene of that
+    /// stem's instances alone ([`SceneFile::with_instances`]); the whole file as one
+    /// cell when it is a sound or all its instances share one stem.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0);
+    /// let file = engine
+    ///     .read_scene("(define-sound s (f) (sine (* t f)))
+    ///                  (instance a (s :f 440) :stop 0.5 :stem \"Bell\")
+    ///                  (instance b (s :f 660) :stop 0.5 :stem \"Gong\")")
+    ///     .unwrap();
+    /// let cells = file.stem_cells();
+    /// assert_eq!(cells.len(), 2);
+    /// assert_eq!(cells[1].0.object.as_deref(), Some("Gong"));
+    /// assert_eq!(cells[1].1.instances().collect::<Vec<_>>(), [("b", 0.0)]);
+    /// ```
+    pub fn stem_cells(&self) -> Vec<(Stem, SceneFile)> {
+        let mut stems: Vec<Stem> = vec![];
+        for instance in &self.program.instances {
+            if !stems.contains(&instance.stem) {
+                stems.push(instance.stem.clone());
+            }
+        }
+        if self.is_sound() || stems.len() <= 1 {
+            return vec![(stems.pop().unwrap_or_default(), self.clone())];
+        }
+        (stems.into_iter())
+            .map(|stem| {
+                let part = self.with_instances(|i| i.stem == stem);
+                (stem, part)
+            })
+            .collect()
     }
 
     /// What lowering warned of (each a diagnostic with its span and hint).
