@@ -36,30 +36,31 @@ def draw_soundtrack(layout, scene):
     row.operator("timbre.save_scene", text="", icon="FILE_TICK")
 
 
-class TIMBRE_PT_scene(bpy.types.Panel):
-    """The scene's soundtrack, in Scene properties."""
+class SoundtrackPanel:
+    """The soundtrack's settings and buttons, wherever the panel is shown."""
 
     bl_label = "Soundtrack"
+
+    def draw(self, context):
+        draw_soundtrack(self.layout, context.scene)
+
+
+class TIMBRE_PT_scene(SoundtrackPanel, bpy.types.Panel):
+    """The scene's soundtrack, in Scene properties."""
+
     bl_idname = "TIMBRE_PT_scene"
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "scene"
 
-    def draw(self, context):
-        draw_soundtrack(self.layout, context.scene)
 
-
-class TIMBRE_PT_sequencer(bpy.types.Panel):
+class TIMBRE_PT_sequencer(SoundtrackPanel, bpy.types.Panel):
     """The scene's soundtrack, in the sequencer's sidebar."""
 
-    bl_label = "Soundtrack"
     bl_idname = "TIMBRE_PT_sequencer"
     bl_space_type = "SEQUENCE_EDITOR"
     bl_region_type = "UI"
     bl_category = "Timbre"
-
-    def draw(self, context):
-        draw_soundtrack(self.layout, context.scene)
 
 
 class TIMBRE_PT_object(bpy.types.Panel):
@@ -78,7 +79,7 @@ class TIMBRE_PT_object(bpy.types.Panel):
         settings = context.object.timbre
         layout.prop(settings, "material")
         column = layout.column()
-        column.active = settings.material != "NONE"
+        column.active = soundtrack.has_material(context.object)
         column.prop(settings, "sound")
         if settings.sound == "CLASS":
             column.prop(settings, "sound_class")

@@ -36,6 +36,12 @@ class ShotError(Exception):
     """A scene whose motion cannot be written (the message says why)."""
 
 
+def metres_per_unit(scene):
+    """Metres in one Blender unit: the scene's unit scale (1 without a unit system)."""
+    units = scene.unit_settings
+    return units.scale_length if units.system != "NONE" else 1.0
+
+
 def qmul(a, b):
     """The product of quaternions a and b, each (w, x, y, z)."""
     aw, ax, ay, az = a
@@ -139,7 +145,7 @@ def write_glb(out, scene, depsgraph, objects, subframes=1, progress=None):
     """Step `scene` through its frame range and write the world motion, meshes and
     cameras of `objects` (a list of Blender objects) to the binary file `out`. The scene is left at
     the frame it was on. `progress(fraction)` is called as frames go by."""
-    unit_scale = scene.unit_settings.scale_length if scene.unit_settings.system != "NONE" else 1.0
+    unit_scale = metres_per_unit(scene)
     if not (unit_scale > 0.0 and math.isfinite(unit_scale)):
         raise ShotError(f"the scene's unit scale is {unit_scale}: it must be above 0")
     if scene.frame_end < scene.frame_start:

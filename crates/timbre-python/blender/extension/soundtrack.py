@@ -86,11 +86,16 @@ def library_path(scene, abspath):
     return path
 
 
+def has_material(obj):
+    """Whether `obj` takes part in contacts."""
+    return obj.timbre.material != "NONE"
+
+
 def objects_of(scene):
     """The objects that take part: those with a material or an emitted class, unless
     they are hidden in renders (as they are from the picture)."""
     return [obj for obj in scene.objects if not obj.hide_render
-            and (obj.timbre.material != "NONE" or obj.timbre.emit_class.strip())]
+            and (has_material(obj) or obj.timbre.emit_class.strip())]
 
 
 def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION_FILE,
@@ -99,7 +104,7 @@ def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION
     (beside it). `classes` maps the library's classes to their parameters' names."""
     settings = scene.timbre
     fps = scene.render.fps / scene.render.fps_base
-    sounding = [obj for obj in objects if obj.timbre.material != "NONE"]
+    sounding = [obj for obj in objects if has_material(obj)]
     emitters = [obj for obj in objects if obj.timbre.emit_class.strip()]
     if not sounding and not emitters:
         raise SettingError(
@@ -119,13 +124,13 @@ def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION
                 raise SettingError(
                     f"`{obj.name}` names the class `{name.strip()}`: a class's name has no "
                     "spaces, parentheses, quotes or semicolons")
-        uses_class = (obj.timbre.material != "NONE" and obj.timbre.sound == "CLASS") or \
+        uses_class = (has_material(obj) and obj.timbre.sound == "CLASS") or \
             obj.timbre.emit_class.strip()
         if uses_class and library is None:
             raise SettingError(
                 f"`{obj.name}` sounds a class of the library, but the scene names no "
                 "library: choose a .tt file as the Soundtrack panel's Library")
-        if obj.timbre.material != "NONE" and obj.timbre.sound == "CLASS" and \
+        if has_material(obj) and obj.timbre.sound == "CLASS" and \
                 not obj.timbre.sound_class.strip():
             raise SettingError(f"`{obj.name}` sounds a class of the library, but names none")
     stereo = settings.receiver != "MONO"
@@ -148,7 +153,7 @@ def scene_text(scene, objects, listener, library, blend_name, motion_file=MOTION
     pair = {"MONO": "", "SPACED": " :pair spaced", "XY": " :pair xy"}[settings.receiver]
     lines.append(f"(listener :object {quoted(listener.name)}{pair})")
     if sounding:
-        unit = scene.unit_settings.scale_length if scene.unit_settings.system != "NONE" else 1.0
+        unit = shot.metres_per_unit(scene)
         gravity = [decimal(g) * unit for g in scene.gravity] if scene.use_gravity else [0.0] * 3
         options = [
             ":gravity (vector {})".format(" ".join(number(g) for g in gravity)),
