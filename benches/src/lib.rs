@@ -14,7 +14,7 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 11] = [
+pub const WORKLOADS: [&str; 13] = [
     "bell-100",
     "wood-500",
     "bell-1000",
@@ -23,6 +23,8 @@ pub const WORKLOADS: [&str; 11] = [
     "scene-500",
     "bees-50",
     "space-100",
+    "room-16",
+    "room-64",
     "peer-w1",
     "peer-w2",
     "peer-w3",
@@ -39,6 +41,8 @@ pub fn workload(name: &str) -> Option<Workload> {
         "scene-500" => collisions(500),
         "bees-50" => bees(50),
         "space-100" => moving_sources(100),
+        "room-16" => moving_sources_in_a_room(16),
+        "room-64" => moving_sources_in_a_room(64),
         "peer-w1" => peer("peer-w1", include_str!("../peers/w1.tt")),
         "peer-w2" => peer("peer-w2", include_str!("../peers/w2.tt")),
         "peer-w3" => peer("peer-w3", include_str!("../peers/w3.tt")),
@@ -260,6 +264,37 @@ pub fn moving_sources(n: usize) -> Workload {
     }
 }
 
+/// `n` sources, each a tone, moving on straight lines (2.5 s each way) in a
+/// 40×30×8 m room heard at order 2 (25 ways from each source to each receiver) with
+/// its late reverberation, by a spaced stereo pair in the middle: the cost of a
+/// room.
+pub fn moving_sources_in_a_room(n: usize) -> Workload {
+    let mut source = String::from(
+        "(scene :channels 2 :duration 10)
+         (define-sound tone (f) (* 0.01 (sine (* t f))))
+         (room :from (-20 -15 0) :to (20 15 8) :absorption 0.3 :order 2)
+         (listener :position (0 0 1.7) :pair spaced :spacing 0.5)\n",
+    );
+    for k in 0..n {
+        let angle = k as f64 * 2.399_963;
+        let (dx, dy) = (angle.cos(), angle.sin());
+        let near = 2.0 + (k % 5) as f64;
+        let (x0, y0) = (-12.0 * dx - near * dy, -8.0 * dy + near * dx);
+        let (x1, y1) = (12.0 * dx - near * dy, 8.0 * dy + near * dx);
+        let z = 1.0 + (k % 4) as f64;
+        let _ = write!(
+            source,
+            "(source s{k} :position (keyframes :interp linear (0 ({x0} {y0} {z})) (2.5 ({x1} {y1} {z})) (5 ({x0} {y0} {z}))))
+             (instance i{k} (tone :f {}) :source s{k})\n",
+            200.0 + 7.0 * k as f64
+        );
+    }
+    Workload {
+        name: leak(format!("room-{n}")),
+        source,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -278,6 +313,7 @@ mod tests {
         assert_eq!(compile(&collisions(500)).instances.len(), 500);
         assert_eq!(compile(&bees(50)).instances.len(), 50);
         assert_eq!(compile(&moving_sources(100)).instances.len(), 100);
+        assert_eq!(compile(&moving_sources_in_a_room(16)).instances.len(), 16);
         assert!(workload("bell-7").is_none());
     }
 

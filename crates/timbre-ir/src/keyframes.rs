@@ -193,7 +193,13 @@ impl KeyframeTrack {
         }
         // times[0] < t < times[last], so 1 <= i <= last: the key at or before `t` is
         // i - 1 and the interval is [times[i - 1], times[i]).
-        let i = times.partition_point(|&x| x <= t);
+        self.value_in(times.partition_point(|&x| x <= t), t)
+    }
+
+    /// The value at `t` in the interval [times[i − 1], times[i]), 1 ≤ i ≤ last.
+    #[inline]
+    fn value_in(&self, i: usize, t: f64) -> f64 {
+        let (times, values) = (&self.times, &self.values);
         let (t0, t1) = (times[i - 1], times[i]);
         let (y0, y1) = (values[i - 1], values[i]);
         let y = match self.interpolation {
@@ -230,13 +236,14 @@ impl KeyframeTrack {
     /// Derivatives are right-continuous: at a key they are those of the interval
     /// that starts there; before the first key and from the last on they are 0.
     pub fn derivatives(&self, t: f64) -> [f64; 3] {
-        let value = self.value(t);
         let times = &self.times;
         let last = times.len() - 1;
         if t < times[0] || t >= times[last] || t.is_nan() {
-            return [value, 0.0, 0.0];
+            return [self.value(t), 0.0, 0.0];
         }
         let i = times.partition_point(|&x| x <= t);
+        // The same value as `value(t)` (at the first key both give its value).
+        let value = self.value_in(i, t);
         let (t0, t1) = (times[i - 1], times[i]);
         let (y0, y1) = (self.values[i - 1], self.values[i]);
         let h = t1 - t0;

@@ -99,18 +99,26 @@ impl DecayWatch {
     /// having decayed). The same as [`DecayWatch::push`] sample by sample, a window's
     /// run at a time.
     fn push_all(&mut self, samples: &[f64]) -> Option<usize> {
+        self.push_frames(samples, 1)
+    }
+
+    /// [`DecayWatch::push_all`] for frames of `width` finite samples, each frame
+    /// heard as its loudest sample.
+    fn push_frames(&mut self, frames: &[f64], width: usize) -> Option<usize> {
+        let n = frames.len() / width;
         let mut from = 0;
-        while from < samples.len() {
-            let run = &samples[from..(from + self.left as usize).min(samples.len())];
+        while from < n {
+            let end = (from + self.left as usize).min(n);
+            let run = &frames[from * width..end * width];
             match run.iter().rposition(|x| x.abs() >= SILENCE) {
                 Some(loud) => {
                     self.heard = true;
-                    self.silent = (run.len() - 1 - loud) as u64;
+                    self.silent = (end - from - 1 - loud / width) as u64;
                 }
-                None => self.silent += run.len() as u64,
+                None => self.silent += (end - from) as u64,
             }
-            self.left -= run.len() as u64;
-            from += run.len();
+            self.left -= (end - from) as u64;
+            from = end;
             if self.left == 0 {
                 self.left = self.window;
                 if self.heard && self.silent >= self.window {
@@ -359,6 +367,25 @@ impl Active {
             let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
             let heard = last.map_or(n, |k| k + 1);
             for (y, x) in out[offset..offset + heard].iter_mut().zip(rendered) {
+                *y += x;
+            }
+            if last.is_some() {
+                next = from + heard as u64;
+                self.end = Some(next);
+            }
+            self.next = next;
+            return;
+        }
+        if finite && width == channels && self.fade_from.is_none() && unmixed {
+            // A voice of a lane per channel (a placed instance), no fade: the same
+            // tight loop, a frame at a time.
+            let last = self
+                .decay
+                .as_mut()
+                .and_then(|d| d.push_frames(rendered, width));
+            let heard = last.map_or(n, |k| k + 1);
+            let out = &mut out[offset * channels..(offset + heard) * channels];
+            for (y, x) in out.iter_mut().zip(rendered) {
                 *y += x;
             }
             if last.is_some() {

@@ -67,16 +67,26 @@ impl Air {
     /// setting it to G² gives p² − 2k·p + 1 = 0 with k = (1 − G²·cos ω)/(1 − G²),
     /// whose root in [0, 1) is p = k − √(k² − 1).
     pub fn coefficient(&self, distance: f64, sample_rate: f64) -> f64 {
+        self.coefficient_at(distance, Self::reference_cos(sample_rate))
+    }
+
+    /// cos ω of the reference frequency at `sample_rate`, which
+    /// [`Air::coefficient_at`] takes (computed once per rate rather than per way).
+    pub fn reference_cos(sample_rate: f64) -> f64 {
+        (std::f64::consts::TAU * REFERENCE.min(0.49 * sample_rate) / sample_rate).cos()
+    }
+
+    /// [`Air::coefficient`], given [`Air::reference_cos`] of the rate.
+    pub fn coefficient_at(&self, distance: f64, reference_cos: f64) -> f64 {
         let db = self.reference_db_per_m * distance.max(0.0);
         if db.is_nan() || db <= 0.0 {
             return 1.0;
         }
-        let w = std::f64::consts::TAU * REFERENCE.min(0.49 * sample_rate) / sample_rate;
         let g2 = 10f64.powf(-db / 20.0); // each pole: half of the dB, as power
         if g2 <= 0.0 {
             return 0.0;
         }
-        let k = (1.0 - g2 * w.cos()) / (1.0 - g2);
+        let k = (1.0 - g2 * reference_cos) / (1.0 - g2);
         let p = k - (k * k - 1.0).max(0.0).sqrt();
         (1.0 - p).clamp(0.0, 1.0)
     }
@@ -96,10 +106,54 @@ impl AirFilter {
         self.coefficient = air.coefficient(distance, sample_rate);
     }
 
+    /// Sets the coefficient of both poles (from [`Air::coefficient_at`]).
+    pub fn set_coefficient(&mut self, coefficient: f64) {
+        self.coefficient = coefficient;
+    }
+
     #[inline]
     pub fn process(&mut self, x: f64) -> f64 {
         let y = self.first.process(self.coefficient, x);
         self.second.process(self.coefficient, y)
+    }
+
+    /// A run of samples through both poles in place, each as
+    /// [`OnePole::process_run`] computes it (the two recursions in one loop, so the
+    /// processor overlaps them), settled at the end if `settle`.
+    #[inline]
+    pub fn process_run(&mut self, x: &mut [f64], settle: bool) {
+        let a = self.coefficient.clamp(0.0, 1.0);
+        let p = 1.0 - a;
+        let (mut first, mut second) = (self.first.state(), self.second.state());
+        for v in x.iter_mut() {
+            first = p * first + a * *v;
+            second = p * second + a * first;
+            *v = second;
+        }
+        self.first.keep(first, settle);
+        self.second.keep(second, settle);
+    }
+
+    /// [`AirFilter::process_run`], then `then`'s [`OnePole::process_run`] with
+    /// coefficient `b`, in one loop (the same bits as one after the other; the three
+    /// recursions overlap).
+    #[inline]
+    pub fn process_run_then(&mut self, then: &mut OnePole, b: f64, x: &mut [f64], settle: bool) {
+        let a = self.coefficient.clamp(0.0, 1.0);
+        let p = 1.0 - a;
+        let b = super::clamp_or(b, 0.0, 1.0, 1.0);
+        let q = 1.0 - b;
+        let (mut first, mut second) = (self.first.state(), self.second.state());
+        let mut third = then.state();
+        for v in x.iter_mut() {
+            first = p * first + a * *v;
+            second = p * second + a * first;
+            third = q * third + b * second;
+            *v = third;
+        }
+        self.first.keep(first, settle);
+        self.second.keep(second, settle);
+        then.keep(third, settle);
     }
 }
 

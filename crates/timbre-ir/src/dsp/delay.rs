@@ -74,26 +74,7 @@ impl DelayLine {
     #[inline]
     pub fn read(&self, delay_samples: f64) -> f64 {
         let d = clamp_or(delay_samples, 0.0, self.max_delay as f64, 0.0);
-        let k = d.floor();
-        let t = d - k;
-        let k = k as usize;
-        if t == 0.0 {
-            return self.at(k);
-        }
-        if k == 0 {
-            let p1 = self.at(0);
-            let p2 = self.at(1);
-            return p1 + t * (p2 - p1);
-        }
-        // Here 1 ≤ k ≤ max − 1, so k + 2 ≤ max + 1 < len.
-        let p0 = self.at(k - 1);
-        let p1 = self.at(k);
-        let p2 = self.at(k + 1);
-        let p3 = self.at(k + 2);
-        p1 + 0.5
-            * t
-            * (p2 - p0
-                + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + t * (3.0 * (p1 - p2) + p3 - p0)))
+        read_cubic(|j| self.at(j), d)
     }
 
     /// `x[n − d]` by 6-point, 5th-order Lagrange interpolation (Laakso et al. 1996),
@@ -107,40 +88,152 @@ impl DelayLine {
     #[inline]
     pub fn read_lagrange(&self, delay_samples: f64) -> f64 {
         let d = clamp_or(delay_samples, 0.0, self.max_delay as f64, 0.0);
-        if d < 2.0 {
-            return self.read(d);
-        }
-        // d ≥ 2: truncation is the floor.
-        let k = d as usize;
-        let t = d - k as f64;
-        if t == 0.0 {
-            return self.at(k);
-        }
-        // Here 2 ≤ k ≤ max − 1, so k + 3 ≤ max + 2 < len.
-        let x = 2.0 + t;
-        let f = [x, x - 1.0, x - 2.0, x - 3.0, x - 4.0, x - 5.0];
-        // wₘ = Π_{i<m} f[i] · Π_{i>m} f[i] / Π_{i≠m} (m − i), the products built from
-        // both ends; the denominators are ±m!·(5 − m)!.
-        const INVERSE_DENOMINATORS: [f64; 6] = [
-            -1.0 / 120.0,
-            1.0 / 24.0,
-            -1.0 / 12.0,
-            1.0 / 12.0,
-            -1.0 / 24.0,
-            1.0 / 120.0,
-        ];
-        let mut left = [1.0; 6];
-        let mut right = [1.0; 6];
-        for m in 1..6 {
-            left[m] = left[m - 1] * f[m - 1];
-            right[5 - m] = right[6 - m] * f[6 - m];
-        }
-        let mut y = 0.0;
-        for m in 0..6 {
-            y += left[m] * right[m] * INVERSE_DENOMINATORS[m] * self.at(k + m - 2);
-        }
-        y
+        read_lagrange(|j| self.at(j), d)
     }
+}
+
+/// A signal's recent past in one run of memory, for many reads per sample: the same
+/// reads as [`DelayLine`]'s, but a block of samples is pushed at once and a read
+/// needs no wrap-around. The run holds twice the `max + 4` samples a read may need
+/// (at least [`History::SPARE`] more): when it is full, the last `max + 4` are moved
+/// to the front, at most one sample moved per sample pushed.
+#[derive(Clone, Debug)]
+pub struct History {
+    buf: Vec<f64>,
+    /// Samples held; `buf[len − 1]` is the one pushed last.
+    len: usize,
+    max_delay: usize,
+}
+
+impl History {
+    /// The fewest samples pushed between two moves to the front (and the most
+    /// pushed at once).
+    pub const SPARE: usize = 4096;
+
+    /// A history that can be read up to `max_delay_samples` back (clamped to
+    /// [`MAX_DELAY_SAMPLES`]), all silence so far.
+    pub fn new(max_delay_samples: usize) -> Self {
+        let max_delay = max_delay_samples.min(MAX_DELAY_SAMPLES);
+        History {
+            buf: vec![0.0; Self::capacity(max_delay)],
+            len: max_delay + 4,
+            max_delay,
+        }
+    }
+
+    fn capacity(max_delay: usize) -> usize {
+        max_delay + 4 + (max_delay + 4).max(Self::SPARE)
+    }
+
+    /// Bytes a history of `max_delay_samples` holds.
+    pub fn bytes(max_delay_samples: usize) -> u64 {
+        Self::capacity(max_delay_samples.min(MAX_DELAY_SAMPLES)) as u64 * 8
+    }
+
+    /// The maximum delay in samples (reads are clamped to it).
+    pub fn max_delay(&self) -> f64 {
+        self.max_delay as f64
+    }
+
+    /// Appends `x` (at most [`History::SPARE`] samples); returns the index of its
+    /// first sample in [`History::samples`].
+    pub fn push(&mut self, x: &[f64]) -> usize {
+        let x = &x[..x.len().min(Self::SPARE)];
+        if self.len + x.len() > self.buf.len() {
+            let keep = self.max_delay + 4;
+            self.buf.copy_within(self.len - keep..self.len, 0);
+            self.len = keep;
+        }
+        let first = self.len;
+        self.buf[first..first + x.len()].copy_from_slice(x);
+        self.len += x.len();
+        first
+    }
+
+    /// Everything held, oldest first: sample `i` is `x[n − j]` for the sample at
+    /// index `i + j`.
+    #[inline]
+    pub fn samples(&self) -> &[f64] {
+        &self.buf[..self.len]
+    }
+
+    /// `x[n − d]` for the sample at index `now`, as [`DelayLine::read_lagrange`]
+    /// reads it when that sample was the last pushed.
+    #[inline]
+    pub fn read_lagrange(&self, now: usize, delay_samples: f64) -> f64 {
+        let d = clamp_or(delay_samples, 0.0, self.max_delay as f64, 0.0);
+        let x = self.samples();
+        read_lagrange(|j| x[now - j], d)
+    }
+}
+
+/// [`DelayLine::read`]'s cubic at a delay `d` already in `[0, max]`, from the taps
+/// `tap(j) = x[n − j]` (`j ≤ ⌊d⌋ + 2`).
+#[inline(always)]
+pub(crate) fn read_cubic(tap: impl Fn(usize) -> f64, d: f64) -> f64 {
+    let k = d.floor();
+    let t = d - k;
+    let k = k as usize;
+    if t == 0.0 {
+        return tap(k);
+    }
+    if k == 0 {
+        let p1 = tap(0);
+        let p2 = tap(1);
+        return p1 + t * (p2 - p1);
+    }
+    let p0 = tap(k - 1);
+    let p1 = tap(k);
+    let p2 = tap(k + 1);
+    let p3 = tap(k + 2);
+    p1 + 0.5
+        * t
+        * (p2 - p0 + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + t * (3.0 * (p1 - p2) + p3 - p0)))
+}
+
+/// [`DelayLine::read_lagrange`] at a delay `d` already in `[0, max]`, from the taps
+/// `tap(j) = x[n − j]` (`j ≤ ⌊d⌋ + 3`).
+#[inline(always)]
+pub(crate) fn read_lagrange(tap: impl Fn(usize) -> f64, d: f64) -> f64 {
+    if d < 2.0 {
+        return read_cubic(tap, d);
+    }
+    // d ≥ 2: truncation is the floor.
+    let k = d as usize;
+    let t = d - k as f64;
+    if t == 0.0 {
+        return tap(k);
+    }
+    lagrange6(t, |m| tap(k + m - 2))
+}
+
+/// The 6-point Lagrange interpolation at fraction `t` between the taps
+/// `x(0) … x(5)`, centred between `x(2)` and `x(3)`: Σ wₘ·x(m).
+#[inline(always)]
+pub(crate) fn lagrange6(t: f64, x: impl Fn(usize) -> f64) -> f64 {
+    let x0 = 2.0 + t;
+    let f = [x0, x0 - 1.0, x0 - 2.0, x0 - 3.0, x0 - 4.0, x0 - 5.0];
+    // wₘ = Π_{i<m} f[i] · Π_{i>m} f[i] / Π_{i≠m} (m − i), the products built from
+    // both ends; the denominators are ±m!·(5 − m)!.
+    const INVERSE_DENOMINATORS: [f64; 6] = [
+        -1.0 / 120.0,
+        1.0 / 24.0,
+        -1.0 / 12.0,
+        1.0 / 12.0,
+        -1.0 / 24.0,
+        1.0 / 120.0,
+    ];
+    let mut left = [1.0; 6];
+    let mut right = [1.0; 6];
+    for m in 1..6 {
+        left[m] = left[m - 1] * f[m - 1];
+        right[5 - m] = right[6 - m] * f[6 - m];
+    }
+    let mut y = 0.0;
+    for m in 0..6 {
+        y += left[m] * right[m] * INVERSE_DENOMINATORS[m] * x(m);
+    }
+    y
 }
 
 /// Delay lines, one per lane, long enough for `max_seconds` at the render's rate.
@@ -462,5 +555,35 @@ mod tests {
         z.push(3.0);
         assert_eq!(z.read(5.0), 3.0);
         assert_eq!(z.read(0.5), 3.0);
+    }
+}
+
+#[cfg(test)]
+mod history_tests {
+    use super::*;
+
+    #[test]
+    fn a_history_reads_what_a_delay_line_reads() {
+        // Pushed in uneven chunks, through several moves to the front, read at every
+        // kind of delay: near (cubic), whole, fractional and the longest.
+        let max = 5000;
+        let mut line = DelayLine::new(max);
+        let mut history = History::new(max);
+        let mut n = 0usize;
+        let signal = |n: usize| ((n * 7919) % 1000) as f64 / 500.0 - 1.0;
+        for chunk in [1usize, 17, 4096, 333, 4096, 4096, 5, 1000, 4096, 4096] {
+            let x: Vec<f64> = (n..n + chunk).map(signal).collect();
+            let first = history.push(&x);
+            for (j, &v) in x.iter().enumerate() {
+                line.push(v);
+                for d in [
+                    0.0, 0.4, 1.0, 1.7, 2.0, 2.25, 37.5, 1234.0, 4999.9, 5000.0, 6000.0,
+                ] {
+                    let (a, b) = (line.read_lagrange(d), history.read_lagrange(first + j, d));
+                    assert_eq!(a.to_bits(), b.to_bits(), "sample {} delay {d}", n + j);
+                }
+            }
+            n += chunk;
+        }
     }
 }

@@ -124,6 +124,42 @@ impl OnePole {
         clamp_or(-(-2.0 * PI * fc / sr).exp_m1(), 0.0, 1.0, 0.0)
     }
 
+    /// [`OnePole::process`] over a run of samples in place, as `y = (1 − a)·y + a·x`
+    /// (the same filter, with a recursion one multiply and one add long). The state
+    /// is flushed and checked at the end of the run if `settle` (a caller settles at
+    /// fixed sample positions, so the output does not depend on how a render is cut
+    /// into blocks; a few dozen samples cannot decay from above the flush threshold
+    /// into subnormals).
+    #[inline]
+    pub fn process_run(&mut self, a: f64, x: &mut [f64], settle: bool) {
+        let a = clamp_or(a, 0.0, 1.0, 1.0);
+        let p = 1.0 - a;
+        let mut y = self.y;
+        for v in x.iter_mut() {
+            y = p * y + a * *v;
+            *v = y;
+        }
+        self.keep(y, settle);
+    }
+
+    /// Keeps `y` as the state; if `settle`, flushed, and reset if it is not finite.
+    #[inline]
+    pub(crate) fn keep(&mut self, y: f64, settle: bool) {
+        self.y = if !settle {
+            y
+        } else if flush(y).is_finite() {
+            flush(y)
+        } else {
+            0.0
+        };
+    }
+
+    /// The state (the last output).
+    #[inline]
+    pub(crate) fn state(&self) -> f64 {
+        self.y
+    }
+
     /// One sample: `y += a·(x − y)`, returns `y`. `a` is clamped to `[0, 1]`
     /// (NaN → 1).
     #[inline]

@@ -9,7 +9,8 @@ use crate::keyframes::KeyframeTrack;
 use crate::motion::Trajectory;
 use crate::op::Description;
 
-/// Step of the central difference that gives a path's velocity, in seconds.
+/// Step of the central difference that gives the velocity of a microphone turning
+/// with its listener, in seconds.
 pub(crate) const VELOCITY_STEP: f64 = 1e-4;
 
 /// A point moving on the scene's timeline (seconds of scene time).
@@ -52,15 +53,26 @@ impl Path {
         }
     }
 
-    /// The velocity at scene time `t` (zero for a fixed point; a central difference
-    /// for keyframes, the exact derivative for a trajectory).
+    /// The velocity at scene time `t`: the exact derivative of the motion (zero for a
+    /// fixed point; a keyframed path's is right-continuous at a key, as
+    /// [`KeyframeTrack::derivatives`] says).
     pub fn velocity(&self, t: f64) -> DVec3 {
+        self.kinematics(t).1
+    }
+
+    /// The position and the velocity at scene time `t`, from one evaluation.
+    #[inline]
+    pub fn kinematics(&self, t: f64) -> (DVec3, DVec3) {
         match self {
-            Path::Fixed(_) => DVec3::ZERO,
-            Path::Keyed(_) => {
-                (self.at(t + VELOCITY_STEP) - self.at(t - VELOCITY_STEP)) / (2.0 * VELOCITY_STEP)
+            Path::Fixed(p) => (*p, DVec3::ZERO),
+            Path::Keyed(tracks) => {
+                let [x, y, z] = [0, 1, 2].map(|k| tracks[k].derivatives(t));
+                (DVec3::new(x[0], y[0], z[0]), DVec3::new(x[1], y[1], z[1]))
             }
-            Path::Moving(trajectory) => trajectory.kinematics(t).velocity,
+            Path::Moving(trajectory) => {
+                let kinematics = trajectory.kinematics(t);
+                (kinematics.position, kinematics.velocity)
+            }
         }
     }
 
@@ -176,8 +188,11 @@ mod tests {
     fn a_linear_path_moves_at_constant_velocity() {
         let path = line();
         assert_eq!(path.at(3.0), DVec3::new(0.0, 10.0, 0.0));
-        let v = path.velocity(1.0);
-        assert!((v.x - 30.0).abs() < 1e-6 && v.y.abs() < 1e-9, "{v}");
+        assert_eq!(path.velocity(1.0), DVec3::new(30.0, 0.0, 0.0));
+        assert_eq!(
+            path.kinematics(3.0),
+            (path.at(3.0), DVec3::new(30.0, 0.0, 0.0))
+        );
     }
 
     #[test]
