@@ -159,7 +159,7 @@ fn a_tweak_loop_in_a_pseudo_terminal() {
     repl.send_line(":dur 100").unwrap();
     repl.exp_string("duration = 100 s").unwrap();
     prompt(&mut repl);
-    repl.send_line("(* 0.001 (combine (sine (* t (rvector 3000 100 5000)))))")
+    repl.send_line("(* 0.0003 (combine (sine (* t (rvector 10000 100 5000)))))")
         .unwrap();
     // A render over a second shows its progress line.
     repl.exp_string("rendering").unwrap();

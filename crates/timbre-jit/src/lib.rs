@@ -41,6 +41,8 @@ use crate::plan::PlanStep;
 use crate::shape::{is_modal_bank, Shape};
 
 pub use crate::lanes::{InstanceLanes, LaneBatch, BATCH_LANES};
+#[doc(hidden)]
+pub use crate::modal::ModalPath;
 
 /// Why a tree could not be compiled.
 #[derive(Debug, thiserror::Error)]
@@ -123,6 +125,8 @@ pub struct Jit {
     live_generations: Arc<AtomicUsize>,
     /// Modal banks' tables, shared by the voices of the same modes.
     modal_tables: modal::TableCache,
+    /// How the modal banks of new voices compute their tiles.
+    modal_lanes: modal::Lanes,
 }
 
 /// One cranelift module: some kernels' code, freed when the last of them is dropped.
@@ -132,7 +136,7 @@ struct Generation {
     /// it is freed.
     module: Mutex<Option<JITModule>>,
     /// The helper functions kernels call, declared in this module.
-    helpers: [FuncId; 6],
+    helpers: [FuncId; 5],
     live: Arc<AtomicUsize>,
 }
 
@@ -178,19 +182,12 @@ impl Generation {
             declare(
                 &mut module,
                 "timbre_modal_block",
-                signature(&[I64; 6], None),
+                signature(&[I64; 5], None),
             )?,
             declare(
                 &mut module,
                 "timbre_timer_block",
                 signature(&[I64; 8], None),
-            )?,
-            // Every modal bank's tile loop, compiled once per generation.
-            modal::define_tile_function(
-                &mut module,
-                &mut Context::new(),
-                &mut FunctionBuilderContext::new(),
-                isa.has_native_fma(),
             )?,
         ];
         live.fetch_add(1, Ordering::Relaxed);
@@ -271,7 +268,26 @@ impl Jit {
             kernels_compiled: 0,
             live_generations,
             modal_tables: modal::TableCache::default(),
+            modal_lanes: modal::Lanes::best(),
         })
+    }
+
+    /// Computes the modal banks of the voices made from now on with `path` (the
+    /// widest this CPU runs, [`ModalPath::best`], unless set): every path gives the
+    /// same samples, bit for bit, so this is for tests and measurements. A path whose
+    /// instructions this CPU lacks is refused, and the current one kept.
+    #[doc(hidden)]
+    pub fn set_modal_path(&mut self, path: ModalPath) -> Result<(), JitError> {
+        self.modal_lanes = modal::Lanes::new(path).ok_or_else(|| {
+            JitError::Host(format!("this CPU cannot compute modal banks with {path:?}"))
+        })?;
+        Ok(())
+    }
+
+    /// How the modal banks of new voices compute their tiles.
+    #[doc(hidden)]
+    pub fn modal_path(&self) -> ModalPath {
+        self.modal_lanes.path()
     }
 
     /// Starts a new generation: the cache forgets the current one's kernels, whose
@@ -315,7 +331,7 @@ impl Jit {
             b.append_block_params_for_function_params(entry);
             b.switch_to_block(entry);
             let params = b.block_params(entry).to_vec();
-            let [step, unary, binary, modal_block, timer_block, modal_tile] = generation
+            let [step, unary, binary, modal_block, timer_block] = generation
                 .helpers
                 .map(|helper| module.declare_func_in_func(helper, b.func));
             let helpers = Helpers {
@@ -324,7 +340,6 @@ impl Jit {
                 binary,
                 modal_block,
                 timer_block,
-                modal_tile,
             };
             let param = |b: &mut FunctionBuilder, ty, k: i32| {
                 b.ins()
@@ -471,8 +486,13 @@ impl Jit {
             .enumerate()
             .filter(|(_, step)| is_modal_bank(interp.steps(), step))
             .map(|(i, step)| {
-                let state =
-                    modal::ModalState::new(interp.steps(), step, config, &mut self.modal_tables);
+                let state = modal::ModalState::new(
+                    interp.steps(),
+                    step,
+                    config,
+                    &mut self.modal_tables,
+                    self.modal_lanes,
+                );
                 (i, state)
             })
             .collect();

@@ -5,67 +5,55 @@
 //! Each mode is a rotator z = A·e^(−D·τ)·e^(2πi·F·τ), and with p = e^((−D + 2πiF)/sr),
 //! sample k of a *tile* that starts with z is Im(z·p^k) = Re z·Im p^k + Im z·Re p^k:
 //! two multiply-adds per mode and sample against a per-mode table of p^k for
-//! k < [`TILE`], with no recurrence from one sample to the next. The compiled loop
-//! ([`define_tile_function`], one per generation of code) holds a tile of 32 samples
-//! in eight `F32X4` accumulators and runs every mode of a group through them (two FMAs
-//! per mode and four samples when the host has FMA). A group's tables ([`GROUP`]
-//! modes, 16 KB) stay in L1 while it is run over every tile of the block.
+//! k < [`TILE`], with no recurrence from one sample to the next. The tile loop
+//! ([`tile`]) is Rust compiled ahead of time for each [`ModalPath`] (AVX-512, AVX2,
+//! portable), one chosen per [`crate::Jit`]: a tile of 64 samples in four AVX-512
+//! vectors, two sums each, every mode of a group run through them with fused
+//! multiply-adds, the same bits on every path. A group's tables ([`GROUP`] modes,
+//! 16 KB) stay in L1 while it is run over every tile of the block.
 //!
 //! The kernel calls [`modal_block`] once per block, which does the rest, once per
 //! tile and mode or less: it cuts the block into pieces of tiles; moves each mode's z
-//! from tile to tile by p^32 in `f64`, or sets it exactly from τ
+//! from tile to tile by p^64 in `f64`, or sets it exactly from τ
 //! ([`rotator::exact`]) wherever τ does not advance by one sample period (a
 //! re-strike), every [`ANCHOR_INTERVAL`] samples and at the start; rounds it to `f32`
-//! for the multiply-adds; and adds the groups' sums in group order. Tiles start at
-//! fixed sample positions (multiples of 32, anchors and jumps), and a tile cut by the
-//! end of a block is computed whole and continued from its start in the next, so the
-//! output does not depend on the block size. Groups are independent until they are
-//! added, so a voice with threads shares them out (`JitVoice::set_threads`) without
-//! changing a bit.
+//! for the multiply-adds; and adds the groups' sums in group order. That work is
+//! compiled for the path too (its `f64` loop in the path's vectors), and plain
+//! multiplications and additions, never contracted, give the same bits on every path.
+//! Tiles start at fixed sample positions (multiples of 64, anchors and jumps), and a
+//! tile cut by the end of a block is computed whole and continued from its start in
+//! the next, so the output does not depend on the block size. Groups are independent
+//! until they are added, so a voice with threads shares them out
+//! (`JitVoice::set_threads`) without changing a bit.
+
+mod tile;
 
 use std::collections::HashMap;
 use std::sync::{Arc, Weak};
 
-use cranelift_codegen::ir::condcodes::IntCC;
-use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, Signature, Value};
-use cranelift_codegen::Context;
-use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
-use cranelift_jit::JITModule;
-use cranelift_module::{FuncId, Linkage, Module};
+use cranelift_codegen::ir::{types, InstBuilder};
 use timbre_ir::dsp::rotator;
 use timbre_ir::op::Op;
 use timbre_ir::{RenderConfig, Step};
 
 use crate::codegen::KernelBuilder;
-use crate::JitError;
+pub(crate) use tile::Lanes;
+pub use tile::ModalPath;
+use tile::{ModeTable, TILE};
 
-/// Samples in a tile: eight vectors of four `f32`.
-const TILE: usize = 32;
-/// Modes whose tables are run over the block together: 64 × 256 bytes, in L1.
-const GROUP: usize = 64;
-/// Samples between exact anchors (besides jumps of τ). Between them z advances by
-/// p^32 in `f64`, whose rounding after 256 tiles is ~1e-14 of the mode's amplitude.
-const ANCHOR_INTERVAL: u64 = 8192;
+/// Modes whose tables are run over the block together: 32 × 512 bytes, in L1.
+const GROUP: usize = 32;
+/// Samples between exact anchors (besides jumps of τ), a multiple of [`TILE`].
+/// Between them z advances by p^64 in `f64`, whose rounding after 256 tiles is
+/// ~1e-14 of the mode's amplitude.
+const ANCHOR_INTERVAL: u64 = 16384;
 
-const F32X4: types::Type = types::F32X4;
 const I64: types::Type = types::I64;
-
-/// p^k for k < [`TILE`] as `f32`, imaginary parts first; 64-byte aligned.
-#[derive(Clone, Copy)]
-#[repr(C, align(64))]
-pub(crate) struct ModeTable {
-    im: [f32; TILE],
-    re: [f32; TILE],
-}
 
 /// The most pieces (tiles, whole or cut) computed together; a block with more (τ
 /// jumping often) is computed in several rounds. Nothing is allocated while rendering.
 /// Blocks shorter than 32 tiles need fewer: as many as a block without jumps has.
 const MAX_PIECES: usize = 32;
-
-/// log2 of a table's size in bytes.
-const TABLE_BITS: i64 = 8;
-const _: () = assert!(size_of::<ModeTable>() == 1 << TABLE_BITS);
 
 /// Where a piece of a block starts: what happens to z before it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -173,15 +161,12 @@ struct Group {
     /// Per mode: z at the start of the current tile, amplitude included.
     re: Vec<f64>,
     im: Vec<f64>,
-    /// Re z of every mode rounded to `f32`, then Im z, for the current piece.
-    coefficients: Vec<f32>,
-    /// Per piece of the round, the group's sum over the tile's 32 samples.
+    /// Re z and Im z of every mode rounded to `f32`, for the current piece.
+    re_f32: Vec<f32>,
+    im_f32: Vec<f32>,
+    /// Per piece of the round, the group's sum over the tile's samples.
     tiles: Vec<[f32; TILE]>,
 }
-
-/// The compiled tile loop: `tile(tables, coefficients, modes, sums)` (see
-/// [`define_tile_function`]).
-pub(crate) type TileFn = unsafe extern "C" fn(*const ModeTable, *const f32, u64, *mut f32);
 
 /// A voice's modal bank.
 pub(crate) struct ModalState {
@@ -202,6 +187,8 @@ pub(crate) struct ModalState {
     pool: Option<Arc<rayon::ThreadPool>>,
     /// Whether τ is `t`, which never jumps: its samples need not be checked.
     time_is_t: bool,
+    /// The code that computes the groups.
+    lanes: Lanes,
 }
 
 /// Below this sample index, t = index / rate advances by one sample period within
@@ -209,8 +196,8 @@ pub(crate) struct ModalState {
 /// 4e-7 of a period at 2³²), so a τ that is `t` need not be checked for jumps.
 const STEADY_T_SAMPLES: u64 = 1 << 32;
 
-/// Banks of fewer groups than this run on one thread.
-const GROUPS_FOR_THREADS: usize = 4;
+/// Banks of fewer groups than this (256 modes) run on one thread.
+const GROUPS_FOR_THREADS: usize = 256 / GROUP;
 
 /// Mode-samples of a round below which it runs on one thread (about 60 µs of work:
 /// a round of 64 samples of 1000 modes ran three times slower on two threads than
@@ -218,12 +205,14 @@ const GROUPS_FOR_THREADS: usize = 4;
 const WORK_FOR_THREADS: usize = 1 << 19;
 
 impl ModalState {
-    /// The state of modal-bank step `step`, whose constants are steps of `steps`.
+    /// The state of modal-bank step `step`, whose constants are steps of `steps`,
+    /// computed by `lanes`.
     pub(crate) fn new(
         steps: &[Step],
         step: &Step,
         config: RenderConfig,
         tables: &mut TableCache,
+        lanes: Lanes,
     ) -> ModalState {
         let sample_rate = config.sample_rate;
         // A block without jumps has at most this many pieces.
@@ -247,7 +236,8 @@ impl ModalState {
                     first,
                     re: vec![0.0; len],
                     im: vec![0.0; len],
-                    coefficients: vec![0.0; 2 * len],
+                    re_f32: vec![0.0; len],
+                    im_f32: vec![0.0; len],
                     tiles: vec![[0.0; TILE]; max_pieces],
                 }
             })
@@ -263,6 +253,7 @@ impl ModalState {
             cursor: 0,
             pool: None,
             time_is_t: matches!(steps[step.args[0]].op, Op::Time),
+            lanes,
         }
     }
 
@@ -274,7 +265,35 @@ impl ModalState {
 
     /// Renders a block: `out.len()` samples of the sum into `out`, τ from `time` (empty
     /// when τ is `t`, which is then computed here).
-    fn render(&mut self, time: &[f64], t0: u64, out: &mut [f64], tile: TileFn) {
+    fn render(&mut self, time: &[f64], t0: u64, out: &mut [f64]) {
+        match self.lanes.path() {
+            // SAFETY: `Lanes` names only a path whose instructions this CPU has.
+            #[cfg(target_arch = "x86_64")]
+            ModalPath::Avx512 => unsafe { self.render_avx512(time, t0, out) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            ModalPath::Avx2 => unsafe { self.render_avx2(time, t0, out) },
+            _ => self.render_with(time, t0, out),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn render_avx512(&mut self, time: &[f64], t0: u64, out: &mut [f64]) {
+        self.render_with(time, t0, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn render_avx2(&mut self, time: &[f64], t0: u64, out: &mut [f64]) {
+        self.render_with(time, t0, out)
+    }
+
+    /// [`ModalState::render`], compiled into each path's function so that its loops
+    /// over samples use that path's vectors.
+    #[inline(always)]
+    fn render_with(&mut self, time: &[f64], t0: u64, out: &mut [f64]) {
+        let lanes = self.lanes;
         while self.begin(time, t0, out.len()) > 0 {
             let (modes, pieces) = (&*self.modes, &self.pieces[..]);
             let amplitude = &self.amplitude[..];
@@ -291,18 +310,18 @@ impl ModalState {
                         for run in rest.chunks_mut(per_thread) {
                             scope.spawn(move |_| {
                                 for group in run {
-                                    group.render(modes, amplitude, pieces, tile);
+                                    group.render(lanes, modes, amplitude, pieces);
                                 }
                             });
                         }
                         for group in first {
-                            group.render(modes, amplitude, pieces, tile);
+                            group.render(lanes, modes, amplitude, pieces);
                         }
                     })
                 }
                 None => {
                     for group in &mut self.groups {
-                        group.render(modes, amplitude, pieces, tile);
+                        group.render(lanes, modes, amplitude, pieces);
                     }
                 }
             }
@@ -313,6 +332,7 @@ impl ModalState {
     /// The next at most `max_pieces` pieces of a block (see [`Piece`]), from where
     /// the last call stopped; returns how many, 0 once the block is done (and then
     /// starts again at its first sample).
+    #[inline(always)]
     fn begin(&mut self, time: &[f64], t0: u64, n: usize) -> usize {
         self.pieces.clear();
         if self.cursor >= n {
@@ -356,6 +376,15 @@ impl ModalState {
             if time_is_t && t0 + (limit as u64) < STEADY_T_SAMPLES {
                 // τ is t itself, which advances by one period at every sample.
                 end = limit;
+            } else if !time_is_t {
+                // τ read: checked over the whole piece without stopping, a loop the
+                // compiler vectorises; where it finds a jump, the loop below finds where.
+                let pairs = time[k..limit - 1].iter().zip(&time[k + 1..limit]);
+                if pairs.fold(true, |all, (&a, &b)| {
+                    all & rotator::advances(Some(a), b, sr)
+                }) {
+                    end = limit;
+                }
             }
             while end < limit && rotator::advances(Some(tau_at(end - 1)), tau_at(end), sr) {
                 end += 1;
@@ -374,29 +403,69 @@ impl ModalState {
     }
 
     /// Writes the round's samples: each the sum of its tile's groups, in group order.
+    #[inline(always)]
     fn end(&self, out: &mut [f64]) {
         let Some((first, rest)) = self.groups.split_first() else {
             return;
         };
         for (p, piece) in self.pieces.iter().enumerate() {
-            let out = &mut out[piece.at..piece.at + piece.len];
-            let samples = piece.offset..piece.offset + piece.len;
-            for (y, x) in out.iter_mut().zip(&first.tiles[p][samples.clone()]) {
+            // The whole tile, in registers rather than in `out` once per group.
+            let mut sum = [0.0; TILE];
+            for (y, x) in sum.iter_mut().zip(&first.tiles[p]) {
                 *y = *x as f64;
             }
             for group in rest {
-                for (y, x) in out.iter_mut().zip(&group.tiles[p][samples.clone()]) {
+                for (y, x) in sum.iter_mut().zip(&group.tiles[p]) {
                     *y += *x as f64;
                 }
             }
+            let samples = piece.offset..piece.offset + piece.len;
+            out[piece.at..piece.at + piece.len].copy_from_slice(&sum[samples]);
         }
     }
 }
 
 impl Group {
     /// Computes the group's sum over the tile of every piece of the round, moving its
-    /// rotators from tile to tile.
-    fn render(&mut self, modes: &Modes, amplitude: &[f64], pieces: &[Piece], tile: TileFn) {
+    /// rotators from tile to tile, with the code of `lanes`.
+    fn render(&mut self, lanes: Lanes, modes: &Modes, amplitude: &[f64], pieces: &[Piece]) {
+        match lanes.path() {
+            // SAFETY: `Lanes` names only a path whose instructions this CPU has.
+            #[cfg(target_arch = "x86_64")]
+            ModalPath::Avx512 => unsafe { self.render_avx512(modes, amplitude, pieces) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            ModalPath::Avx2 => unsafe { self.render_avx2(modes, amplitude, pieces) },
+            _ => self.render_with(modes, amplitude, pieces, tile::portable),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn render_avx512(&mut self, modes: &Modes, amplitude: &[f64], pieces: &[Piece]) {
+        self.render_with(modes, amplitude, pieces, |tables, re, im, sums| {
+            tile::x86::avx512(tables, re, im, sums)
+        })
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn render_avx2(&mut self, modes: &Modes, amplitude: &[f64], pieces: &[Piece]) {
+        self.render_with(modes, amplitude, pieces, |tables, re, im, sums| {
+            tile::x86::avx2(tables, re, im, sums)
+        })
+    }
+
+    /// [`Group::render`] with `tile`, compiled into each path's function so that its
+    /// loops over the modes use that path's vectors.
+    #[inline(always)]
+    fn render_with(
+        &mut self,
+        modes: &Modes,
+        amplitude: &[f64],
+        pieces: &[Piece],
+        tile: impl Fn(&[ModeTable], &[f32], &[f32], &mut [f32; TILE]),
+    ) {
         let len = self.re.len();
         let all = self.first..self.first + len;
         for (p, piece) in pieces.iter().enumerate() {
@@ -411,11 +480,15 @@ impl Group {
                 }
                 Start::Advance(samples) if samples == TILE as u64 => {
                     // The common case, in a loop the compiler vectorises.
-                    let (p_re, p_im) = (&modes.tile_re[all.clone()], &modes.tile_im[all.clone()]);
-                    for k in 0..len {
-                        let (a, b) = (self.re[k], self.im[k]);
-                        self.re[k] = a * p_re[k] - b * p_im[k];
-                        self.im[k] = a * p_im[k] + b * p_re[k];
+                    let steps = modes.tile_re[all.clone()]
+                        .iter()
+                        .zip(&modes.tile_im[all.clone()]);
+                    for ((re, im), (&p_re, &p_im)) in
+                        self.re.iter_mut().zip(&mut self.im).zip(steps)
+                    {
+                        let (a, b) = (*re, *im);
+                        *re = a * p_re - b * p_im;
+                        *im = a * p_im + b * p_re;
                     }
                 }
                 Start::Advance(samples) => {
@@ -428,37 +501,32 @@ impl Group {
                     }
                 }
             }
-            let (re, im) = self.coefficients.split_at_mut(len);
-            for k in 0..len {
-                re[k] = self.re[k] as f32;
-                im[k] = self.im[k] as f32;
+            for (to, from) in self.re_f32.iter_mut().zip(&self.re) {
+                *to = *from as f32;
             }
-            // SAFETY: `tile` is the compiled loop of `define_tile_function`; it reads
-            // `len` tables and the group's `2·len` coefficients, and writes one tile.
-            unsafe {
-                tile(
-                    modes.tables[self.first..].as_ptr(),
-                    self.coefficients.as_ptr(),
-                    len as u64,
-                    self.tiles[p].as_mut_ptr(),
-                )
-            };
+            for (to, from) in self.im_f32.iter_mut().zip(&self.im) {
+                *to = *from as f32;
+            }
+            tile(
+                &modes.tables[all.clone()],
+                &self.re_f32,
+                &self.im_f32,
+                &mut self.tiles[p],
+            );
         }
     }
 }
 
-/// `modal_block(state, time, n, t0, out, tile)`: called by kernels.
+/// `modal_block(state, time, n, t0, out)`: called by kernels.
 pub(crate) extern "C" fn modal_block(
     state: *mut ModalState,
     time: *const f64,
     n: u64,
     t0: u64,
     out: *mut f64,
-    tile: TileFn,
 ) {
     // SAFETY: kernels pass the step's state, its time argument's buffer (null when τ
-    // is `t`) and its own buffer, of at least `n` samples each, and the tile function
-    // of their module.
+    // is `t`) and its own buffer, of at least `n` samples each.
     let (state, out) = unsafe { (&mut *state, std::slice::from_raw_parts_mut(out, n as usize)) };
     let time: &[f64] = if time.is_null() {
         &[]
@@ -466,11 +534,7 @@ pub(crate) extern "C" fn modal_block(
         // SAFETY: as above.
         unsafe { std::slice::from_raw_parts(time, n as usize) }
     };
-    state.render(time, t0, out, tile);
-}
-
-fn aligned() -> MemFlagsData {
-    MemFlagsData::new().with_notrap().with_aligned()
+    state.render(time, t0, out);
 }
 
 impl KernelBuilder<'_, '_> {
@@ -485,108 +549,9 @@ impl KernelBuilder<'_, '_> {
             self.buffer(time)
         };
         let out = self.buffer(i);
-        let tile = self.b.ins().func_addr(I64, self.helpers.modal_tile);
-        let args = [state, time, self.n, self.t0, out, tile];
+        let args = [state, time, self.n, self.t0, out];
         self.b.ins().call(self.helpers.modal_block, &args);
     }
-}
-
-/// Defines `modal_tile(tables, coefficients, modes, sums)` in `module`: for each of
-/// the 32 samples k of a tile, sums[k] = Σ_m Re z_m·Im p_m^k + Im z_m·Re p_m^k over
-/// `modes ≥ 1` modes, in mode order (the coefficients are every Re z, then every
-/// Im z), with the tile in eight `F32X4` accumulators (FMA
-/// if `fma`). Every group of every modal bank runs this loop.
-pub(crate) fn define_tile_function(
-    module: &mut JITModule,
-    context: &mut Context,
-    builder_context: &mut FunctionBuilderContext,
-    fma: bool,
-) -> Result<FuncId, JitError> {
-    let mut sig = Signature::new(module.target_config().default_call_conv);
-    sig.params.extend([AbiParam::new(I64); 4]);
-    context.func.signature = sig.clone();
-    {
-        let mut b = FunctionBuilder::new(&mut context.func, builder_context);
-        let entry = b.create_block();
-        b.append_block_params_for_function_params(entry);
-        b.switch_to_block(entry);
-        let [tables, coefficients, modes, sums] =
-            <[Value; 4]>::try_from(b.block_params(entry)).expect("four parameters");
-        let flags = MemFlagsData::new().with_notrap();
-        let zero = b.ins().f32const(0.0);
-        let zero = b.ins().splat(F32X4, zero);
-        let accumulators: Vec<_> = (0..TILE / 4)
-            .map(|_| {
-                let var = b.declare_var(F32X4);
-                b.def_var(var, zero);
-                var
-            })
-            .collect();
-        // Re z of the modes, then Im z.
-        let im_offset = b.ins().ishl_imm_u(modes, 2);
-        let im_coefficients = b.ins().iadd(coefficients, im_offset);
-        let first = b.ins().iconst(I64, 0);
-        do_while(&mut b, first, modes, |b, m| {
-            let table = b.ins().ishl_imm_u(m, TABLE_BITS);
-            let table = b.ins().iadd(tables, table);
-            let coefficient = b.ins().ishl_imm_u(m, 2);
-            let re_z = b.ins().iadd(coefficients, coefficient);
-            let im_z = b.ins().iadd(im_coefficients, coefficient);
-            let [re_z, im_z] = [re_z, im_z].map(|at| {
-                let x = b.ins().load(types::F32, flags, at, 0);
-                b.ins().splat(F32X4, x)
-            });
-            for (v, &sum) in accumulators.iter().enumerate() {
-                let mut acc = b.use_var(sum);
-                for (z, part) in [(re_z, 0), (im_z, 4 * TILE as i32)] {
-                    let power = b.ins().load(F32X4, aligned(), table, part + 16 * v as i32);
-                    acc = if fma {
-                        b.ins().fma(power, z, acc)
-                    } else {
-                        let product = b.ins().fmul(power, z);
-                        b.ins().fadd(acc, product)
-                    };
-                }
-                b.def_var(sum, acc);
-            }
-        });
-        for (v, &sum) in accumulators.iter().enumerate() {
-            let x = b.use_var(sum);
-            b.ins().store(flags, x, sums, 16 * v as i32);
-        }
-        b.ins().return_(&[]);
-        b.seal_all_blocks();
-        b.finalize(module.target_config());
-    }
-    let id = module
-        .declare_function("timbre_modal_tile", Linkage::Local, &sig)
-        .map_err(|e| JitError::Codegen(e.to_string()))?;
-    let defined = module.define_function(id, context);
-    module.clear_context(context);
-    defined.map_err(|e| JitError::Codegen(format!("{e:?}")))?;
-    Ok(id)
-}
-
-/// `for i in start..end { body(i) }` for `start < end`: tested at the bottom.
-fn do_while(
-    b: &mut FunctionBuilder,
-    start: Value,
-    end: Value,
-    body: impl FnOnce(&mut FunctionBuilder, Value),
-) {
-    let counter = b.declare_var(I64);
-    b.def_var(counter, start);
-    let block = b.create_block();
-    let exit = b.create_block();
-    b.ins().jump(block, &[]);
-    b.switch_to_block(block);
-    let i = b.use_var(counter);
-    body(b, i);
-    let next = b.ins().iadd_imm_s(i, 1);
-    b.def_var(counter, next);
-    let more = b.ins().icmp(IntCC::UnsignedLessThan, next, end);
-    b.ins().brif(more, block, &[], exit, &[]);
-    b.switch_to_block(exit);
 }
 
 #[cfg(test)]

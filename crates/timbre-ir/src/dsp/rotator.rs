@@ -170,6 +170,7 @@ struct BlockOut<'a> {
 
 /// Whether time moved from `previous` to `next` by one sample period: if not, a
 /// rotator is anchored again.
+#[inline]
 pub fn advances(previous: Option<f64>, next: f64, sr: f64) -> bool {
     previous.is_some_and(|p| ((next - p) * sr - 1.0).abs() <= 1e-6)
 }

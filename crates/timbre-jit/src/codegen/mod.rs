@@ -61,8 +61,6 @@ pub(crate) struct Helpers {
     pub binary: FuncRef,
     pub modal_block: FuncRef,
     pub timer_block: FuncRef,
-    /// `modal::define_tile_function`'s loop, whose address kernels pass on.
-    pub modal_tile: FuncRef,
 }
 
 /// A region's inputs; see [`KernelBuilder::region_inputs`].
