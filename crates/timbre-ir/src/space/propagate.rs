@@ -3,13 +3,18 @@
 //!
 //! τ is the *emission* (retarded) time, not the distance now: reading a delay line at
 //! d(t)/c would give a source approaching at v the pitch f·(1 + v/c) instead of
-//! f·c/(c − v). The equation is solved exactly by Newton's method (the velocity taken
-//! once per solve) every
-//! [`GRID`] samples (counted from the instance's first sample, so the result does not
-//! depend on the block size), warm-started from the previous solution; between
-//! solutions τ follows the cubic Hermite curve through the two solutions and their
-//! exact slopes dτ/dt = u·(v_s − v_r)/(c + u·v_s). The emitted sound is read from a
-//! delay line at τ·rate samples, so Doppler shift emerges from the motion.
+//! f·c/(c − v). The equation is solved exactly by Newton's method every [`STRIDE`]
+//! grid steps of [`GRID`] samples (counted from the instance's first sample, so the
+//! result does not depend on the block size), warm-started where the last solution's
+//! slope leads; between solutions τ follows the cubic Hermite curve through the two
+//! solutions and their exact slopes dτ/dt = u·(v_s − v_r)/(c + u·v_s). Where that
+//! slope turns by more than [`TURN`] over a stride, every grid point of it is solved
+//! exactly instead. The emitted sound is read from the source's [`History`] at τ·rate
+//! samples, so Doppler shift emerges from the motion.
+//!
+//! The kernel works a stride at a time, way by way: each way's reads of the stride as
+//! arithmetic on arrays (several samples to an instruction), then its filters over
+//! the stride, then its sound added into its receiver's lane.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -29,7 +34,9 @@ use crate::dsp::wav::resample;
 use crate::kernel::{Inputs, KernelOption, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
-/// Samples between exact solutions of the retarded time (0.33 ms at 48 kHz).
+/// Samples between the points the delay is interpolated through (0.33 ms at 48 kHz),
+/// each solved exactly where the motion turns sharply, and between exact solutions
+/// while the source may outrun its sound.
 pub const GRID: usize = 16;
 
 /// Grid steps between exact solutions while the delay's slope changes little: the
@@ -326,7 +333,8 @@ pub const MAX_BRANCHES: usize = 8;
 /// A way's state while rendering.
 #[derive(Clone, Debug, Default)]
 struct WayState {
-    /// The solutions at the start and the end of the current grid step.
+    /// While the source may outrun its sound: the solutions at the start and the end
+    /// of the current grid step.
     now: [Solution; 2],
     /// The solutions at the grid points of the current stride, its start first.
     stride: [Solution; STRIDE + 1],
@@ -518,7 +526,7 @@ impl Propagation {
     /// source seen through mirror `m`, from the guess `tau` (Newton's method with the
     /// exact velocity at each step; the function is monotone in τ while the source is
     /// slower than sound). Warm-started from where the last solution's slope leads,
-    /// the first step is already below [`CONVERGED`]: the source's motion is then
+    /// the first step is usually below [`CONVERGED`]: the source's motion is then
     /// evaluated once per solve, its position at the root taken to first order in
     /// that step (an error of a·step²/2, below 10⁻¹⁶ m).
     fn solve(&self, way: &Way, t: f64, guess: f64, receiver: &ReceiverAt) -> Solution {
