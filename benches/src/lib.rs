@@ -14,7 +14,7 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 13] = [
+pub const WORKLOADS: [&str; 14] = [
     "bell-100",
     "wood-500",
     "bell-1000",
@@ -25,6 +25,7 @@ pub const WORKLOADS: [&str; 13] = [
     "space-100",
     "room-16",
     "room-64",
+    "modal-2000",
     "peer-w1",
     "peer-w2",
     "peer-w3",
@@ -43,6 +44,7 @@ pub fn workload(name: &str) -> Option<Workload> {
         "space-100" => moving_sources(100),
         "room-16" => moving_sources_in_a_room(16),
         "room-64" => moving_sources_in_a_room(64),
+        "modal-2000" => contacts(2000),
         "peer-w1" => peer("peer-w1", include_str!("../peers/w1.tt")),
         "peer-w2" => peer("peer-w2", include_str!("../peers/w2.tt")),
         "peer-w3" => peer("peer-w3", include_str!("../peers/w3.tt")),
@@ -216,6 +218,29 @@ pub fn collisions(n: usize) -> Workload {
     }
 }
 
+/// The contact sounds of a shot: `n` short instances of a ten-mode bank (each
+/// ringing for about half a second, its own loudness and modes), one every 2 ms.
+pub fn contacts(n: usize) -> Workload {
+    let mut source = String::from(
+        "(define-sound contact (amp base)
+           (let ((modes (rvector 10 base (* 8 base))))
+             (* amp 0.1 (combine (* (sine (* t modes)) (damp (* t 0.05 modes)))))))\n",
+    );
+    for k in 0..n {
+        let _ = writeln!(
+            source,
+            "(instance c{k} (contact :amp {} :base {}) :start {})",
+            0.2 + 0.1 * (k % 7) as f64,
+            300.0 + 10.0 * (k % 53) as f64,
+            0.002 * k as f64
+        );
+    }
+    Workload {
+        name: leak(format!("modal-{n}")),
+        source,
+    }
+}
+
 /// A swarm as a scene: `n` instances of one bee class (the swarm's bee: its own
 /// pitch and noise), one starting every 5 ms, all playing to the end. The JIT
 /// computes them as the lanes of one kernel call (`timbre_jit::LaneBatch`).
@@ -314,6 +339,7 @@ mod tests {
         assert_eq!(compile(&bees(50)).instances.len(), 50);
         assert_eq!(compile(&moving_sources(100)).instances.len(), 100);
         assert_eq!(compile(&moving_sources_in_a_room(16)).instances.len(), 16);
+        assert_eq!(compile(&contacts(2000)).instances.len(), 2000);
         assert!(workload("bell-7").is_none());
     }
 
