@@ -76,7 +76,10 @@ fn two_thousand_instances_render_in_flat_memory_and_the_same_bits_on_any_threads
     let program = program();
     assert_eq!(program.instances.len(), INSTANCES);
     let (one, live) = render(&program, 1);
-    assert!(one[48_000..48_100].iter().any(|x| x.abs() > 1e-3), "it sounds");
+    assert!(
+        one[48_000..48_100].iter().any(|x| x.abs() > 1e-3),
+        "it sounds"
+    );
     // About 250 instances sound at once from 0.5 s to 4 s, while 1750 more start:
     // the heap then stays within 2 MiB of where it was at 1 s.
     let at_one_second = live[9];
@@ -95,6 +98,9 @@ fn two_thousand_instances_render_in_flat_memory_and_the_same_bits_on_any_threads
     for threads in [2, 8] {
         let (other, _) = render(&program, threads);
         let first = (0..one.len()).find(|&n| one[n].to_bits() != other[n].to_bits());
-        assert_eq!(first, None, "{threads} threads differ from one at that sample");
+        assert_eq!(
+            first, None,
+            "{threads} threads differ from one at that sample"
+        );
     }
 }
