@@ -101,25 +101,15 @@ pub struct AirFilter {
 }
 
 impl AirFilter {
-    /// Sets the distance (cheap enough for every few samples).
-    pub fn set_distance(&mut self, air: &Air, distance: f64, sample_rate: f64) {
-        self.coefficient = air.coefficient(distance, sample_rate);
-    }
-
     /// Sets the coefficient of both poles (from [`Air::coefficient_at`]).
     pub fn set_coefficient(&mut self, coefficient: f64) {
         self.coefficient = coefficient;
     }
 
-    #[inline]
-    pub fn process(&mut self, x: f64) -> f64 {
-        let y = self.first.process(self.coefficient, x);
-        self.second.process(self.coefficient, y)
-    }
-
     /// A run of samples through both poles in place, each as
     /// [`OnePole::process_run`] computes it (the two recursions in one loop, so the
-    /// processor overlaps them), settled at the end if `settle`.
+    /// processor overlaps them), settled at the end if `settle`; with a coefficient
+    /// of 1 (no distance) the sound passes unchanged.
     #[inline]
     pub fn process_run(&mut self, x: &mut [f64], settle: bool) {
         let a = self.coefficient.clamp(0.0, 1.0);
@@ -132,28 +122,6 @@ impl AirFilter {
         }
         self.first.keep(first, settle);
         self.second.keep(second, settle);
-    }
-
-    /// [`AirFilter::process_run`], then `then`'s [`OnePole::process_run`] with
-    /// coefficient `b`, in one loop (the same bits as one after the other; the three
-    /// recursions overlap).
-    #[inline]
-    pub fn process_run_then(&mut self, then: &mut OnePole, b: f64, x: &mut [f64], settle: bool) {
-        let a = self.coefficient.clamp(0.0, 1.0);
-        let p = 1.0 - a;
-        let b = super::clamp_or(b, 0.0, 1.0, 1.0);
-        let q = 1.0 - b;
-        let (mut first, mut second) = (self.first.state(), self.second.state());
-        let mut third = then.state();
-        for v in x.iter_mut() {
-            first = p * first + a * *v;
-            second = p * second + a * first;
-            third = q * third + b * second;
-            *v = third;
-        }
-        self.first.keep(first, settle);
-        self.second.keep(second, settle);
-        then.keep(third, settle);
     }
 }
 
@@ -182,17 +150,17 @@ mod tests {
     fn measured_db(air: &Air, distance: f64, freq: f64) -> f64 {
         let sr = 48_000.0;
         let mut filter = AirFilter::default();
-        filter.set_distance(air, distance, sr);
-        let (mut power_in, mut power_out) = (0.0, 0.0);
-        for n in 0..96_000 {
-            let x = (std::f64::consts::TAU * freq * n as f64 / sr).sin();
-            let y = filter.process(x);
-            if n >= 48_000 {
-                power_in += x * x;
-                power_out += y * y;
-            }
+        filter.set_coefficient(air.coefficient(distance, sr));
+        let x: Vec<f64> = (0..96_000)
+            .map(|n| (std::f64::consts::TAU * freq * n as f64 / sr).sin())
+            .collect();
+        let mut y = x.clone();
+        // In the runs of 64 samples the propagation kernel uses.
+        for run in y.chunks_mut(64) {
+            filter.process_run(run, true);
         }
-        10.0 * (power_in / power_out).log10()
+        let power = |x: &[f64]| x[48_000..].iter().map(|v| v * v).sum::<f64>();
+        10.0 * (power(&x) / power(&y)).log10()
     }
 
     #[test]
@@ -226,8 +194,10 @@ mod tests {
     fn no_distance_no_filter() {
         let air = Air::new(20.0, 50.0);
         let mut filter = AirFilter::default();
-        filter.set_distance(&air, 0.0, 48_000.0);
-        assert_eq!(filter.process(0.7), 0.7);
+        filter.set_coefficient(air.coefficient(0.0, 48_000.0));
+        let mut x = [0.7];
+        filter.process_run(&mut x, true);
+        assert_eq!(x[0], 0.7);
         for d in [f64::NAN, f64::INFINITY, -1.0, 1e9] {
             let a = air.coefficient(d, 48_000.0);
             assert!((0.0..=1.0).contains(&a), "{d} m: {a}");

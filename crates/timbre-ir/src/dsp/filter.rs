@@ -145,13 +145,8 @@ impl OnePole {
     /// Keeps `y` as the state; if `settle`, flushed, and reset if it is not finite.
     #[inline]
     pub(crate) fn keep(&mut self, y: f64, settle: bool) {
-        self.y = if !settle {
-            y
-        } else if flush(y).is_finite() {
-            flush(y)
-        } else {
-            0.0
-        };
+        let y = if settle { flush(y) } else { y };
+        self.y = if y.is_finite() || !settle { y } else { 0.0 };
     }
 
     /// The state (the last output).

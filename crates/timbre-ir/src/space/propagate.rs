@@ -1141,11 +1141,11 @@ impl Propagation {
                     *direct = arrived.then(|| state.basis.at(p % GRID, a, b).0);
                 }
             }
-            match (self.medium.air.is_some(), way.wall_filter) {
-                (true, Some(wall)) => w.air.process_run_then(&mut w.wall, wall, heard, settle),
-                (true, None) => w.air.process_run(heard, settle),
-                (false, Some(wall)) => w.wall.process_run(wall, heard, settle),
-                (false, None) => {}
+            if self.medium.air.is_some() {
+                w.air.process_run(heard, settle);
+            }
+            if let Some(coefficient) = way.wall_filter {
+                w.wall.process_run(coefficient, heard, settle);
             }
             if w.muffle.material.is_some() {
                 for y in heard.iter_mut() {
