@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use crate::graph::{Graph, NodeId};
 use crate::op::Op;
+use crate::space::LateBus;
 
 /// Most lanes one node may have.
 pub const MAX_LANES: usize = 1 << 16;
@@ -35,6 +36,9 @@ pub struct Program {
     pub settings: Settings,
     /// The scene's instances, in the order written (empty unless it is a scene).
     pub instances: Vec<Instance>,
+    /// The late parts of the scene's rooms, each run once over what its instances
+    /// send it (see [`Instance::send`]).
+    pub buses: Vec<LateBus>,
 }
 
 impl Program {
@@ -59,8 +63,12 @@ pub struct Instance {
     /// Scene time at which it is switched off (after the fade-out), if given.
     pub stop: Option<f64>,
     /// Seconds it may still be heard after its stop: the sound's longest way from
-    /// its source to a receiver, and its room's reverberation.
+    /// its source to a receiver (its room's late part rings on in its bus, for
+    /// [`LateBus::tail`] more).
     pub tail: f64,
+    /// The bus (an index into [`Program::buses`]) its lanes after the channels'
+    /// are sent to: one per receiver of its room's late part.
+    pub send: Option<usize>,
     /// The stems it is heard in (`timbre render --stems`).
     pub stem: Stem,
 }

@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+use timbre_ir::space::{LateBus, LateBusState};
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
 use timbre_jit::{InstanceLanes, Jit, JitError, JitVoice, LaneBatch};
 
@@ -94,6 +95,14 @@ impl DecayWatch {
         }
     }
 
+    /// Starts over, as a bus's watch does when it wakes: its windows counted from
+    /// now, and heard (a bus that has only been sent silence still sleeps).
+    fn restart(&mut self) {
+        self.left = self.window;
+        self.silent = 0;
+        self.heard = true;
+    }
+
     /// Takes the instance's next samples (as mixed, after any fade); `Some(k)` if the
     /// instance ends after sample `k` of them (the last of a window, the instance
     /// having decayed). The same as [`DecayWatch::push`] sample by sample, a window's
@@ -160,7 +169,8 @@ enum Voice {
 }
 
 impl Voice {
-    /// Lanes of its root: 1 (heard in every channel) or one per channel.
+    /// Lanes of its root: 1 (heard in every channel) or one per channel, then one
+    /// per receiver of its room's late part if it sends to a bus.
     fn width(&self) -> usize {
         match self {
             Voice::Interpreter(v) => v.root_width(),
@@ -192,6 +202,7 @@ impl Voice {
 /// thread, so that the audio thread only adds it.
 pub struct Prepared {
     voice: Voice,
+    send: Option<usize>,
 }
 
 impl Prepared {
@@ -215,10 +226,17 @@ impl Prepared {
             },
             _ => interpreted(),
         };
-        Ok(Prepared { voice })
+        Ok(Prepared { voice, send: None })
     }
 
-    /// Lanes of its output: 1 (a mono instance) or one per channel.
+    /// The same voice, its lanes after the channels' sent to bus `bus` (see
+    /// [`SceneRenderer::add_bus`]): an instance placed in a room with a late part.
+    pub fn sending(mut self, bus: usize) -> Self {
+        self.send = Some(bus);
+        self
+    }
+
+    /// Lanes of its output: 1 (a mono instance) or one per channel, then its sends.
     pub fn width(&self) -> usize {
         self.voice.width()
     }
@@ -244,6 +262,8 @@ struct Pending {
     /// the last of its sound has reached the receivers).
     end: Option<u64>,
     mix: Mix,
+    /// The bus its last lanes go to.
+    send: Option<usize>,
 }
 
 struct Active {
@@ -263,6 +283,7 @@ struct Active {
     faults: u64,
     first_fault: Option<u64>,
     mix: Mix,
+    send: Option<usize>,
 }
 
 /// An instance that produced samples that were not finite (±∞ or NaN): they were left
@@ -334,7 +355,8 @@ impl Active {
 
     /// Adds the frames `rendered` (samples `from..until` of the scene) into the
     /// block `out` starting at scene sample `position`, fading out after a stop, and
-    /// ends the instance where it has decayed.
+    /// ends the instance where it has decayed. A voice that sends to a bus has its
+    /// last `sent.lanes` lanes added into `sent.input` (the bus's block) instead.
     #[allow(clippy::too_many_arguments)]
     fn mix(
         &mut self,
@@ -345,6 +367,7 @@ impl Active {
         position: u64,
         channels: usize,
         fade: u64,
+        sent: Option<Sent<'_>>,
     ) {
         let offset = (from - position) as usize;
         let n = (until - from) as usize;
@@ -360,8 +383,12 @@ impl Active {
             self.faults += bad;
             self.first_fault.get_or_insert(from + first as u64);
         }
+        let sends = sent.as_ref().map_or(0, |s| s.lanes);
+        // Lanes heard directly: 1 (routed) or one per channel.
+        let dry = width - sends;
         let unmixed = self.mix == Mix::default();
-        if finite && width == 1 && channels == 1 && self.fade_from.is_none() && unmixed {
+        if finite && dry == 1 && channels == 1 && sends == 0 && self.fade_from.is_none() && unmixed
+        {
             // The common case, mono and no fade, in a tight loop.
             // Up to the sample after which it has decayed, if it has.
             let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
@@ -376,17 +403,36 @@ impl Active {
             self.next = next;
             return;
         }
-        if finite && width == channels && self.fade_from.is_none() && unmixed {
+        if finite && dry == channels && self.fade_from.is_none() && unmixed {
             // A voice of a lane per channel (a placed instance), no fade: the same
-            // tight loop, a frame at a time.
+            // tight loop, a frame at a time, its sends into the bus.
             let last = self
                 .decay
                 .as_mut()
                 .and_then(|d| d.push_frames(rendered, width));
             let heard = last.map_or(n, |k| k + 1);
             let out = &mut out[offset * channels..(offset + heard) * channels];
-            for (y, x) in out.iter_mut().zip(rendered) {
-                *y += x;
+            match sent {
+                None => {
+                    for (y, x) in out.iter_mut().zip(rendered) {
+                        *y += x;
+                    }
+                }
+                Some(sent) => {
+                    let bus = &mut sent.input[offset * sends..(offset + heard) * sends];
+                    let frames = rendered.chunks_exact(width);
+                    for ((y, b), x) in (out.chunks_exact_mut(channels))
+                        .zip(bus.chunks_exact_mut(sends))
+                        .zip(frames)
+                    {
+                        for (y, x) in y.iter_mut().zip(&x[..dry]) {
+                            *y += x;
+                        }
+                        for (b, x) in b.iter_mut().zip(&x[dry..]) {
+                            *b += x;
+                        }
+                    }
+                }
             }
             if last.is_some() {
                 next = from + heard as u64;
@@ -396,6 +442,7 @@ impl Active {
             return;
         }
         let route = Route::of(self.mix.placement, channels);
+        let mut sent = sent;
         for (k, lanes) in rendered.chunks_exact(width).enumerate() {
             let fading = match self.fade_from {
                 Some(f) => {
@@ -410,11 +457,17 @@ impl Active {
             };
             let gain = fading * self.mix.gain;
             let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
-            if width == 1 {
+            if dry == 1 {
                 route.add(finite_or_zero(lanes[0]) * gain, frame);
             } else {
-                for (y, x) in frame.iter_mut().zip(lanes) {
+                for (y, x) in frame.iter_mut().zip(&lanes[..dry]) {
                     *y += finite_or_zero(*x) * gain;
+                }
+            }
+            if let Some(sent) = sent.as_mut() {
+                let bus = &mut sent.input[(offset + k) * sends..(offset + k + 1) * sends];
+                for (b, x) in bus.iter_mut().zip(&lanes[dry..]) {
+                    *b += finite_or_zero(*x) * gain;
                 }
             }
             // Decay is judged on the instance's own sound (with its fade-out), not on
@@ -430,6 +483,102 @@ impl Active {
             }
         }
         self.next = next;
+    }
+}
+
+/// A bus's block as an instance sending to it sees it: frames of `lanes` samples,
+/// from the block's first sample.
+struct Sent<'a> {
+    input: &'a mut [f64],
+    lanes: usize,
+}
+
+/// A room's late part as the renderer runs it (see `timbre_ir::space::late`): one
+/// reverberator per receiver over the sum of what its instances send.
+///
+/// It wakes at the first sample an instance sends to it, and sleeps (its state
+/// cleared, its output no longer added) at the end of a decay window (counted from
+/// its waking, as an instance's are) after which its output has been below
+/// [`SILENCE`] for a window and no instance sends to it any more. Both are functions
+/// of the scene's samples only, so the output does not depend on the block size or
+/// the threads.
+struct Bus {
+    room: LateBus,
+    state: LateBusState,
+    /// What its instances send in the block: frames of one sample per receiver.
+    input: Vec<f64>,
+    output: Vec<f64>,
+    /// The scene sample it woke at, while awake.
+    awake_from: Option<u64>,
+    watch: DecayWatch,
+    /// The sample after the last one an instance sent it in this block, or
+    /// `u64::MAX` while one goes on past the block.
+    busy_until: u64,
+}
+
+impl Bus {
+    fn new(bus: &LateBus, config: RenderConfig) -> Bus {
+        let frames = config.block_size.max(1) * bus.lanes;
+        Bus {
+            room: bus.clone(),
+            state: bus.new_state(config.sample_rate),
+            input: vec![0.0; frames],
+            output: vec![0.0; frames],
+            awake_from: None,
+            watch: DecayWatch::new(config.sample_rate),
+            busy_until: 0,
+        }
+    }
+
+    /// Runs the reverberators over the block of `frames` at scene sample `position`
+    /// and adds their output into `out` (frames of `channels`: a receiver per
+    /// channel, or one heard in every channel). Returns the sample after its last if
+    /// it has gone to sleep.
+    fn run(
+        &mut self,
+        out: &mut [f64],
+        position: u64,
+        frames: usize,
+        channels: usize,
+    ) -> Option<u64> {
+        let woke = self.awake_from?;
+        let lanes = self.state.lanes();
+        let first = (woke.max(position) - position) as usize;
+        let input = &self.input[first * lanes..frames * lanes];
+        let output = &mut self.output[first * lanes..frames * lanes];
+        output.fill(0.0);
+        self.state.process(input, output);
+        // Where it falls asleep, if it does in this block.
+        let mut heard = frames - first;
+        let mut asleep = None;
+        let mut at = 0;
+        while let Some(k) = self.watch.push_frames(&output[at * lanes..], lanes) {
+            let last = position + (first + at + k) as u64;
+            if self.busy_until <= last + 1 {
+                heard = at + k + 1;
+                asleep = Some(last + 1);
+                break;
+            }
+            at += k + 1;
+        }
+        let out = &mut out[first * channels..(first + heard) * channels];
+        for (y, x) in out
+            .chunks_exact_mut(channels)
+            .zip(output.chunks_exact(lanes))
+        {
+            if lanes == channels {
+                for (y, x) in y.iter_mut().zip(x) {
+                    *y += x;
+                }
+            } else {
+                y.iter_mut().for_each(|y| *y += x[0]);
+            }
+        }
+        if asleep.is_some() {
+            self.state.reset();
+            self.awake_from = None;
+        }
+        asleep
     }
 }
 
@@ -492,6 +641,8 @@ pub struct SceneRenderer {
     threads_min_work: Duration,
     /// Instances that have ended after producing samples that were not finite.
     faults: Vec<Fault>,
+    /// The late parts of the rooms instances are placed in (see [`Bus`]).
+    buses: Vec<Bus>,
     /// The ids of the program's instances (or of its one sound), in its order.
     program_ids: Vec<InstanceId>,
     /// Instances of one shape computed as the lanes of one kernel call (see
@@ -565,6 +716,7 @@ impl SceneRenderer {
             batches: vec![],
             batching: engine == Engine::Jit,
             faults: vec![],
+            buses: vec![],
             program_ids: vec![],
             block: vec![0.0; block],
             inbox: None,
@@ -602,6 +754,9 @@ impl SceneRenderer {
         let channels = program.settings.channels.unwrap_or(1);
         let mut renderer = Self::build(config, engine, channels, jit);
         renderer.graph = Arc::new(program.graph.clone());
+        renderer.buses = (program.buses.iter())
+            .map(|bus| Bus::new(bus, config))
+            .collect();
         let sr = config.sample_rate;
         let mut pending: Vec<Pending> = match (&program.root, program.instances.as_slice()) {
             (Some(root), _) => vec![Pending {
@@ -611,6 +766,7 @@ impl SceneRenderer {
                 start: 0,
                 end: None,
                 mix: Mix::default(),
+                send: None,
             }],
             (None, instances) => instances.iter().map(|i| renderer.pending(i, sr)).collect(),
         };
@@ -636,6 +792,7 @@ impl SceneRenderer {
                 .stop
                 .map(|stop| ((stop + DECLICK_OUT + instance.tail) * sr).round() as u64),
             mix: Mix::default(),
+            send: instance.send,
         }
     }
 
@@ -737,10 +894,13 @@ impl SceneRenderer {
     /// Whether every instance has ended (stopped, or decayed) and none is to come:
     /// the scene is over at [`SceneRenderer::ended_at`].
     pub fn finished(&self) -> bool {
-        self.pending.is_empty() && self.active.is_empty()
+        self.pending.is_empty()
+            && self.active.is_empty()
+            && self.buses.iter().all(|b| b.awake_from.is_none())
     }
 
-    /// The sample after the last one that any instance that has ended produced.
+    /// The sample after the last one that any instance that has ended (or any
+    /// room's late part that has rung out) produced.
     pub fn ended_at(&self) -> u64 {
         self.ended_at
     }
@@ -768,15 +928,50 @@ impl SceneRenderer {
         end: Option<u64>,
         mix: Mix,
     ) -> Result<InstanceId, JitError> {
+        self.add_sending(graph, root, start, end, mix, None)
+    }
+
+    /// [`SceneRenderer::add`] for an instance placed in a room with a late part: its
+    /// lanes after the channels' are sent to bus `send` (see
+    /// [`SceneRenderer::add_bus`]).
+    pub fn add_sending(
+        &mut self,
+        graph: &Graph,
+        root: NodeId,
+        start: u64,
+        end: Option<u64>,
+        mix: Mix,
+        send: Option<usize>,
+    ) -> Result<InstanceId, JitError> {
         let start = start.max(self.position);
-        let prepared = match self.lane(graph, root, start)? {
-            Some(lane) => Prepared { voice: lane },
+        let mut prepared = match self.lane(graph, root, start)? {
+            Some(lane) => Prepared {
+                voice: lane,
+                send: None,
+            },
             None => self.prepare(graph, root)?,
         };
+        prepared.send = send;
         let id = self.new_id();
         self.reserve_instances(1);
         self.insert(id, prepared, start, end, mix);
         Ok(id)
+    }
+
+    /// Adds the late part of a room heard by `bus.lanes` receivers (one per channel,
+    /// or one heard in every channel), for instances placed in it to send to; returns
+    /// its number. The same room and receivers as a bus it has give that bus.
+    pub fn add_bus(&mut self, bus: &LateBus) -> usize {
+        if let Some(k) = self.buses.iter().position(|b| b.room.same(bus)) {
+            return k;
+        }
+        self.buses.push(Bus::new(bus, self.config));
+        // Room for a voice sending to it, so that inserting one allocates nothing.
+        let frames = self.config.block_size.max(1) * (self.channels + bus.lanes);
+        if self.scratch.len() < frames {
+            self.scratch.resize(frames, 0.0);
+        }
+        self.buses.len() - 1
     }
 
     /// Makes room for `more` instances than it has, so that inserting them (and their
@@ -816,6 +1011,7 @@ impl SceneRenderer {
                 start,
                 end,
                 mix,
+                send: prepared.send,
             },
         );
     }
@@ -1047,10 +1243,16 @@ impl SceneRenderer {
                 Source::Voice(voice) => voice,
                 Source::Root(root) => {
                     let graph = self.graph.clone();
-                    match self.lane(&graph, root, p.start)? {
+                    let voice = match self.lane(&graph, root, p.start)? {
                         Some(lane) => lane,
                         None => self.prepare(&graph, root)?.voice,
+                    };
+                    // A placed voice is wider than the channels by its sends.
+                    let frames = self.config.block_size.max(1) * voice.width();
+                    if self.scratch.len() < frames {
+                        self.scratch.resize(frames, 0.0);
                     }
+                    voice
                 }
             };
             voice.set_threads(self.pool.clone());
@@ -1066,6 +1268,7 @@ impl SceneRenderer {
                 faults: 0,
                 first_fault: None,
                 mix: p.mix,
+                send: p.send,
             });
         }
         Ok(())
@@ -1137,23 +1340,49 @@ impl SceneRenderer {
     /// rendered it (`on_threads`), else rendered here, now, into the scratch buffer.
     fn mix_active(&mut self, out: &mut [f64], end: u64, on_threads: bool) {
         let (position, channels, fade) = (self.position, self.channels, self.fade_samples);
+        let frames = (end - position) as usize;
+        for bus in &mut self.buses {
+            bus.input.fill(0.0);
+            bus.busy_until = 0;
+        }
         for active in &mut self.active {
             let Some((from, until)) = active.window(position, end) else {
                 continue;
             };
+            let sent = active.send.and_then(|b| self.buses.get_mut(b)).map(|bus| {
+                if bus.awake_from.is_none() {
+                    bus.awake_from = Some(from);
+                    bus.watch.restart();
+                }
+                Sent {
+                    lanes: bus.state.lanes(),
+                    input: &mut bus.input,
+                }
+            });
             if let Some(rendered) =
                 lane_samples(&self.batches, &active.voice, position, from, until)
             {
-                active.mix(rendered, from, until, out, position, channels, fade);
+                active.mix(rendered, from, until, out, position, channels, fade, sent);
             } else if on_threads {
                 let rendered = std::mem::take(&mut active.buffer);
-                active.mix(&rendered, from, until, out, position, channels, fade);
+                active.mix(&rendered, from, until, out, position, channels, fade, sent);
                 active.buffer = rendered;
             } else {
                 let n = ((until - from) as usize) * active.voice.width();
                 let rendered = &mut self.scratch[..n];
                 active.voice.render(rendered);
-                active.mix(rendered, from, until, out, position, channels, fade);
+                active.mix(rendered, from, until, out, position, channels, fade, sent);
+            }
+            if let Some(bus) = active.send.and_then(|b| self.buses.get_mut(b)) {
+                let goes_on = active.end.is_none_or(|e| active.next < e);
+                let until = if goes_on { u64::MAX } else { active.next };
+                bus.busy_until = bus.busy_until.max(until);
+            }
+        }
+        // The rooms' late parts, after every instance has sent its part.
+        for bus in &mut self.buses {
+            if let Some(after) = bus.run(out, position, frames, channels) {
+                self.ended_at = self.ended_at.max(after);
             }
         }
     }
@@ -1181,7 +1410,7 @@ impl SceneRenderer {
                     self.batches[batch].release(lane);
                     None
                 }
-                voice => Some(Prepared { voice }),
+                voice => Some(Prepared { voice, send: None }),
             };
             match self.outbox.as_mut() {
                 // Freed on the control side; the queue has room for every instance.

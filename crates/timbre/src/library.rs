@@ -95,14 +95,20 @@ impl Engine {
     /// ```
     pub fn scene(&self, library: &SoundLibrary) -> Result<Scene, Error> {
         self.check_settings()?;
-        let renderer = match self.jit()? {
+        let mut renderer = match self.jit()? {
             Some(jit) => {
                 SceneRenderer::new_empty_sharing(self.config, self.backend, self.channels, jit)
             }
             None => SceneRenderer::new_empty(self.config, self.backend, self.channels)?,
         };
         let space = match library.0.space() {
-            Some(declared) => Some(Arc::new(LiveSpace::new(declared, self.channels)?)),
+            Some(declared) => {
+                let mut space = LiveSpace::new(declared, self.channels)?;
+                if let Some(bus) = space.late_bus() {
+                    space.send_to(renderer.add_bus(&bus));
+                }
+                Some(Arc::new(space))
+            }
             None => None,
         };
         Ok(Scene {

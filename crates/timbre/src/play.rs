@@ -222,6 +222,8 @@ pub(crate) struct Request {
     pub(crate) start: u64,
     pub(crate) end: Option<u64>,
     pub(crate) mix: Mix,
+    /// The bus of its room's late part it sends to.
+    pub(crate) send: Option<usize>,
 }
 
 impl Engine {
@@ -253,12 +255,13 @@ impl Engine {
         )?;
         // Sound on its way after the stop is still heard.
         let mut tail = 0.0;
+        let mut send = None;
         if let Some(name) = &play.source {
             let Some(space) = space else {
                 return Err(no_space(name));
             };
             // Emitted from its first sample on.
-            tail = space.place(name, &mut tree, self.seconds(start))?;
+            (tail, send) = space.place(name, &mut tree, self.seconds(start))?;
         }
         self.check_instance(&tree)?;
         Ok(Request {
@@ -267,6 +270,7 @@ impl Engine {
                 .stop
                 .map(|s| self.sample(s + timbre_ir::DECLICK_OUT + tail)),
             mix: play.mix,
+            send,
             tree,
         })
     }

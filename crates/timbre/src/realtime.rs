@@ -169,7 +169,11 @@ impl Control {
         let tree = &request.tree;
         let engine = &side.engine;
         let jit = side.jit.as_ref();
-        let prepared = Prepared::new(engine.backend, jit, engine.config, &tree.graph, tree.root)?;
+        let mut prepared =
+            Prepared::new(engine.backend, jit, engine.config, &tree.graph, tree.root)?;
+        if let Some(bus) = request.send {
+            prepared = prepared.sending(bus);
+        }
         (side.control)
             .add(prepared, request.start, request.end, request.mix)
             .map_err(refused)

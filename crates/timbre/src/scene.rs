@@ -118,12 +118,13 @@ impl Scene {
             return Err(too_many(self.engine.limits.instances));
         }
         let tree = &request.tree;
-        Ok((self.renderer).add(
+        Ok((self.renderer).add_sending(
             &tree.graph,
             tree.root,
             request.start,
             request.end,
             request.mix,
+            request.send,
         )?)
     }
 

@@ -16,7 +16,7 @@ use glam::DVec3;
 use timbre_ir::op::Op;
 use timbre_ir::space::live::{LiveError, LivePoint};
 use timbre_ir::space::path::max_distance;
-use timbre_ir::space::{Path, Propagation, Receiver};
+use timbre_ir::space::{LateBus, Path, Propagation, Receiver};
 use timbre_lang::DeclaredSpace;
 
 use crate::{Diag, Diagnostics, Error};
@@ -47,6 +47,8 @@ pub(crate) struct LiveSpace {
     sources: Vec<(String, Source)>,
     /// The longest delay of any sound, seconds.
     max_delay: f64,
+    /// The renderer's bus of the room's late part, if it has one.
+    send: Option<usize>,
 }
 
 fn refusal(code: &'static str, message: String, help: impl Into<String>) -> Error {
@@ -128,7 +130,20 @@ impl LiveSpace {
             listener,
             sources,
             max_delay,
+            send: None,
         })
+    }
+
+    /// The late part of the library's room, heard by its receivers, if it has one:
+    /// the bus its placed instances send to (see [`LiveSpace::send_to`]).
+    pub(crate) fn late_bus(&self) -> Option<LateBus> {
+        let room = self.declared.environment.room.as_ref()?;
+        LateBus::of(room, self.receivers.len())
+    }
+
+    /// Has placed instances send to the renderer's bus `bus`.
+    pub(crate) fn send_to(&mut self, bus: usize) {
+        self.send = Some(bus);
     }
 
     /// Makes the keys pushed so far heard: at the start of each render call, on the
@@ -215,14 +230,15 @@ impl LiveSpace {
     }
 
     /// `tree` (an instance's, its timer at the root) heard from source `name`: its
-    /// tree with a propagation node over it, and how long after its stop it may still
-    /// be heard, seconds.
+    /// tree with a propagation node over it. Returns how long after its stop it may
+    /// still be heard, seconds (the room's late part rings on in its bus), and the
+    /// bus it sends to.
     pub(crate) fn place(
         &self,
         name: &str,
         tree: &mut timbre_lang::Instantiated,
         start: f64,
-    ) -> Result<f64, Error> {
+    ) -> Result<(f64, Option<usize>), Error> {
         let source = match self.source(name)? {
             Source::Live(point) => Path::Moving(point.clone()),
             Source::Declared(path) => path.clone(),
@@ -238,7 +254,7 @@ impl LiveSpace {
         tree.root = tree
             .graph
             .add(Op::Stateful(Arc::new(kernel)), vec![tree.root]);
-        Ok(self.max_delay + self.declared.tail)
+        Ok((self.max_delay, self.send))
     }
 }
 

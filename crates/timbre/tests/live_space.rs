@@ -256,6 +256,60 @@ fn the_audio_thread_allocates_nothing_while_the_game_moves_sources_and_the_liste
     }
 }
 
+/// A library's room: the instances a host places in it share its late part (a bus
+/// the scene registers), which rings out after them at the room's RT60, and the
+/// split scene's audio thread still allocates nothing.
+#[test]
+fn instances_placed_live_in_a_room_ring_in_its_one_late_part() {
+    let library = "
+        (room :size (8 6 3) :absorption 0.3 :rt60 0.8)
+        (listener :position (2 2 1.5))
+        (source a :position (6 4 1.2))
+        (source b :position (1 5 2))
+        (define-sound click () (* 0.8 (< t 0.0005)))";
+    let engine = Engine::new(SR);
+    let library = engine.load_library(library).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    for (source, at) in [("a", 0.0), ("b", 0.05)] {
+        let play = Play::at(at).until(at + 0.1).source(source);
+        scene.play("click", &[], play).unwrap();
+    }
+    let mut x = vec![];
+    while !scene.finished() {
+        assert!(x.len() < 10 * SR as usize, "never ended");
+        x.extend(scene.render_offline(scene.time() + 0.1).unwrap());
+    }
+    x.truncate(scene.ended_at_frame() as usize);
+    let measured = timbre_ir::dsp::analysis::rt60_schroeder(&x[(0.2 * SR) as usize..], SR);
+    let measured = measured.unwrap();
+    assert!((measured / 0.8 - 1.0).abs() < 0.1, "RT60 {measured} s");
+    let end = x.len() as f64 / SR;
+    assert!((0.95..2.6).contains(&end), "ended at {end} s");
+
+    // Split: clicks played from a control thread ring in the room, and the audio
+    // thread neither allocates nor frees.
+    let (control, mut renderer) = engine.scene(&library).unwrap().split(16).unwrap();
+    let mut block = vec![0.0f32; 256];
+    let (mut allocations, mut frees, mut after) = (0, 0, 0.0f32);
+    for k in 0..400 {
+        if k % 100 == 0 {
+            let play = Play::at(control.time())
+                .until(control.time() + 0.01)
+                .source("a");
+            control.play("click", &[], play).unwrap();
+        }
+        let (a, f) = callback(&mut renderer, &mut block);
+        allocations += a;
+        frees += f;
+        if k % 100 == 90 {
+            // 0.48 s after the click: its late part is still heard.
+            after = after.max(block.iter().fold(0.0f32, |m, x| m.max(x.abs())));
+        }
+    }
+    assert_eq!((allocations, frees), (0, 0));
+    assert!(after > 1e-4, "no late part heard: {after}");
+}
+
 /// The first diagnostic of a refused call: its code and its report.
 fn refused(result: Result<(), timbre::Error>) -> (String, String) {
     let error = result.unwrap_err();

@@ -159,6 +159,17 @@ impl Convolver {
         }
     }
 
+    /// Forgets the input so far (silence), as when new.
+    pub fn reset(&mut self) {
+        self.hist.fill(0.0);
+        self.tail_out.fill(0.0);
+        self.pos = 0;
+        if let Some(t) = self.tail.as_mut() {
+            t.fdl.fill(Complex::new(0.0, 0.0));
+            t.newest = 0;
+        }
+    }
+
     /// Called when the current input block is complete: updates the FFT tail
     /// output for the next block and shifts the history.
     fn end_block(&mut self) {

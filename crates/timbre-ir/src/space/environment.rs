@@ -223,7 +223,7 @@ impl Acoustics {
         (1.0 - self.absorption[wall][band]).max(0.0).sqrt()
     }
 
-    fn describe(&self, d: &mut Description) {
+    pub(crate) fn describe(&self, d: &mut Description) {
         d.f64s(&self.room.min.to_array())
             .f64s(&self.room.max.to_array());
         for wall in &self.absorption {

@@ -4,6 +4,7 @@
 
 pub mod environment;
 pub mod geometry;
+pub mod late;
 pub mod live;
 pub mod path;
 pub mod propagate;
@@ -19,6 +20,7 @@ pub const MAX_COORDINATE: f64 = 1e6;
 pub const MAX_ROOM_SIDE: f64 = 1e4;
 
 pub use environment::{Acoustics, Environment, Late, Material, PlacedObstacle, Shape};
+pub use late::{LateBus, LateBusState};
 pub use live::{LiveError, LivePoint};
 pub use path::Path;
 pub use propagate::{DistanceLaw, Medium, Propagation, Receiver};

@@ -23,14 +23,12 @@ use glam::DVec3;
 
 use super::environment::{Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
+use super::late::LateBus;
 use super::path::{Path, VELOCITY_STEP};
 use crate::dsp::air::{Air, AirFilter};
 use crate::dsp::clamp_or;
-use crate::dsp::conv::Convolver;
 use crate::dsp::delay::{lagrange6, History};
-use crate::dsp::fdn::Fdn;
 use crate::dsp::filter::OnePole;
-use crate::dsp::wav::resample;
 use crate::kernel::{Inputs, KernelOption, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
 
@@ -235,7 +233,10 @@ impl Receiver {
     }
 }
 
-/// The propagation node: one emitted signal in, one lane out per receiver.
+/// The propagation node: one emitted signal in, one lane out per receiver (the
+/// direct sound and the room's reflections) and, in a room with a late part, one
+/// more per receiver after those: what it sends to the room's late part, a
+/// [`LateBus`] the renderer runs once for every instance in the room.
 #[derive(Clone, Debug)]
 pub struct Propagation {
     pub source: Path,
@@ -387,49 +388,16 @@ impl Muffle {
     }
 }
 
-/// Partition of the late part's convolution, samples.
-const LATE_PARTITION: usize = 256;
-
-/// What makes the late part.
-#[derive(Debug)]
-enum Reverb {
-    Network(Box<Fdn>),
-    Convolution(Box<Convolver>),
-}
-
-impl Reverb {
-    /// One sample in, one out per receiver (the same for every receiver from a
-    /// recorded response, which is mono).
-    fn process(&mut self, x: f64, outputs: &mut [f64]) {
-        match self {
-            Reverb::Network(fdn) => {
-                // Two uncorrelated outputs: receivers alternate between them.
-                let pair = fdn.process(x);
-                for (k, o) in outputs.iter_mut().enumerate() {
-                    *o = pair[k % 2];
-                }
-            }
-            Reverb::Convolution(convolver) => {
-                let mut y = [0.0];
-                convolver.process(&[x], &mut y);
-                outputs.fill(y[0]);
-            }
-        }
-    }
-}
-
-/// The late part's state: its reverberator, and its muffling when the reflections
-/// are blocked (as a way's).
+/// What its room's late part is sent: the sound its first receiver hears directly,
+/// `onset` later, times `gain`, one lane per receiver, each muffled as that
+/// receiver's reflections are (see [`super::late`]).
 #[derive(Debug)]
 struct LateState {
-    reverb: Reverb,
     gain: f64,
     /// Seconds after the direct sound it is fed.
     onset: f64,
     /// One per receiver.
     muffles: Vec<Muffle>,
-    /// The network's output for each receiver.
-    outputs: Vec<f64>,
 }
 
 /// A receiver where it is at one grid point, shared by its ways.
@@ -522,6 +490,18 @@ pub struct PropagationState {
 }
 
 impl Propagation {
+    /// Lanes it sends to its room's late part (after its receivers' lanes): one per
+    /// receiver, or none.
+    pub fn sends(&self) -> usize {
+        self.late_bus().map_or(0, |bus| bus.lanes)
+    }
+
+    /// The bus its sends go to, if its room has a late part.
+    pub fn late_bus(&self) -> Option<LateBus> {
+        let room = self.environment.room.as_ref()?;
+        LateBus::of(room, self.receivers.len())
+    }
+
     /// Solves c·τ = |m(p_source(t − τ)) − p_receiver(t)| at scene time `t` for the
     /// source seen through mirror `m`, from the guess `tau` (Newton's method with the
     /// exact velocity at each step; the function is monotone in τ while the source is
@@ -966,7 +946,7 @@ impl StatefulKernel for Propagation {
     }
 
     fn width(&self, _args: &[usize]) -> usize {
-        self.receivers.len()
+        self.receivers.len() + self.sends()
     }
 
     fn memory(&self, ctx: &StateContext) -> u64 {
@@ -1022,18 +1002,9 @@ impl StatefulKernel for Propagation {
         }
         let late = self.environment.room.as_ref().and_then(|room| {
             let c = self.medium.speed_of_sound;
-            let (reverb, gain) = match &room.late {
+            let gain = match &room.late {
                 Late::None => return None,
-                Late::Fdn { rt60, gain } => {
-                    (Reverb::Network(Box::new(room.network(rt60, sr))), *gain)
-                }
-                Late::Convolution { response, gain } => (
-                    Reverb::Convolution(Box::new(Convolver::new(
-                        &resample(response, sr),
-                        LATE_PARTITION,
-                    ))),
-                    *gain,
-                ),
+                Late::Fdn { gain, .. } | Late::Convolution { gain, .. } => *gain,
             };
             let mut muffles = vec![Muffle::default(); self.receivers.len()];
             late_blocking(&ways, &state, &mut muffles, sr);
@@ -1041,11 +1012,9 @@ impl StatefulKernel for Propagation {
                 muffle.blocked = muffle.target;
             }
             Some(LateState {
-                reverb,
                 gain,
                 onset: room.late_onset(c),
                 muffles,
-                outputs: vec![0.0; self.receivers.len()],
             })
         });
         let mut propagation = PropagationState {
@@ -1076,7 +1045,7 @@ impl StatefulKernel for Propagation {
         let sr = inputs.sample_rate;
         let x = inputs.lane(0, 0);
         let (samples, stride) = out.strided();
-        for lane in 0..self.receivers.len() {
+        for lane in 0..self.receivers.len() + self.sends() {
             samples[lane * stride..lane * stride + x.len()].fill(0.0);
         }
         // A stride (or the part of one in this block; a grid step while the source
@@ -1158,8 +1127,9 @@ impl Propagation {
             }
         }
         if let Some(late) = &mut state.late {
-            // The diffuse field: the sound heard directly by the first receiver,
-            // `onset` later, through the network, one output per receiver.
+            // What the room's late part is sent: the sound heard directly by the
+            // first receiver, `onset` later, a lane per receiver after theirs.
+            let receivers = self.receivers.len();
             for j in 0..len {
                 let x = state.direct[j].map_or(0.0, |tau| {
                     late.gain
@@ -1167,9 +1137,8 @@ impl Propagation {
                             .history
                             .read_lagrange(first + j, (tau + late.onset) * sr)
                 });
-                late.reverb.process(x, &mut late.outputs);
-                for (lane, (y, muffle)) in late.outputs.iter().zip(&mut late.muffles).enumerate() {
-                    samples[lane * stride + j] += muffle.process(*y, fade_step);
+                for (lane, muffle) in late.muffles.iter_mut().enumerate() {
+                    samples[(receivers + lane) * stride + j] += muffle.process(x, fade_step);
                 }
             }
         }
@@ -1364,9 +1333,10 @@ mod tests {
         }
     }
 
-    /// `x` through the kernel in blocks of `block`, each lane in a row of its own.
+    /// `x` through the kernel in blocks of `block`, each lane (the receivers', then
+    /// the sends to the late part) in a row of its own.
     fn render(kernel: &Propagation, x: &[f64], block: usize, wide: bool) -> Vec<Vec<f64>> {
-        let width = kernel.receivers.len();
+        let width = kernel.receivers.len() + kernel.sends();
         let config = RenderConfig {
             sample_rate: SR,
             block_size: block,
@@ -1427,7 +1397,12 @@ mod tests {
         let kernel = kernel();
         let x = signal(96_000);
         let whole = render(&kernel, &x, 4096, wide_reads());
+        assert_eq!(whole.len(), 4, "two receivers and their two sends");
         assert!(whole[0].iter().any(|y| y.abs() > 0.01), "it is heard");
+        assert!(
+            whole[2].iter().any(|y| y.abs() > 0.01),
+            "it is sent to the late part"
+        );
         for block in [1, 7, 64, 333] {
             same_bits(
                 &whole,

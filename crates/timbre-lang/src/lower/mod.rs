@@ -261,6 +261,8 @@ struct SceneForms {
     /// the lowered instances and their names.
     instance_forms: Vec<(Expr, Origin)>,
     instances: Vec<Instance>,
+    /// The late parts of the rooms the instances are placed in, each once.
+    buses: Vec<timbre_ir::space::LateBus>,
     instance_names: HashSet<String>,
     /// The `score` forms' notes, in the order written.
     scores: Vec<crate::music::Score>,
@@ -465,6 +467,7 @@ impl<'a> Lowerer<'a> {
                 root,
                 settings: self.settings,
                 instances: self.scene.instances,
+                buses: self.scene.buses,
             },
             definitions: self.names.order,
             unused_bindings,

@@ -684,13 +684,13 @@ impl Lowerer<'_> {
             },
             vec![sound, t],
         );
-        let (root, tail, lead) = match place {
+        let (root, tail, lead, send) = match place {
             Some((path, span)) => {
                 let (path, lead) = self.picture_sync(path, start, span, origin)?;
-                let (root, tail) = self.propagate(timed, path, span, start - lead, origin)?;
-                (root, tail, lead)
+                let placed = self.propagate(timed, path, span, start - lead, origin)?;
+                (placed.root, placed.tail, lead, placed.send)
             }
-            None => (self.route(timed, options, start, origin)?, 0.0, 0.0),
+            None => (self.route(timed, options, start, origin)?, 0.0, 0.0, None),
         };
         Ok(Instance {
             name: names.name.to_owned(),
@@ -699,6 +699,7 @@ impl Lowerer<'_> {
             start: start - lead,
             stop: stop.map(|s| s - lead),
             tail,
+            send,
             stem: names.stem,
         })
     }

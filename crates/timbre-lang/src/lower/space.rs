@@ -1238,9 +1238,7 @@ impl Lowerer<'_> {
     }
 
     /// `sound` (an instance's tree under its timer, starting at scene time `start`)
-    /// as heard by each receiver from `source`. Returns the node and how long it may
-    /// still be heard after the sound stops, seconds (the longest delay, and the
-    /// room's reverberation time).
+    /// as heard by each receiver from `source`, and sent to its room's late part.
     pub(crate) fn propagate(
         &mut self,
         sound: NodeId,
@@ -1248,7 +1246,7 @@ impl Lowerer<'_> {
         span: Span,
         start: f64,
         origin: &Origin,
-    ) -> Result<(NodeId, f64), Diag> {
+    ) -> Result<Placed, Diag> {
         let receivers = self.receivers(span, origin)?;
         let medium = self.scene.space.medium.clone();
         let farthest = receivers
@@ -1270,11 +1268,9 @@ impl Lowerer<'_> {
         }
         let environment = self.environment(span, origin)?;
         self.check_source(&source, span, origin)?;
-        let mut tail = 0.0;
         if let Some(room) = &environment.room {
-            let (later, late_tail) = room.reach(medium.speed_of_sound);
+            let (later, _) = room.reach(medium.speed_of_sound);
             max_delay += later;
-            tail = late_tail;
             if max_delay > MAX_BUFFER_SECONDS {
                 return Err(self
                     .diag(
@@ -1296,9 +1292,31 @@ impl Lowerer<'_> {
             start,
             max_delay,
         };
-        let node = self.graph.add(Op::Stateful(Arc::new(kernel)), vec![sound]);
-        Ok((node, max_delay + tail))
+        let send = kernel.late_bus().map(|bus| {
+            let buses = &mut self.scene.buses;
+            buses.iter().position(|b| b.same(&bus)).unwrap_or_else(|| {
+                buses.push(bus);
+                buses.len() - 1
+            })
+        });
+        let root = self.graph.add(Op::Stateful(Arc::new(kernel)), vec![sound]);
+        Ok(Placed {
+            root,
+            tail: max_delay,
+            send,
+        })
     }
+}
+
+/// An instance's sound placed in space.
+pub(crate) struct Placed {
+    /// The propagation node.
+    pub root: NodeId,
+    /// How long it may still be heard after the sound stops, seconds: the longest
+    /// delay (its room's late part rings on in the bus).
+    pub tail: f64,
+    /// The bus its late part is sent to.
+    pub send: Option<usize>,
 }
 
 /// Every place a path visits at a key (or its one place).
@@ -1333,10 +1351,8 @@ pub struct DeclaredSpace {
     /// The sources by name, in the order declared.
     pub sources: Vec<(String, Path)>,
     /// How much longer than the direct sound the room's reflections and late part
-    /// may take to arrive, and how long the late part rings, seconds (0 without a
-    /// room).
+    /// may take to arrive, seconds (0 without a room).
     pub room_delay: f64,
-    pub tail: f64,
 }
 
 impl Lowerer<'_> {
@@ -1363,10 +1379,8 @@ impl Lowerer<'_> {
         let receivers = self.receivers(at, origin)?;
         let environment = self.environment(at, origin)?;
         let medium = self.scene.space.medium.clone();
-        let (room_delay, tail) = environment
-            .room
-            .as_ref()
-            .map_or((0.0, 0.0), |room| room.reach(medium.speed_of_sound));
+        let room_delay =
+            (environment.room.as_ref()).map_or(0.0, |room| room.reach(medium.speed_of_sound).0);
         let sources = (self.scene.space.sources.iter())
             .map(|(name, path, _)| (name.clone(), path.clone()))
             .collect();
@@ -1377,7 +1391,6 @@ impl Lowerer<'_> {
             environment,
             sources,
             room_delay,
-            tail,
         }))
     }
 }
