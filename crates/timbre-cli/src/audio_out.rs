@@ -78,6 +78,10 @@ pub struct OutputJob<'a> {
     pub sample_rate: u32,
     /// Interleaved channels per frame.
     pub channels: u16,
+    /// The channel mask of a WAVE_FORMAT_EXTENSIBLE header, when the channels'
+    /// meaning is declared (0: Ambisonics, no loudspeakers); None writes a plain
+    /// header.
+    pub channel_mask: Option<u32>,
     pub format: SampleFormat,
     /// Frames to write; a render may end sooner, except to standard output, whose
     /// header is written first (it is then padded with silence).
@@ -455,24 +459,43 @@ fn peak(samples: &[f64]) -> f64 {
 }
 
 /// The header of a WAV stream of `frames` frames (PCM, or IEEE float with its `fact`
-/// chunk), written before the samples since a pipe cannot be rewound.
+/// chunk), written before the samples since a pipe cannot be rewound. With a channel
+/// mask it is WAVE_FORMAT_EXTENSIBLE (the format's GUID as its subformat).
 fn write_wav_header(out: &mut impl Write, job: &OutputJob<'_>, frames: u64) -> std::io::Result<()> {
     let bytes = job.format.bytes() as u32;
     let block_align = bytes * job.channels as u32;
     let data = frames as u32 * block_align;
     let float = job.format == SampleFormat::F32;
+    let format_tag: u16 = if float { 3 } else { 1 };
     let fact = if float { 12 } else { 0 };
-    let mut header = Vec::with_capacity(58);
+    let fmt_size: u32 = if job.channel_mask.is_some() { 40 } else { 16 };
+    let mut header = Vec::with_capacity(82);
     header.extend_from_slice(b"RIFF");
-    header.extend_from_slice(&(4 + 24 + fact + 8 + data).to_le_bytes());
+    header.extend_from_slice(&(4 + 8 + fmt_size + fact + 8 + data).to_le_bytes());
     header.extend_from_slice(b"WAVEfmt ");
-    header.extend_from_slice(&16u32.to_le_bytes());
-    header.extend_from_slice(&(if float { 3u16 } else { 1 }).to_le_bytes());
+    header.extend_from_slice(&fmt_size.to_le_bytes());
+    let tag = if job.channel_mask.is_some() {
+        0xFFFE
+    } else {
+        format_tag
+    };
+    header.extend_from_slice(&tag.to_le_bytes());
     header.extend_from_slice(&job.channels.to_le_bytes());
     header.extend_from_slice(&job.sample_rate.to_le_bytes());
     header.extend_from_slice(&(job.sample_rate * block_align).to_le_bytes());
     header.extend_from_slice(&(block_align as u16).to_le_bytes());
     header.extend_from_slice(&(bytes as u16 * 8).to_le_bytes());
+    if let Some(mask) = job.channel_mask {
+        // cbSize, valid bits, the mask, and KSDATAFORMAT_SUBTYPE_PCM or _IEEE_FLOAT:
+        // {0000000X-0000-0010-8000-00AA00389B71}.
+        header.extend_from_slice(&22u16.to_le_bytes());
+        header.extend_from_slice(&(bytes as u16 * 8).to_le_bytes());
+        header.extend_from_slice(&mask.to_le_bytes());
+        header.extend_from_slice(&u32::from(format_tag).to_le_bytes());
+        header.extend_from_slice(&[
+            0x00, 0x00, 0x10, 0x00, 0x80, 0x00, 0x00, 0xAA, 0x00, 0x38, 0x9B, 0x71,
+        ]);
+    }
     if float {
         header.extend_from_slice(b"fact");
         header.extend_from_slice(&4u32.to_le_bytes());
@@ -519,6 +542,7 @@ pub fn write_prepared_wav(
         container: Container::Wav,
         sample_rate: sample_rate as u32,
         channels: channels as u16,
+        channel_mask: None,
         format: SampleFormat::F32,
         frames: (samples.len() / channels) as u64,
         interrupted,

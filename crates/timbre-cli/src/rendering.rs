@@ -28,6 +28,8 @@ pub(crate) struct Plan<'p> {
     /// Channels rendered and written.
     pub(crate) rendered_channels: usize,
     pub(crate) channels: usize,
+    /// The WAV channel mask of what is written (see `OutputJob::channel_mask`).
+    pub(crate) channel_mask: Option<u32>,
     pub(crate) gain: f64,
     /// Frames of the fade at the end, if any.
     pub(crate) fade_frames: u64,
@@ -93,6 +95,10 @@ pub(crate) fn plan<'p>(source: &'p Source, args: &SoundArgs) -> Result<Plan<'p>,
         open_ended,
         rendered_channels,
         channels,
+        // A mixdown to mono is no longer what the layout declares.
+        channel_mask: (channels == rendered_channels)
+            .then(|| file.channel_layout().wav_channel_mask())
+            .flatten(),
         gain: args.gain,
         fade_frames: args
             .fade_out

@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use timbre_testkit::{
-    band_power, onset, rms, spectral_centroid, spectrum, strongest_peak_in,
+    band_power, onset, read_wav, rms, spectral_centroid, spectrum, strongest_peak_in,
     zero_crossing_frequency, Wav,
 };
 
@@ -160,4 +160,46 @@ fn the_engine_drops_an_octave_then_sputters_ever_slower() {
             "burst {k} at {at:.3} s: {before} → {after}"
         );
     }
+}
+
+/// `examples/ambisonic-car.tt` writes first-order AmbiX, declared as such in the WAV
+/// (WAVE_FORMAT_EXTENSIBLE, IEEE float, channel mask 0: no loudspeaker positions),
+/// and it decodes to the side the car is on in AmbiX's convention (ACN, SN3D, +y to
+/// the left, as the ambiX and IEM decoders read it): virtual cardioids to the left
+/// and right, `(W ± Y)/2`, hear the car on the left while it comes and on the right
+/// as it leaves.
+#[test]
+fn the_ambisonic_car_is_ambix_and_decodes_to_the_side_it_is_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("car.wav");
+    run([
+        "render".as_ref(),
+        example("ambisonic-car").as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ])
+    .assert_success();
+    let bytes = std::fs::read(&out).unwrap();
+    let u16_at = |k: usize| u16::from_le_bytes([bytes[k], bytes[k + 1]]);
+    let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().unwrap());
+    assert_eq!(&bytes[12..16], b"fmt ");
+    assert_eq!(u32_at(16), 40, "an extensible fmt chunk");
+    assert_eq!(u16_at(20), 0xFFFE, "WAVE_FORMAT_EXTENSIBLE");
+    assert_eq!(u16_at(22), 4, "four channels");
+    assert_eq!(u16_at(36), 22, "cbSize");
+    assert_eq!(u32_at(40), 0, "channel mask 0: no loudspeakers");
+    assert_eq!(u16_at(44), 3, "subformat IEEE float");
+    let wav = read_wav(&out);
+    assert_eq!(wav.spec.channels, 4);
+    let (w, y) = (channel(&wav, 0), channel(&wav, 1));
+    let level = |from: f64, to: f64, sign: f64| {
+        let (w, y) = (seconds(&w, from, to), seconds(&y, from, to));
+        let decoded: Vec<f64> = w.iter().zip(y).map(|(w, y)| 0.5 * (w + sign * y)).collect();
+        rms(&decoded)
+    };
+    // The car is at x = −60…−45 m over 1–1.5 s (left) and +45…+60 m over 4.5–5 s.
+    let (left, right) = (level(1.0, 1.5, 1.0), level(1.0, 1.5, -1.0));
+    assert!(left > 10.0 * right, "coming: left {left}, right {right}");
+    let (left, right) = (level(4.7, 5.2, 1.0), level(4.7, 5.2, -1.0));
+    assert!(right > 10.0 * left, "leaving: left {left}, right {right}");
 }

@@ -43,6 +43,6 @@ pub use dump::dump;
 pub use graph::{evaluate_pure, Graph, Node, NodeId, NodeOrigin, StableHasher};
 pub use interp::{steps, trace_non_finite, Interpreter, NonFiniteOrigin, RenderConfig, Step};
 pub use program::{
-    Instance, Program, Settings, Stem, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
+    ChannelLayout, Instance, Program, Settings, Stem, Variable, DECLICK_IN, DECLICK_OUT, MAX_LANES,
 };
 pub use timbre_diag::{Diag, Diagnostics, SourceFile, Span};

@@ -24,6 +24,29 @@ pub struct Settings {
     pub seed: u64,
     /// Output channels of a scene (`:channels`); None means mono.
     pub channels: Option<usize>,
+    /// What the channels are, for a file's header.
+    pub layout: ChannelLayout,
+}
+
+/// What a scene's output channels carry, declared in the files it is written to.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ChannelLayout {
+    /// Channels without a declared meaning: mono, a microphone pair, microphones.
+    #[default]
+    Plain,
+    /// AmbiX of this order: (order + 1)² channels in ACN order, SN3D normalised.
+    Ambisonics(usize),
+}
+
+impl ChannelLayout {
+    /// The channel mask of a WAVE_FORMAT_EXTENSIBLE header, if the layout needs one:
+    /// 0 for Ambisonics (channels that feed no loudspeaker, as AmbiX files declare).
+    pub fn wav_channel_mask(self) -> Option<u32> {
+        match self {
+            ChannelLayout::Plain => None,
+            ChannelLayout::Ambisonics(_) => Some(0),
+        }
+    }
 }
 
 /// What there is to render: the trees, the file's sound or its scene's instances, and

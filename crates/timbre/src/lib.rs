@@ -53,7 +53,8 @@ pub use space::LIVE_REACH;
 pub use timbre_ir::keyframes::{Interpolation, KeyframeError, KeyframeTrack};
 pub use timbre_ir::limits::Limits;
 pub use timbre_ir::{
-    BlockContext, CustomNode, Diag, Diagnostics, Instance, Lanes, SourceFile, Stem, Variable,
+    BlockContext, ChannelLayout, CustomNode, Diag, Diagnostics, Instance, Lanes, SourceFile, Stem,
+    Variable,
 };
 pub use timbre_lang::csv_table::CsvTime;
 pub use timbre_lang::{FsLoader, Loader, NoFiles, ParamValue, Registry, SandboxLoader};

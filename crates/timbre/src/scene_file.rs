@@ -235,6 +235,17 @@ impl SceneFile {
         self.program.settings.channels.unwrap_or(1)
     }
 
+    /// What its channels carry (Ambisonics, or nothing declared), for a file's header.
+    ///
+    /// ```
+    /// let engine = timbre::Engine::new(48_000.0);
+    /// let file = engine.read_scene("(scene :channels 4) (listener :ambisonics 1) (define-sound s () (sine (* t 440))) (instance a (s) :at (0 1 0))").unwrap();
+    /// assert_eq!(file.channel_layout(), timbre::ChannelLayout::Ambisonics(1));
+    /// ```
+    pub fn channel_layout(&self) -> crate::ChannelLayout {
+        self.program.settings.layout
+    }
+
     /// Whether the file is one sound expression (played from 0 to the end of the
     /// render) rather than a scene of instances.
     ///

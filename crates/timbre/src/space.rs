@@ -138,7 +138,8 @@ impl LiveSpace {
     /// the bus its placed instances send to (see [`LiveSpace::send_to`]).
     pub(crate) fn late_bus(&self) -> Option<LateBus> {
         let room = self.declared.environment.room.as_ref()?;
-        LateBus::of(room, self.receivers.len())
+        let shares = self.receivers.iter().map(|r| r.pickup.diffuse()).collect();
+        LateBus::of(room, shares)
     }
 
     /// Has placed instances send to the renderer's bus `bus`.

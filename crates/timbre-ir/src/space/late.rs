@@ -25,14 +25,21 @@ pub struct LateBus {
     pub acoustics: Acoustics,
     /// Receivers (one input and one output lane each).
     pub lanes: usize,
+    /// Each receiver's share of the diffuse field ([`Pickup::diffuse`]): its output's
+    /// gain, and 0 for a lane that hears none (whose reverberator is not run).
+    ///
+    /// [`Pickup::diffuse`]: super::Pickup::diffuse
+    pub shares: Vec<f64>,
 }
 
 impl LateBus {
-    /// The bus of `acoustics` for `lanes` receivers, if the room has a late part.
-    pub fn of(acoustics: &Acoustics, lanes: usize) -> Option<LateBus> {
+    /// The bus of `acoustics` for receivers of diffuse-field `shares`, if the room
+    /// has a late part.
+    pub fn of(acoustics: &Acoustics, shares: Vec<f64>) -> Option<LateBus> {
         (!matches!(acoustics.late, Late::None)).then(|| LateBus {
             acoustics: acoustics.clone(),
-            lanes,
+            lanes: shares.len(),
+            shares,
         })
     }
 
@@ -42,7 +49,7 @@ impl LateBus {
         let describe = |bus: &LateBus| {
             let mut d = crate::op::Description::new();
             bus.acoustics.describe(&mut d);
-            d.u64(bus.lanes as u64);
+            d.u64(bus.lanes as u64).f64s(&bus.shares);
             d
         };
         describe(self) == describe(other)
@@ -61,7 +68,8 @@ impl LateBus {
 
     /// Its reverberators at `sample_rate`, silent.
     pub fn new_state(&self, sample_rate: f64) -> LateBusState {
-        let reverb = || match &self.acoustics.late {
+        let reverb = |share: f64| match &self.acoustics.late {
+            _ if share == 0.0 => Reverb::Silent,
             Late::Fdn { rt60, .. } => {
                 Reverb::Network(Box::new(self.acoustics.network(rt60, sample_rate)))
             }
@@ -72,7 +80,8 @@ impl LateBus {
             Late::None => Reverb::Silent,
         };
         LateBusState {
-            reverbs: (0..self.lanes).map(|_| reverb()).collect(),
+            reverbs: self.shares.iter().map(|s| reverb(*s)).collect(),
+            shares: self.shares.clone(),
             run: vec![0.0; LATE_PARTITION],
         }
     }
@@ -90,6 +99,7 @@ enum Reverb {
 #[derive(Debug)]
 pub struct LateBusState {
     reverbs: Vec<Reverb>,
+    shares: Vec<f64>,
     /// One lane's input, gathered from the interleaved frames.
     run: Vec<f64>,
 }
@@ -114,20 +124,24 @@ impl LateBusState {
     /// Adds the late part of `input` (frames of one sample per receiver,
     /// interleaved) into `out` (frames of as many lanes). Receiver k hears output
     /// k mod 2 of its network (so a pair of receivers hears two uncorrelated
-    /// outputs), or its convolution with the room's recorded response.
+    /// outputs), or its convolution with the room's recorded response, fed its
+    /// share of the input.
     pub fn process(&mut self, input: &[f64], out: &mut [f64]) {
         let lanes = self.reverbs.len();
         if lanes == 0 {
             return;
         }
         let frames = input.len() / lanes;
-        for (k, reverb) in self.reverbs.iter_mut().enumerate() {
+        for (k, (reverb, share)) in self.reverbs.iter_mut().zip(&self.shares).enumerate() {
+            if matches!(reverb, Reverb::Silent) {
+                continue;
+            }
             let mut from = 0;
             while from < frames {
                 let n = (frames - from).min(self.run.len());
                 let run = &mut self.run[..n];
                 for (j, x) in run.iter_mut().enumerate() {
-                    *x = input[(from + j) * lanes + k];
+                    *x = input[(from + j) * lanes + k] * share;
                 }
                 match reverb {
                     Reverb::Network(fdn) => {

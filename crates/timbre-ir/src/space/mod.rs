@@ -7,6 +7,7 @@ pub mod geometry;
 pub mod late;
 pub mod live;
 pub mod path;
+pub mod pickup;
 pub mod propagate;
 
 /// The farthest a coordinate, a distance or a size in a scene may be from 0, metres
@@ -23,4 +24,5 @@ pub use environment::{Acoustics, Environment, Late, Material, PlacedObstacle, Sh
 pub use late::{LateBus, LateBusState};
 pub use live::{LiveError, LivePoint};
 pub use path::Path;
+pub use pickup::Pickup;
 pub use propagate::{DistanceLaw, Medium, Propagation, Receiver};

@@ -25,6 +25,7 @@ use super::environment::{Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::late::LateBus;
 use super::path::{Path, VELOCITY_STEP};
+use super::pickup::Pickup;
 use crate::dsp::air::{Air, AirFilter};
 use crate::dsp::clamp_or;
 use crate::dsp::delay::{lagrange6, History};
@@ -163,8 +164,9 @@ pub struct Receiver {
     /// The microphone's axis, turned from the facing direction toward the left by
     /// this angle (radians) about the up axis.
     pub axis_angle: f64,
-    /// First-order pattern a + (1 − a)·cos θ: 1 omni, 0.5 cardioid, 0 figure-of-eight.
-    pub pattern: f64,
+    /// How it weighs sound by direction: a first-order pattern about its axis, or
+    /// one channel of an Ambisonic signal.
+    pub pickup: Pickup,
 }
 
 impl Receiver {
@@ -175,7 +177,7 @@ impl Receiver {
             facing: Path::Fixed(DVec3::Y),
             offset: DVec3::ZERO,
             axis_angle: 0.0,
-            pattern: 1.0,
+            pickup: Pickup::Pattern(1.0),
         }
     }
 
@@ -207,22 +209,26 @@ impl Receiver {
 
     /// The microphone's gain for sound arriving from `from` at `t`.
     pub fn directivity(&self, t: f64, from: DVec3) -> f64 {
-        if self.pattern == 1.0 {
+        if self.pickup.is_omni() {
             return 1.0;
         }
-        let (_, front, up) = self.frame(t);
+        let (right, front, up) = self.frame(t);
         let axis = glam::DQuat::from_axis_angle(up, self.axis_angle) * front;
         let direction = (from - self.at(t)).try_normalize().unwrap_or(axis);
-        let cos = axis.dot(direction);
-        self.pattern + (1.0 - self.pattern) * cos
+        match self.pickup {
+            Pickup::Pattern(a) => a + (1.0 - a) * axis.dot(direction),
+            pickup => {
+                let local = |v: DVec3| DVec3::new(right.dot(v), front.dot(v), up.dot(v));
+                pickup.gain(local(direction), local(axis))
+            }
+        }
     }
 
     fn describe(&self, d: &mut Description) {
         self.position.describe(d);
         self.facing.describe(d);
-        d.f64s(&self.offset.to_array())
-            .f64(self.axis_angle)
-            .f64(self.pattern);
+        d.f64s(&self.offset.to_array()).f64(self.axis_angle);
+        self.pickup.describe(d);
     }
 
     /// The range of places it can be in: the listener's and the offset around it.
@@ -493,13 +499,21 @@ impl Propagation {
     /// Lanes it sends to its room's late part (after its receivers' lanes): one per
     /// receiver, or none.
     pub fn sends(&self) -> usize {
-        self.late_bus().map_or(0, |bus| bus.lanes)
+        // Asked every block: answered without making the bus (which allocates).
+        let late = self.environment.room.as_ref().map(|room| &room.late);
+        match late {
+            Some(Late::None) | None => 0,
+            Some(_) => self.receivers.len(),
+        }
     }
 
     /// The bus its sends go to, if its room has a late part.
     pub fn late_bus(&self) -> Option<LateBus> {
         let room = self.environment.room.as_ref()?;
-        LateBus::of(room, self.receivers.len())
+        LateBus::of(
+            room,
+            self.receivers.iter().map(|r| r.pickup.diffuse()).collect(),
+        )
     }
 
     /// Solves c·τ = |m(p_source(t − τ)) − p_receiver(t)| at scene time `t` for the

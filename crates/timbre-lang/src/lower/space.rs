@@ -24,7 +24,10 @@ use timbre_ir::space::environment::{
 use timbre_ir::space::environment::{DEFAULT_MATERIAL, MATERIALS};
 use timbre_ir::space::geometry::{Opening, Room, Wall, DEFAULT_ORDER, MAX_ORDER};
 use timbre_ir::space::path::max_distance;
-use timbre_ir::space::{Medium, Path, Propagation, Receiver, MAX_COORDINATE, MAX_ROOM_SIDE};
+use timbre_ir::space::pickup::{ambisonic_channels, MAX_AMBISONIC_ORDER};
+use timbre_ir::space::{
+    Medium, Path, Pickup, Propagation, Receiver, MAX_COORDINATE, MAX_ROOM_SIDE,
+};
 use timbre_ir::NodeId;
 
 /// Default spacing of a spaced pair of omnis, metres.
@@ -99,7 +102,14 @@ impl Space {
 }
 
 const LISTENER_OPTIONS: &[&str] = &[
-    "position", "facing", "object", "pair", "spacing", "angle", "pattern",
+    "position",
+    "facing",
+    "object",
+    "pair",
+    "spacing",
+    "angle",
+    "pattern",
+    "ambisonics",
 ];
 const MICROPHONE_OPTIONS: &[&str] = &["channel", "position", "facing", "pattern"];
 
@@ -160,10 +170,15 @@ impl Lowerer<'_> {
             None => 1.0,
         };
         let mono = Receiver {
-            pattern: pattern_value,
+            pickup: Pickup::Pattern(pattern_value),
             facing: facing.clone(),
             ..Receiver::omni(position.clone())
         };
+        if let Some(order) = options.get("ambisonics") {
+            let receivers = self.ambisonic_listener(order, &options, &mono, origin)?;
+            self.scene.space.listener = Some((receivers, form.span));
+            return Ok(());
+        }
         let receivers = match options.get("pair") {
             None => {
                 for key in ["spacing", "angle"] {
@@ -229,7 +244,7 @@ impl Lowerer<'_> {
                         [half, -half]
                             .map(|axis_angle| Receiver {
                                 axis_angle,
-                                pattern: cardioid,
+                                pickup: Pickup::Pattern(cardioid),
                                 ..mono.clone()
                             })
                             .to_vec()
@@ -249,6 +264,58 @@ impl Lowerer<'_> {
         };
         self.scene.space.listener = Some((receivers, form.span));
         Ok(())
+    }
+
+    /// `:ambisonics N`: a receiver per Ambisonic channel of order N (1 to 3) at the
+    /// listener's place, turning with its facing, in a scene of (N + 1)² channels.
+    fn ambisonic_listener(
+        &mut self,
+        order_expr: &Expr,
+        options: &Options<'_>,
+        mono: &Receiver,
+        origin: &Origin,
+    ) -> Result<Vec<Receiver>, Diag> {
+        let order = self.constant_option(order_expr, "the Ambisonic order", origin)?;
+        if order.fract() != 0.0 || !(1.0..=MAX_AMBISONIC_ORDER as f64).contains(&order) {
+            return Err(self
+                .diag(
+                    "timbre::bad-listener",
+                    format!("Ambisonic order {order} is not 1, 2 or 3"),
+                    origin,
+                )
+                .label(order_expr.span, "the order")
+                .help("write :ambisonics 1 (4 channels), 2 (9) or 3 (16)"));
+        }
+        for key in ["pair", "pattern", "spacing", "angle"] {
+            if let Some(e) = options.get(key) {
+                return Err(self
+                    .diag(
+                        "timbre::bad-listener",
+                        format!("an Ambisonic listener has no `:{key}`"),
+                        origin,
+                    )
+                    .label(e.span, "not with :ambisonics")
+                    .help("an Ambisonic listener records every direction; leave out the microphones' options"));
+            }
+        }
+        let channels = ambisonic_channels(order as usize);
+        if self.settings.channels != Some(channels) {
+            return Err(self
+                .diag(
+                    "timbre::bad-listener",
+                    format!("an order-{order} Ambisonic listener writes {channels} channels"),
+                    origin,
+                )
+                .label(order_expr.span, format!("{channels} channels"))
+                .help(format!("add :channels {channels} to the scene form")));
+        }
+        self.settings.layout = timbre_ir::ChannelLayout::Ambisonics(order as usize);
+        Ok((0..channels)
+            .map(|acn| Receiver {
+                pickup: Pickup::Harmonic(acn),
+                ..mono.clone()
+            })
+            .collect())
     }
 
     /// `(microphone :channel k :position P :facing F :pattern cardioid)`: the receiver
@@ -304,7 +371,7 @@ impl Lowerer<'_> {
         };
         let receiver = Receiver {
             facing,
-            pattern,
+            pickup: Pickup::Pattern(pattern),
             ..Receiver::omni(position)
         };
         self.scene
