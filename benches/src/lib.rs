@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 
 use timbre_ir::{Interpreter, Program, RenderConfig};
-use timbre_lang::{compile_str, CompileOptions, NoFiles, Registry};
+use timbre_lang::{compile_str, CompileOptions, FsLoader, Registry};
 
 /// A named workload: a tree and the bindings that instantiate it.
 pub struct Workload {
@@ -14,7 +14,7 @@ pub struct Workload {
 }
 
 /// The names of the standard workloads, in the order `timbre bench` runs them.
-pub const WORKLOADS: [&str; 14] = [
+pub const WORKLOADS: [&str; 15] = [
     "bell-100",
     "wood-500",
     "bell-1000",
@@ -25,6 +25,7 @@ pub const WORKLOADS: [&str; 14] = [
     "space-100",
     "room-16",
     "room-64",
+    "binaural-16",
     "modal-2000",
     "peer-w1",
     "peer-w2",
@@ -44,6 +45,7 @@ pub fn workload(name: &str) -> Option<Workload> {
         "space-100" => moving_sources(100),
         "room-16" => moving_sources_in_a_room(16),
         "room-64" => moving_sources_in_a_room(64),
+        "binaural-16" => binaural(16),
         "modal-2000" => contacts(2000),
         "peer-w1" => peer("peer-w1", include_str!("../peers/w1.tt")),
         "peer-w2" => peer("peer-w2", include_str!("../peers/w2.tt")),
@@ -178,11 +180,20 @@ pub fn synthetic(nodes: usize) -> Workload {
 }
 
 pub fn compile(workload: &Workload) -> Program {
+    try_compile(workload).expect("benchmark trees compile")
+}
+
+/// The workload compiled, or why not (`binaural-16` reads the HRTF set Debian's
+/// `libmysofa-utils` installs, which a machine may not have).
+pub fn try_compile(workload: &Workload) -> Result<Program, String> {
     let registry = Registry::new();
-    let options = CompileOptions::new(&registry, &NoFiles);
+    let options = CompileOptions::new(&registry, &FsLoader);
     compile_str(&workload.source, &options)
-        .expect("benchmark trees compile")
-        .program
+        .map(|compiled| compiled.program)
+        .map_err(|e| {
+            let first = e.0.first().map(|d| d.message.clone());
+            first.unwrap_or_default()
+        })
 }
 
 /// 48 kHz in blocks of 64.
@@ -286,6 +297,18 @@ pub fn moving_sources(n: usize) -> Workload {
     Workload {
         name: leak(format!("space-{n}")),
         source,
+    }
+}
+
+/// `n` sources, each a tone, moving on straight lines past a binaural listener (the
+/// MIT KEMAR set): the space-100 paths, each way filtered by the ear's response.
+pub fn binaural(n: usize) -> Workload {
+    let spaced = moving_sources(n);
+    Workload {
+        name: leak(format!("binaural-{n}")),
+        source: spaced
+            .source
+            .replace(":pair spaced :spacing 0.5", ":binaural default"),
     }
 }
 

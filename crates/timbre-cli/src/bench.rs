@@ -14,7 +14,9 @@ use timbre_scene::{Engine as SceneEngine, SceneRenderer};
 
 use clap::builder::PossibleValuesParser;
 use clap::Args;
-use timbre_benches::{compile, interpreter, synthetic, workload, Workload, CONFIG, WORKLOADS};
+use timbre_benches::{
+    compile, interpreter, synthetic, try_compile, workload, Workload, CONFIG, WORKLOADS,
+};
 use timbre_jit::Jit;
 
 use crate::{parse_positive, Failure};
@@ -110,6 +112,10 @@ pub fn bench(args: BenchArgs) -> Result<(), Failure> {
     let mut buffer = vec![0.0; CHUNK];
     for name in names {
         let workload = workload(name).expect("clap accepts only known workloads");
+        if let Err(why) = try_compile(&workload) {
+            println!("{name}: not measured: {why}");
+            continue;
+        }
         let m = measure(&workload, samples, runs, &mut buffer)?;
         let rate = |d: Duration| samples as f64 / seconds_of(d);
         let (interp, jit) = (rate(m.interp), rate(m.jit));

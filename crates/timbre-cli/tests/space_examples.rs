@@ -203,3 +203,62 @@ fn the_ambisonic_car_is_ambix_and_decodes_to_the_side_it_is_on() {
     let (left, right) = (level(4.7, 5.2, 1.0), level(4.7, 5.2, -1.0));
     assert!(right > 10.0 * left, "leaving: left {left}, right {right}");
 }
+
+/// `examples/binaural-car.tt` (needs Debian's `libmysofa-utils`, which CI installs):
+/// the car is louder in the left ear while it comes and in the right as it leaves.
+#[test]
+fn the_binaural_car_passes_from_the_left_ear_to_the_right() {
+    let set = std::path::Path::new("/usr/share/libmysofa/default.sofa");
+    if !set.exists() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI installs libmysofa-utils"
+        );
+        eprintln!("skipped: {} is not installed", set.display());
+        return;
+    }
+    let wav = render_example("binaural-car", 2);
+    let (left, right) = (channel(&wav, 0), channel(&wav, 1));
+    let level = |x: &[f64], from: f64, to: f64| rms(seconds(x, from, to));
+    let coming = level(&left, 1.0, 1.5) / level(&right, 1.0, 1.5);
+    let leaving = level(&right, 4.7, 5.2) / level(&left, 4.7, 5.2);
+    assert!(coming > 2.0, "coming: left/right {coming}");
+    assert!(leaving > 2.0, "leaving: right/left {leaving}");
+}
+
+/// A scene for 7.1.4 loudspeakers is written as WAVE_FORMAT_EXTENSIBLE with the
+/// layout's channel mask (FL FR FC LFE BL BR SL SR TFL TFR TBL TBR).
+#[test]
+fn a_714_scene_declares_its_speakers_in_the_wav() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("atmos.tt");
+    std::fs::write(
+        &scene,
+        "(scene :duration 0.2 :channels 12)
+         (define-sound tone () (* 0.5 (sine (* t 500))))
+         (listener :position (0 0 0) :speakers \"7.1.4\")
+         (source above :position (0 1 5))
+         (instance a (tone) :source above :stop 0.2)",
+    )
+    .unwrap();
+    let out = dir.path().join("atmos.wav");
+    run([
+        "render".as_ref(),
+        scene.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ])
+    .assert_success();
+    let bytes = std::fs::read(&out).unwrap();
+    let u16_at = |k: usize| u16::from_le_bytes([bytes[k], bytes[k + 1]]);
+    let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().unwrap());
+    assert_eq!(u16_at(20), 0xFFFE, "WAVE_FORMAT_EXTENSIBLE");
+    assert_eq!(u16_at(22), 12);
+    assert_eq!(u32_at(40), 0x2D63F, "the 7.1.4 channel mask");
+    // A source high above and ahead is in the top front speakers.
+    let wav = read_wav(&out);
+    let level = |k: usize| rms(&channel(&wav, k));
+    let top_front = level(8) + level(9);
+    let ring: f64 = (0..8).map(level).sum();
+    assert!(top_front > 3.0 * ring, "top front {top_front}, ring {ring}");
+}

@@ -36,6 +36,8 @@ pub enum ChannelLayout {
     Plain,
     /// AmbiX of this order: (order + 1)² channels in ACN order, SN3D normalised.
     Ambisonics(usize),
+    /// Loudspeaker feeds, in the WAV standard's channel order.
+    Speakers(crate::space::layouts::Layout),
 }
 
 impl ChannelLayout {
@@ -45,6 +47,7 @@ impl ChannelLayout {
         match self {
             ChannelLayout::Plain => None,
             ChannelLayout::Ambisonics(_) => Some(0),
+            ChannelLayout::Speakers(layout) => Some(layout.wav_channel_mask()),
         }
     }
 }

@@ -111,3 +111,47 @@ fn the_sound_field_turns_with_the_listener_and_the_engines_agree() {
         }
     }
 }
+
+/// The channels' levels relative to the loudest for a tone from `at`, heard by a
+/// listener for `layout` (of `channels` speakers) at the origin facing +y.
+fn speaker_levels(layout: &str, channels: usize, at: [f64; 3]) -> Vec<f64> {
+    let [x, y, z] = at;
+    let program = scene(&format!(
+        "(scene :duration 0.3 :channels {channels})
+         (define-sound tone () (* 0.5 (sine (* t 700))))
+         (listener :position (0 0 0) :speakers \"{layout}\")
+         (source s :position ({x} {y} {z}))
+         (instance a (tone) :source s :stop 0.3)"
+    ));
+    let out = render(&program, 0.3, Engine::Jit);
+    let frames = out.chunks_exact(channels).skip((0.1 * SR) as usize);
+    let mut peaks = vec![0.0f64; channels];
+    for frame in frames {
+        for (p, x) in peaks.iter_mut().zip(frame) {
+            *p = p.max(x.abs());
+        }
+    }
+    peaks
+}
+
+#[test]
+fn a_51_listener_feeds_the_speakers_by_vbap_in_wav_order() {
+    // From the left surround's direction (110° left): that speaker (BL, channel 4)
+    // alone.
+    let a = 110f64.to_radians();
+    let peaks = speaker_levels("5.1", 6, [-4.0 * a.sin(), 4.0 * a.cos(), 0.0]);
+    let loudest = peaks[4];
+    assert!(loudest > 0.01);
+    for (k, p) in peaks.iter().enumerate().filter(|(k, _)| *k != 4) {
+        assert!(*p < 1e-9 * loudest, "channel {k}: {p}");
+    }
+    // From 20° left, between C (0°) and L (30°): the tangent law of the pair about
+    // its bisector at 15° (Bennett, Barker & Edeko 1985), (gL − gC)/(gL + gC) =
+    // tan 5° / tan 15°; nothing in the other speakers.
+    let a = 20f64.to_radians();
+    let peaks = speaker_levels("5.1", 6, [-4.0 * a.sin(), 4.0 * a.cos(), 0.0]);
+    let (l, c) = (peaks[0], peaks[2]);
+    let law = 5f64.to_radians().tan() / 15f64.to_radians().tan();
+    assert!(((l - c) / (l + c) - law).abs() < 1e-6, "L {l}, C {c}");
+    assert!(peaks[1] + peaks[3] + peaks[4] + peaks[5] < 1e-9 * l);
+}

@@ -114,7 +114,10 @@ impl LiveSpace {
             })
             .flat_map(|b| receivers.iter().map(move |r| max_distance(b, r.bounds())))
             .fold(0.0, f64::max);
-        let max_delay = farthest / c + declared.room_delay;
+        let ears = (receivers.iter())
+            .map(Receiver::extra_delay)
+            .fold(0.0, f64::max);
+        let max_delay = farthest / c + declared.room_delay + ears;
         if max_delay > MAX_DELAY_SECONDS {
             return Err(refusal(
                 "timbre::too-far",

@@ -4,7 +4,9 @@
 
 pub mod environment;
 pub mod geometry;
+pub mod hrtf;
 pub mod late;
+pub mod layouts;
 pub mod live;
 pub mod path;
 pub mod pickup;

@@ -1,20 +1,25 @@
 //! How a receiver picks up sound by the direction it arrives from: a microphone's
-//! first-order pattern, or one channel of an Ambisonic signal (AmbiX: ACN channel
-//! order, SN3D normalisation).
+//! first-order pattern, one channel of an Ambisonic signal (AmbiX: ACN channel
+//! order, SN3D normalisation), or an ear of a binaural listener (its head-related
+//! transfer function, `hrtf.rs`).
 //!
 //! Directions are in the listener's frame: x to the right, y to the front, z up
 //! (`Receiver::frame`). AmbiX's frame is x to the front, y to the left, z up, with
 //! azimuth counter-clockwise from the front and elevation up from the horizon.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
+use super::hrtf::HrtfSet;
+use super::layouts::Layout;
 use crate::op::Description;
 
 /// Highest Ambisonic order a listener may have.
 pub const MAX_AMBISONIC_ORDER: usize = 3;
 
 /// How a receiver weighs sound by where it comes from.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub enum Pickup {
     /// A microphone's first-order pattern `a + (1 − a)·cos θ` about its axis: 1 omni,
     /// 0.5 cardioid, 0 figure-of-eight.
@@ -23,41 +28,79 @@ pub enum Pickup {
     /// the real spherical harmonic with SN3D normalisation of the direction of
     /// arrival.
     Harmonic(usize),
+    /// Ear `ear` (0 left, 1 right) of a head measured in `set`: the propagation
+    /// delays each way by the ear's onset, and filters the direct sound by its
+    /// response (a reflection by its broadband level).
+    Ear { set: Arc<HrtfSet>, ear: usize },
+    /// Speaker `index` of a loudspeaker layout, fed by VBAP.
+    Speaker { layout: Layout, index: usize },
+}
+
+impl PartialEq for Pickup {
+    fn eq(&self, other: &Pickup) -> bool {
+        match (self, other) {
+            (Pickup::Pattern(a), Pickup::Pattern(b)) => a == b,
+            (Pickup::Harmonic(a), Pickup::Harmonic(b)) => a == b,
+            (Pickup::Ear { set: a, ear: e }, Pickup::Ear { set: b, ear: f }) => {
+                a.content_hash == b.content_hash && e == f
+            }
+            (
+                Pickup::Speaker { layout, index },
+                Pickup::Speaker {
+                    layout: l,
+                    index: i,
+                },
+            ) => layout == l && index == i,
+            _ => false,
+        }
+    }
 }
 
 impl Pickup {
     /// The gain for sound arriving from `direction` (a unit vector in the listener's
     /// frame); `axis` is the microphone's axis in that frame (a pattern's only).
-    pub fn gain(self, direction: DVec3, axis: DVec3) -> f64 {
+    /// An ear's gain is that of its direct sound, 1 (its response carries its level).
+    pub fn gain(&self, direction: DVec3, axis: DVec3) -> f64 {
         match self {
             Pickup::Pattern(a) => a + (1.0 - a) * axis.dot(direction),
             Pickup::Harmonic(acn) => {
                 let ambix = DVec3::new(direction.y, -direction.x, direction.z);
-                sn3d(acn, ambix)
+                sn3d(*acn, ambix)
             }
+            Pickup::Ear { .. } => 1.0,
+            Pickup::Speaker { layout, index } => layout.gain(*index, direction),
         }
     }
 
     /// Whether it hears every direction the same (an omni: no direction to solve).
-    pub fn is_omni(self) -> bool {
-        matches!(self, Pickup::Pattern(a) if a == 1.0) || self == Pickup::Harmonic(0)
+    pub fn is_omni(&self) -> bool {
+        matches!(self, Pickup::Pattern(a) if *a == 1.0) || *self == Pickup::Harmonic(0)
     }
 
     /// Its share of a diffuse field's pressure, for the room's late part: 1 for a
     /// microphone (the late part is made for an omni at its place), and for the
     /// Ambisonic channels the omnidirectional W alone (the late part is encoded
     /// without direction; the other channels' share of a diffuse field averages 0).
-    pub fn diffuse(self) -> f64 {
+    /// An ear hears it as an omni would (the two ears get uncorrelated outputs); a
+    /// layout's speakers share an omni's power equally, the LFE none.
+    pub fn diffuse(&self) -> f64 {
         match self {
-            Pickup::Pattern(_) => 1.0,
-            Pickup::Harmonic(acn) => f64::from(u8::from(acn == 0)),
+            Pickup::Pattern(_) | Pickup::Ear { .. } => 1.0,
+            Pickup::Harmonic(acn) => f64::from(u8::from(*acn == 0)),
+            Pickup::Speaker { layout, index } if layout.is_lfe(*index) => 0.0,
+            Pickup::Speaker { layout, .. } => 1.0 / (layout.directional() as f64).sqrt(),
         }
     }
 
-    pub(crate) fn describe(self, d: &mut Description) {
+    pub(crate) fn describe(&self, d: &mut Description) {
         match self {
-            Pickup::Pattern(a) => d.u64(0).f64(a),
-            Pickup::Harmonic(acn) => d.u64(1).u64(acn as u64),
+            Pickup::Pattern(a) => d.u64(0).f64(*a),
+            Pickup::Harmonic(acn) => d.u64(1).u64(*acn as u64),
+            Pickup::Ear { set, ear } => d.u64(2).u64(set.content_hash).u64(*ear as u64),
+            Pickup::Speaker { layout, index } => d
+                .u64(3)
+                .u64(layout.wav_channel_mask().into())
+                .u64(*index as u64),
         };
     }
 }

@@ -23,6 +23,7 @@ use glam::DVec3;
 
 use super::environment::{Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
+use super::hrtf::{HrirTable, Weights, TAPS};
 use super::late::LateBus;
 use super::path::{Path, VELOCITY_STEP};
 use super::pickup::Pickup;
@@ -215,13 +216,34 @@ impl Receiver {
         let (right, front, up) = self.frame(t);
         let axis = glam::DQuat::from_axis_angle(up, self.axis_angle) * front;
         let direction = (from - self.at(t)).try_normalize().unwrap_or(axis);
-        match self.pickup {
+        match &self.pickup {
             Pickup::Pattern(a) => a + (1.0 - a) * axis.dot(direction),
             pickup => {
                 let local = |v: DVec3| DVec3::new(right.dot(v), front.dot(v), up.dot(v));
                 pickup.gain(local(direction), local(axis))
             }
         }
+    }
+
+    /// How much later than its way's delay it may hear a sound, seconds: an ear's
+    /// longest onset (and a millisecond for the set read at another rate), else 0.
+    pub fn extra_delay(&self) -> f64 {
+        match &self.pickup {
+            Pickup::Ear { set, .. } => set.nominal.max_delay() + 1e-3,
+            _ => 0.0,
+        }
+    }
+
+    /// The direction of `from` at `t` in the listener's frame (x right, y front, z
+    /// up), a unit vector (the front if `from` is where it is).
+    fn local_direction(&self, t: f64, from: DVec3) -> DVec3 {
+        let (right, front, up) = self.frame(t);
+        let direction = (from - self.at(t)).try_normalize().unwrap_or(front);
+        DVec3::new(
+            right.dot(direction),
+            front.dot(direction),
+            up.dot(direction),
+        )
     }
 
     fn describe(&self, d: &mut Description) {
@@ -332,6 +354,11 @@ struct Solution {
     gain: f64,
     /// Where the sound heard then was emitted (the real source, not its image).
     emitted: DVec3,
+    /// An ear's onset delay for the direction it arrives from, seconds (0 for other
+    /// receivers): added to `tau` when the way is read, interpolated linearly.
+    ear: f64,
+    /// The direction it arrives from in the listener's frame (an ear's only).
+    arrival: DVec3,
 }
 
 /// Most emission times heard at once along one way (a source faster than sound).
@@ -353,6 +380,79 @@ struct WayState {
     muffle: Muffle,
     /// Air absorption over the way's length.
     air: AirFilter,
+    /// An ear's response, on its direct way.
+    ear: Option<Box<EarFilter>>,
+}
+
+/// The direct sound at one ear filtered by the ear's response for the direction it
+/// arrives from: the response at the end of each stride is worked out when the
+/// stride starts (from the solution there), and the output crossfades linearly over
+/// the stride from the last response's to the new one's (computed by both while
+/// they differ), so a turning head or a moving source changes it smoothly. Both are
+/// decided on the stride's grid, so the output does not depend on the block size.
+#[derive(Clone, Debug)]
+struct EarFilter {
+    table: Arc<HrirTable>,
+    ear: usize,
+    /// The responses at the stride's start and end, reversed (the newest sample's
+    /// tap last), and whether they differ.
+    from: Vec<f64>,
+    to: Vec<f64>,
+    turning: bool,
+    weights: Weights,
+    /// The way's last `TAPS − 1` samples before the stride, then the stride's.
+    input: Vec<f64>,
+}
+
+impl EarFilter {
+    fn new(table: Arc<HrirTable>, ear: usize, arrival: DVec3) -> EarFilter {
+        let weights = table.weights(arrival);
+        let mut to = vec![0.0; TAPS];
+        table.response(&weights, ear, &mut to);
+        to.reverse();
+        EarFilter {
+            table,
+            ear,
+            from: to.clone(),
+            to,
+            turning: false,
+            weights,
+            input: vec![0.0; TAPS - 1 + SPAN],
+        }
+    }
+
+    /// Filters `heard`, samples `phase..phase + heard.len()` of a stride of `unit`
+    /// samples whose end the ear hears from `arrival`.
+    fn process(&mut self, heard: &mut [f64], phase: usize, unit: usize, arrival: DVec3) {
+        if phase == 0 {
+            std::mem::swap(&mut self.from, &mut self.to);
+            let weights = self.table.weights(arrival);
+            self.turning = weights != self.weights;
+            if self.turning {
+                self.table.response(&weights, self.ear, &mut self.to);
+                self.to.reverse();
+                self.weights = weights;
+            } else {
+                self.to.copy_from_slice(&self.from);
+            }
+        }
+        let start = TAPS - 1 + phase;
+        self.input[start..start + heard.len()].copy_from_slice(heard);
+        let dot = |h: &[f64], x: &[f64]| h.iter().zip(x).map(|(h, x)| h * x).sum::<f64>();
+        for (j, y) in heard.iter_mut().enumerate() {
+            let window = &self.input[phase + j..phase + j + TAPS];
+            let from = dot(&self.from, window);
+            *y = if self.turning {
+                let s = (phase + j + 1) as f64 / unit as f64;
+                from + (dot(&self.to, window) - from) * s
+            } else {
+                from
+            };
+        }
+        if phase + heard.len() == unit {
+            self.input.copy_within(unit..unit + TAPS - 1, 0);
+        }
+    }
 }
 
 /// What an obstacle does to a sound: its material's gain and low-pass, crossfaded
@@ -569,13 +669,29 @@ impl Propagation {
         } else {
             0.0
         };
-        let directivity = self.receivers[way.receiver].directivity(receiver.time, image);
+        let at = &self.receivers[way.receiver];
+        let (directivity, ear, arrival) = match &at.pickup {
+            Pickup::Ear { set, ear } => {
+                // The direct sound is filtered by the ear's response, which carries
+                // its level; a reflection takes the level alone.
+                let arrival = at.local_direction(receiver.time, image);
+                let weights = set.nominal.weights(arrival);
+                let level = match way.image {
+                    None => 1.0,
+                    Some(_) => set.nominal.level(&weights, *ear),
+                };
+                (level, set.nominal.delay(&weights, *ear), arrival)
+            }
+            _ => (at.directivity(receiver.time, image), 0.0, DVec3::ZERO),
+        };
         let gain = self.medium.gain(d) * directivity * way.reflectance;
         Solution {
             tau,
             slope,
             gain,
             emitted,
+            ear,
+            arrival,
         }
     }
 
@@ -892,6 +1008,8 @@ fn cubic_between(a: &Solution, b: &Solution, s: f64, h: f64) -> Solution {
         slope,
         gain: a.gain + (b.gain - a.gain) * s,
         emitted: b.emitted,
+        ear: a.ear + (b.ear - a.ear) * s,
+        arrival: b.arrival,
     }
 }
 
@@ -953,6 +1071,9 @@ impl StatefulKernel for Propagation {
         if let Some(room) = &self.environment.room {
             detail += &format!(", room order {}", room.order);
         }
+        if self.sends() > 0 {
+            detail += &format!(", {} sent to the late part", self.sends());
+        }
         if !self.environment.obstacles.is_empty() {
             detail += &format!(", {} obstacles", self.environment.obstacles.len());
         }
@@ -1005,6 +1126,13 @@ impl StatefulKernel for Propagation {
             let receiver = &receivers_at[way.receiver];
             let first = self.solve(way, t0, self.first_guess(way, t0, receiver), receiver);
             s.stride[STRIDE] = first;
+            if let (Pickup::Ear { set, ear }, None) =
+                (&self.receivers[way.receiver].pickup, way.image)
+            {
+                // The response at the render's rate (read once per rate and set).
+                let table = set.table(sr).unwrap_or_else(|_| set.nominal.clone());
+                s.ear = Some(Box::new(EarFilter::new(table, *ear, first.arrival)));
+            }
             // Blocked from the start: no crossfade.
             self.block(way, s, receiver.position, &obstacles, sr);
             s.muffle.blocked = s.muffle.target;
@@ -1099,6 +1227,8 @@ impl Propagation {
         sr: f64,
     ) {
         let fade_step = 1.0 / (CROSSFADE * sr);
+        // Samples of the grid's unit this call is part of (see `process`).
+        let unit = if state.outruns { GRID } else { SPAN };
         let read = Read {
             history: &state.history,
             basis: &state.basis,
@@ -1134,6 +1264,10 @@ impl Propagation {
                 for y in heard.iter_mut() {
                     *y = w.muffle.process(*y, fade_step);
                 }
+            }
+            if let Some(ear) = &mut w.ear {
+                let end = &w.stride[unit / GRID];
+                ear.process(heard, phase, unit, end.arrival);
             }
             let lane = &mut samples[way.receiver * stride..][..len];
             for (out, y) in lane.iter_mut().zip(heard.iter()) {
@@ -1211,13 +1345,16 @@ impl Read<'_> {
             let until = (from + len - j).min(GRID);
             let (a, b) = (&points[step], &points[step + 1]);
             let n = until - from;
-            for (k, (((h00, h10h), h01), h11h)) in (basis.h00[from..until].iter())
+            for (k, ((((h00, h10h), h01), h11h), s)) in (basis.h00[from..until].iter())
                 .zip(&basis.h10h[from..until])
                 .zip(&basis.h01[from..until])
                 .zip(&basis.h11h[from..until])
+                .zip(&basis.s[from..until])
                 .enumerate()
             {
                 let tau = h00 * a.tau + h10h * a.slope + h01 * b.tau + h11h * b.slope;
+                // An ear's onset (0 elsewhere, which adds nothing to the bits).
+                let tau = tau + (a.ear + (b.ear - a.ear) * s);
                 delay[j + k] = clamp_or(tau * self.sr, 0.0, max, 0.0);
             }
             for (g, s) in gain[j..j + n].iter_mut().zip(&basis.s[from..until]) {

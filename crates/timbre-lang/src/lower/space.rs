@@ -23,6 +23,8 @@ use timbre_ir::space::environment::{
 };
 use timbre_ir::space::environment::{DEFAULT_MATERIAL, MATERIALS};
 use timbre_ir::space::geometry::{Opening, Room, Wall, DEFAULT_ORDER, MAX_ORDER};
+use timbre_ir::space::hrtf::{HrtfSet, DEFAULT_SET};
+use timbre_ir::space::layouts::Layout;
 use timbre_ir::space::path::max_distance;
 use timbre_ir::space::pickup::{ambisonic_channels, MAX_AMBISONIC_ORDER};
 use timbre_ir::space::{
@@ -110,6 +112,8 @@ const LISTENER_OPTIONS: &[&str] = &[
     "angle",
     "pattern",
     "ambisonics",
+    "binaural",
+    "speakers",
 ];
 const MICROPHONE_OPTIONS: &[&str] = &["channel", "position", "facing", "pattern"];
 
@@ -174,6 +178,16 @@ impl Lowerer<'_> {
             facing: facing.clone(),
             ..Receiver::omni(position.clone())
         };
+        if let Some(set) = options.get("binaural") {
+            let receivers = self.binaural_listener(set, &options, &mono, origin)?;
+            self.scene.space.listener = Some((receivers, form.span));
+            return Ok(());
+        }
+        if let Some(layout) = options.get("speakers") {
+            let receivers = self.speaker_listener(layout, &options, &mono, origin)?;
+            self.scene.space.listener = Some((receivers, form.span));
+            return Ok(());
+        }
         if let Some(order) = options.get("ambisonics") {
             let receivers = self.ambisonic_listener(order, &options, &mono, origin)?;
             self.scene.space.listener = Some((receivers, form.span));
@@ -264,6 +278,142 @@ impl Lowerer<'_> {
         };
         self.scene.space.listener = Some((receivers, form.span));
         Ok(())
+    }
+
+    /// `:speakers "5.1"` (`stereo`, `5.1`, `7.1`, `7.1.4`): a feed per loudspeaker
+    /// of the layout, panned by VBAP from the listener's place and facing.
+    fn speaker_listener(
+        &mut self,
+        layout_expr: &Expr,
+        options: &Options<'_>,
+        mono: &Receiver,
+        origin: &Origin,
+    ) -> Result<Vec<Receiver>, Diag> {
+        for key in [
+            "pair",
+            "pattern",
+            "spacing",
+            "angle",
+            "ambisonics",
+            "binaural",
+        ] {
+            if let Some(e) = options.get(key) {
+                return Err(self
+                    .diag(
+                        "timbre::bad-listener",
+                        format!("a listener for loudspeakers has no `:{key}`"),
+                        origin,
+                    )
+                    .label(e.span, "not with :speakers")
+                    .help("a listener for loudspeakers feeds the layout's speakers; leave out the other receivers' options"));
+            }
+        }
+        let name = match &layout_expr.kind {
+            ExprKind::Str(s) => s.clone(),
+            ExprKind::Number(x) => x.to_string(),
+            _ => layout_expr.as_symbol().unwrap_or_default().to_owned(),
+        };
+        let Some(layout) = Layout::from_name(&name) else {
+            return Err(self
+                .diag(
+                    "timbre::bad-listener",
+                    format!("unknown loudspeaker layout {layout_expr}"),
+                    origin,
+                )
+                .label(layout_expr.span, "not a layout")
+                .help("write :speakers \"stereo\", \"5.1\", \"7.1\" or \"7.1.4\""));
+        };
+        let channels = layout.channels();
+        if self.settings.channels != Some(channels) {
+            return Err(self
+                .diag(
+                    "timbre::bad-listener",
+                    format!("the {} layout has {channels} channels", layout.name()),
+                    origin,
+                )
+                .label(layout_expr.span, format!("{channels} speakers"))
+                .help(format!("add :channels {channels} to the scene form")));
+        }
+        self.settings.layout = timbre_ir::ChannelLayout::Speakers(layout);
+        Ok((0..channels)
+            .map(|index| Receiver {
+                pickup: Pickup::Speaker { layout, index },
+                ..mono.clone()
+            })
+            .collect())
+    }
+
+    /// `:binaural "file.sofa"` (or `default`, the MIT KEMAR set where Debian's
+    /// `libmysofa-utils` installs it): two ears at the listener's place, turning with
+    /// its facing, in a stereo scene, hearing through the set's responses.
+    fn binaural_listener(
+        &mut self,
+        set_expr: &Expr,
+        options: &Options<'_>,
+        mono: &Receiver,
+        origin: &Origin,
+    ) -> Result<Vec<Receiver>, Diag> {
+        for key in ["pair", "pattern", "spacing", "angle", "ambisonics"] {
+            if let Some(e) = options.get(key) {
+                return Err(self
+                    .diag(
+                        "timbre::bad-listener",
+                        format!("a binaural listener has no `:{key}`"),
+                        origin,
+                    )
+                    .label(e.span, "not with :binaural")
+                    .help("a binaural listener hears with its two ears; leave out the microphones' options"));
+            }
+        }
+        if self.settings.channels != Some(2) {
+            return Err(self
+                .diag(
+                    "timbre::bad-listener",
+                    "a binaural listener needs a stereo scene",
+                    origin,
+                )
+                .label(set_expr.span, "two ears, two channels")
+                .help("add :channels 2 to the scene form"));
+        }
+        let path = match &set_expr.kind {
+            ExprKind::Str(path) => path.clone(),
+            _ if set_expr.as_symbol() == Some("default") => DEFAULT_SET.to_owned(),
+            _ => {
+                return Err(self
+                    .diag("timbre::bad-listener", format!("unknown HRTF set {set_expr}"), origin)
+                    .label(set_expr.span, "not a SOFA file")
+                    .help("write :binaural \"head.sofa\" (a SOFA file of head-related impulse responses) or :binaural default"))
+            }
+        };
+        let unreadable = |this: &Self, why: String| {
+            let help = if path == DEFAULT_SET {
+                "the default set is the MIT KEMAR head that Debian's libmysofa-utils installs (apt install libmysofa-utils); or give a SOFA file: :binaural \"head.sofa\"".to_owned()
+            } else {
+                "give a SOFA (AES69) file of head-related impulse responses, e.g. from the SOFA conventions' database; paths are relative to the file that names them".to_owned()
+            };
+            this.diag(
+                "timbre::bad-hrtf",
+                format!("cannot read the HRTF set `{path}`: {why}"),
+                origin,
+            )
+            .label(set_expr.span, "this set")
+            .help(help)
+        };
+        let (_, bytes) = (self.options.loader)
+            .load(&path, origin.dir.as_deref())
+            .map_err(|e| unreadable(self, e.to_string()))?;
+        let sr = self.settings.sample_rate.unwrap_or(48_000.0);
+        let set = HrtfSet::read(&path, bytes, sr).map_err(|why| unreadable(self, why))?;
+        let set = Arc::new(set);
+        Ok((0..2)
+            .map(|ear| Receiver {
+                pickup: Pickup::Ear {
+                    set: set.clone(),
+                    ear,
+                },
+                ..mono.clone()
+            })
+            .collect())
     }
 
     /// `:ambisonics N`: a receiver per Ambisonic channel of order N (1 to 3) at the
@@ -1320,7 +1470,11 @@ impl Lowerer<'_> {
             .iter()
             .map(|r| max_distance(source.bounds(), r.bounds()))
             .fold(0.0, f64::max);
-        let mut max_delay = farthest / medium.speed_of_sound;
+        let ears = receivers
+            .iter()
+            .map(Receiver::extra_delay)
+            .fold(0.0, f64::max);
+        let mut max_delay = farthest / medium.speed_of_sound + ears;
         if max_delay > MAX_BUFFER_SECONDS {
             return Err(self
                 .diag(

@@ -1,0 +1,285 @@
+//! Head-related transfer functions: a binaural listener's two ears, read from a SOFA
+//! (AES69) file of head-related impulse responses (`SimpleFreeFieldHRIR`).
+//!
+//! Each measured response is split into its onset delay (a whole number of samples:
+//! where it first reaches a tenth of its peak, less [`LEAD`]) and the response from
+//! there, [`TAPS`] long. A direction between measurements takes the three nearest
+//! measured directions, weighted by the inverse of their angle from it (a measured
+//! direction is its own measurement), and interpolates the delays (so the
+//! interaural time difference turns smoothly) and the aligned responses (whose
+//! onsets then agree, so they do not comb). At a measured direction the delay and
+//! the response together are the measured response exactly (to its first `LEAD +
+//! TAPS` samples from the onset).
+
+use std::sync::{Arc, Mutex, PoisonError};
+
+use glam::DVec3;
+
+/// Samples of each aligned response (5.3 ms at 48 kHz: the head and the pinnae; a
+/// free-field set's response has decayed by then).
+pub const TAPS: usize = 256;
+/// Samples kept before a response's onset (its rise, and a resampler's ringing).
+pub const LEAD: usize = 12;
+
+/// Directions closer than this to a measurement (radians, 0.06°) are that
+/// measurement.
+const MEASURED: f64 = 1e-3;
+
+/// Where Debian's `libmysofa-utils` installs the MIT KEMAR set (`:binaural default`).
+pub const DEFAULT_SET: &str = "/usr/share/libmysofa/default.sofa";
+
+/// A SOFA file of head-related impulse responses, read at each sample rate it is
+/// rendered at (once per rate).
+#[derive(Debug)]
+pub struct HrtfSet {
+    /// Where it was read from.
+    pub name: String,
+    bytes: Arc<[u8]>,
+    /// Identifies the file's contents (a kernel's description).
+    pub content_hash: u64,
+    /// Its responses at the scene's sample rate, read when the scene is: the delays,
+    /// levels and directions the propagation solves with (seconds and gains, the
+    /// same at any rate).
+    pub nominal: Arc<HrirTable>,
+    tables: Mutex<Vec<Arc<HrirTable>>>,
+}
+
+impl HrtfSet {
+    /// The set in `bytes` (a SOFA file read from `name`), checked by reading it at
+    /// `sample_rate`.
+    pub fn read(name: &str, bytes: Vec<u8>, sample_rate: f64) -> Result<HrtfSet, String> {
+        let content_hash = fnv1a(&bytes);
+        let nominal = Arc::new(HrirTable::read(&bytes, sample_rate)?);
+        Ok(HrtfSet {
+            name: name.to_owned(),
+            bytes: bytes.into(),
+            content_hash,
+            tables: Mutex::new(vec![nominal.clone()]),
+            nominal,
+        })
+    }
+
+    /// Its responses at `sample_rate` (resampled from the file's rate the first
+    /// time, then shared).
+    pub fn table(&self, sample_rate: f64) -> Result<Arc<HrirTable>, String> {
+        let mut tables = self.tables.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(table) = tables.iter().find(|t| t.sample_rate == sample_rate) {
+            return Ok(table.clone());
+        }
+        let table = Arc::new(HrirTable::read(&self.bytes, sample_rate)?);
+        tables.push(table.clone());
+        Ok(table)
+    }
+}
+
+/// 64-bit FNV-1a of a file's bytes.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// The measured responses at one sample rate, split into onset delays and aligned
+/// responses.
+#[derive(Debug)]
+pub struct HrirTable {
+    pub sample_rate: f64,
+    /// Each measurement's direction, a unit vector in the listener's frame (x right,
+    /// y front, z up).
+    directions: Vec<DVec3>,
+    /// Each measurement's onset delay per ear (left, right), seconds.
+    delays: Vec<[f64; 2]>,
+    /// Each measurement's broadband gain per ear: the root of its response's energy.
+    levels: Vec<[f64; 2]>,
+    /// Each measurement's aligned responses, left then right, [`TAPS`] each.
+    responses: Vec<f64>,
+}
+
+/// Three measurements and their weights (summing to 1).
+pub type Weights = [(usize, f64); 3];
+
+impl HrirTable {
+    fn read(bytes: &[u8], sample_rate: f64) -> Result<HrirTable, String> {
+        let sofa = sofar::reader::OpenOptions::new()
+            .sample_rate(sample_rate as f32)
+            .open_data(bytes)
+            .map_err(|e| format!("not a SOFA file of head-related impulse responses: {e}"))?;
+        let hrtf = sofa.hrtf();
+        let (m, r, n) = (hrtf.m() as usize, hrtf.r() as usize, hrtf.n() as usize);
+        let positions = &hrtf.source_position.values;
+        let ir = &hrtf.data_ir.values;
+        if r != 2 || m == 0 || n == 0 || positions.len() < 3 * m || ir.len() < m * r * n {
+            return Err(format!(
+                "{m} measurements of {r} receivers: a binaural set has two ears"
+            ));
+        }
+        // The left ear is the receiver further along +y (SOFA: x front, y left).
+        let ears = &hrtf.receiver_position.values;
+        let left = if ears.len() >= 6 && ears[4] > ears[1] {
+            1
+        } else {
+            0
+        };
+        let file_delay = |k: usize, ear: usize| {
+            let d = &hrtf.data_delay.values;
+            let at = if d.len() >= m * r { k * r + ear } else { ear };
+            d.get(at).map_or(0.0, |v| f64::from(*v)) / sample_rate
+        };
+        let mut table = HrirTable {
+            sample_rate,
+            directions: Vec::with_capacity(m),
+            delays: Vec::with_capacity(m),
+            levels: Vec::with_capacity(m),
+            responses: Vec::with_capacity(m * 2 * TAPS),
+        };
+        for k in 0..m {
+            let p = &positions[3 * k..3 * k + 3];
+            let sofa_direction = DVec3::new(p[0].into(), p[1].into(), p[2].into());
+            let Some(u) = sofa_direction.try_normalize() else {
+                return Err(format!("measurement {k} has no direction"));
+            };
+            // SOFA's (front, left, up) as the listener's (right, front, up).
+            table.directions.push(DVec3::new(-u.y, u.x, u.z));
+            let mut delays = [0.0; 2];
+            let mut levels = [0.0; 2];
+            for (e, ear) in [left, 1 - left].into_iter().enumerate() {
+                let h: Vec<f64> = ir[(k * r + ear) * n..(k * r + ear + 1) * n]
+                    .iter()
+                    .map(|x| f64::from(*x))
+                    .collect();
+                if !h.iter().all(|x| x.is_finite()) {
+                    return Err(format!("measurement {k} has samples that are not finite"));
+                }
+                let peak = h.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+                let onset = h.iter().position(|x| x.abs() >= 0.1 * peak).unwrap_or(0);
+                let from = onset.saturating_sub(LEAD);
+                delays[e] = from as f64 / sample_rate + file_delay(k, ear);
+                let aligned = (0..TAPS).map(|j| h.get(from + j).copied().unwrap_or(0.0));
+                let start = table.responses.len();
+                table.responses.extend(aligned);
+                levels[e] = table.responses[start..]
+                    .iter()
+                    .map(|x| x * x)
+                    .sum::<f64>()
+                    .sqrt();
+            }
+            table.delays.push(delays);
+            table.levels.push(levels);
+        }
+        Ok(table)
+    }
+
+    /// The longest onset delay of any measurement and ear, seconds.
+    pub fn max_delay(&self) -> f64 {
+        (self.delays.iter().flatten()).fold(0.0, |m: f64, d| m.max(*d))
+    }
+
+    /// Measurements.
+    pub fn len(&self) -> usize {
+        self.directions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.directions.is_empty()
+    }
+
+    /// The measurements that make `direction` (a unit vector in the listener's
+    /// frame): the three nearest, measurement i weighted by `1/θᵢ − 1/θ₄` (θ its
+    /// angle from the direction, θ₄ the fourth nearest's), so a measurement's weight
+    /// falls to 0 as it leaves the three and the weights change continuously with
+    /// the direction. A direction within 0.06° of a measurement is that measurement.
+    pub fn weights(&self, direction: DVec3) -> Weights {
+        let mut best = [(0usize, f64::NEG_INFINITY); 4];
+        for (k, d) in self.directions.iter().enumerate() {
+            let cos = d.dot(direction);
+            if cos > best[3].1 {
+                best[3] = (k, cos);
+                best.sort_by(|a, b| b.1.total_cmp(&a.1));
+            }
+        }
+        let angle = |cos: f64| cos.clamp(-1.0, 1.0).acos();
+        // Within the file's precision (its directions are f32) of a measurement.
+        if angle(best[0].1) < MEASURED {
+            return [(best[0].0, 1.0), (best[1].0, 0.0), (best[2].0, 0.0)];
+        }
+        let fourth = 1.0 / angle(best[3].1).max(MEASURED);
+        let raw = [0, 1, 2].map(|i| (best[i].0, (1.0 / angle(best[i].1) - fourth).max(0.0)));
+        let total: f64 = raw.iter().map(|(_, w)| w).sum();
+        if total <= 0.0 {
+            // Four measurements at one angle (the poles of a grid): share alike.
+            return raw.map(|(k, _)| (k, 1.0 / 3.0));
+        }
+        raw.map(|(k, w)| (k, w / total))
+    }
+
+    /// Ear `ear`'s (0 left, 1 right) onset delay at `weights`, seconds.
+    pub fn delay(&self, weights: &Weights, ear: usize) -> f64 {
+        weights.iter().map(|(k, w)| w * self.delays[*k][ear]).sum()
+    }
+
+    /// Ear `ear`'s broadband gain at `weights`.
+    pub fn level(&self, weights: &Weights, ear: usize) -> f64 {
+        weights.iter().map(|(k, w)| w * self.levels[*k][ear]).sum()
+    }
+
+    /// Ear `ear`'s aligned response at `weights`, into `out` ([`TAPS`] long).
+    pub fn response(&self, weights: &Weights, ear: usize, out: &mut [f64]) {
+        out.fill(0.0);
+        for (k, w) in weights {
+            if *w == 0.0 {
+                continue;
+            }
+            let h = &self.responses[(k * 2 + ear) * TAPS..(k * 2 + ear + 1) * TAPS];
+            for (y, x) in out.iter_mut().zip(h) {
+                *y += w * x;
+            }
+        }
+    }
+
+    /// The measured direction nearest `direction`, and its response and delay for
+    /// ear `ear` as measured (onset included): for checking renders against the set.
+    pub fn measured(&self, direction: DVec3, ear: usize) -> (DVec3, f64, &[f64]) {
+        let [(k, _), ..] = self.weights(direction);
+        let h = &self.responses[(k * 2 + ear) * TAPS..(k * 2 + ear + 1) * TAPS];
+        (self.directions[k], self.delays[k][ear], h)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kemar() -> Option<HrtfSet> {
+        let bytes = std::fs::read(DEFAULT_SET).ok()?;
+        Some(HrtfSet::read(DEFAULT_SET, bytes, 48_000.0).unwrap())
+    }
+
+    #[test]
+    fn the_kemar_set_is_read_with_its_ears_and_directions() {
+        let Some(set) = kemar() else {
+            eprintln!("{DEFAULT_SET} is not installed (Debian: libmysofa-utils)");
+            return;
+        };
+        let table = set.table(48_000.0).unwrap();
+        assert!(table.len() > 700, "{} measurements", table.len());
+        // A source on the left reaches the left ear first, and louder.
+        let left = DVec3::new(-1.0, 0.0, 0.0);
+        let w = table.weights(left);
+        assert_eq!(w[0].1, 1.0, "measured at 90° left");
+        assert!(table.delay(&w, 1) - table.delay(&w, 0) > 0.0005);
+        assert!(table.level(&w, 0) > 2.0 * table.level(&w, 1));
+        // Between measurements the weights favour the nearest and sum to 1.
+        let between = DVec3::new(-0.3, 1.0, 0.1).normalize();
+        let w = table.weights(between);
+        assert!((w.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!(w[0].1 >= w[1].1 && w[1].1 >= w[2].1);
+        // The same rate is read once.
+        assert!(Arc::ptr_eq(&table, &set.table(48_000.0).unwrap()));
+    }
+
+    #[test]
+    fn a_file_that_is_not_sofa_is_refused() {
+        let refused = HrtfSet::read("x.sofa", b"not hdf5".to_vec(), 48_000.0).unwrap_err();
+        assert!(refused.contains("not a SOFA file"), "{refused}");
+    }
+}
