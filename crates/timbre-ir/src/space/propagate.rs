@@ -1085,11 +1085,17 @@ impl StatefulKernel for Propagation {
     }
 
     fn memory(&self, ctx: &StateContext) -> u64 {
-        // The delay line, the record of the source's positions, and the late part.
+        // The delay line, the record of the source's positions, the late part, and
+        // the ears' filters.
         let grid_points = (self.max_delay * ctx.config.sample_rate / GRID as f64).ceil();
         let line = (self.max_delay * ctx.config.sample_rate).ceil() + (GRID + 8) as f64;
         let history = History::bytes(line.min(1e15) as usize) as f64;
-        let bytes = history + 24.0 * (grid_points + 3.0) + 65_536.0 * ctx.width as f64;
+        // An ear's filter: two responses and its input.
+        let ears = (self.receivers.iter())
+            .filter(|r| matches!(r.pickup, Pickup::Ear { .. }))
+            .count();
+        let filters = (8 * (3 * TAPS + SPAN) * ears) as f64;
+        let bytes = history + 24.0 * (grid_points + 3.0) + 65_536.0 * ctx.width as f64 + filters;
         bytes.min(1e18) as u64
     }
 
