@@ -422,8 +422,16 @@ impl EarFilter {
     }
 
     /// Filters `heard`, samples `phase..phase + heard.len()` of a stride of `unit`
-    /// samples whose end the ear hears from `arrival`.
-    fn process(&mut self, heard: &mut [f64], phase: usize, unit: usize, arrival: DVec3) {
+    /// samples whose end the ear hears from `arrival` (on AVX2 when `wide`: the same
+    /// operations, so the same bits).
+    fn process(
+        &mut self,
+        heard: &mut [f64],
+        phase: usize,
+        unit: usize,
+        arrival: DVec3,
+        wide: bool,
+    ) {
         if phase == 0 {
             std::mem::swap(&mut self.from, &mut self.to);
             let weights = self.table.weights(arrival);
@@ -438,7 +446,32 @@ impl EarFilter {
         }
         let start = TAPS - 1 + phase;
         self.input[start..start + heard.len()].copy_from_slice(heard);
-        let dot = |h: &[f64], x: &[f64]| h.iter().zip(x).map(|(h, x)| h * x).sum::<f64>();
+        #[cfg(target_arch = "x86_64")]
+        if wide {
+            // SAFETY: `wide` is set only where the processor has AVX2.
+            unsafe { self.filter_avx2(heard, phase, unit) };
+        } else {
+            self.filter(heard, phase, unit);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = wide;
+            self.filter(heard, phase, unit);
+        }
+        if phase + heard.len() == unit {
+            self.input.copy_within(unit..unit + TAPS - 1, 0);
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn filter_avx2(&self, heard: &mut [f64], phase: usize, unit: usize) {
+        self.filter(heard, phase, unit);
+    }
+
+    /// The responses over the input, crossfaded from `from`'s to `to`'s.
+    #[inline(always)]
+    fn filter(&self, heard: &mut [f64], phase: usize, unit: usize) {
         for (j, y) in heard.iter_mut().enumerate() {
             let window = &self.input[phase + j..phase + j + TAPS];
             let from = dot(&self.from, window);
@@ -449,10 +482,23 @@ impl EarFilter {
                 from
             };
         }
-        if phase + heard.len() == unit {
-            self.input.copy_within(unit..unit + TAPS - 1, 0);
+    }
+}
+
+/// `Σ h[k]·x[k]` over [`TAPS`] taps, in two vectors of four running sums (one sum
+/// would be a chain of dependent additions), added in a fixed order, so the bits
+/// are the same on every path.
+#[inline(always)]
+fn dot(h: &[f64], x: &[f64]) -> f64 {
+    let (mut a, mut b) = ([0.0f64; 4], [0.0f64; 4]);
+    for (h, x) in h[..TAPS].chunks_exact(8).zip(x[..TAPS].chunks_exact(8)) {
+        let (h, x): (&[f64; 8], &[f64; 8]) = (h.try_into().unwrap(), x.try_into().unwrap());
+        for k in 0..4 {
+            a[k] += h[k] * x[k];
+            b[k] += h[k + 4] * x[k + 4];
         }
     }
+    ((a[0] + b[0]) + (a[1] + b[1])) + ((a[2] + b[2]) + (a[3] + b[3]))
 }
 
 /// What an obstacle does to a sound: its material's gain and low-pass, crossfaded
@@ -1273,7 +1319,7 @@ impl Propagation {
             }
             if let Some(ear) = &mut w.ear {
                 let end = &w.stride[unit / GRID];
-                ear.process(heard, phase, unit, end.arrival);
+                ear.process(heard, phase, unit, end.arrival, state.wide);
             }
             let lane = &mut samples[way.receiver * stride..][..len];
             for (out, y) in lane.iter_mut().zip(heard.iter()) {
@@ -1565,6 +1611,54 @@ mod tests {
                 &whole,
                 &render(&kernel, &x, block, wide_reads()),
                 &format!("block {block}"),
+            );
+        }
+    }
+
+    /// The kernel heard by a binaural head (the MIT KEMAR set, where installed).
+    fn binaural() -> Option<Propagation> {
+        let bytes = std::fs::read(crate::space::hrtf::DEFAULT_SET).ok()?;
+        let set = crate::space::hrtf::HrtfSet::read("kemar", bytes, SR).unwrap();
+        let set = Arc::new(set);
+        let mut kernel = kernel();
+        let head = Receiver::omni(Path::Fixed(DVec3::new(0.0, 0.0, 1.5)));
+        kernel.receivers = (0..2)
+            .map(|ear| Receiver {
+                pickup: Pickup::Ear {
+                    set: set.clone(),
+                    ear,
+                },
+                ..head.clone()
+            })
+            .collect();
+        kernel.max_delay += kernel.receivers[0].extra_delay();
+        Some(kernel)
+    }
+
+    #[test]
+    fn an_ear_s_filter_gives_the_same_bits_wide_or_portable_and_in_any_blocks() {
+        let Some(kernel) = binaural() else {
+            eprintln!(
+                "skipped: no HRTF set at {}",
+                crate::space::hrtf::DEFAULT_SET
+            );
+            return;
+        };
+        let x = signal(48_000);
+        let whole = render(&kernel, &x, 4096, false);
+        assert!(whole[0].iter().any(|y| y.abs() > 0.01), "it is heard");
+        for block in [1, 37, 256] {
+            same_bits(
+                &whole,
+                &render(&kernel, &x, block, false),
+                &format!("block {block}"),
+            );
+        }
+        if wide_reads() {
+            same_bits(
+                &whole,
+                &render(&kernel, &x, 4096, true),
+                "AVX2 against portable",
             );
         }
     }
