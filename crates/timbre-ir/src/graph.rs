@@ -364,20 +364,21 @@ impl Graph {
     /// Ids of the nodes the evaluation of `root` needs, in evaluation order. A
     /// convolution's impulse-response tree is not included: it is rendered on its own.
     pub fn schedule(&self, root: NodeId) -> Vec<NodeId> {
-        let mut needed = vec![false; root.index() + 1];
-        needed[root.index()] = true;
-        // Children have smaller ids, so one backwards sweep marks everything reachable.
-        for i in (0..=root.index()).rev() {
-            if needed[i] {
-                for arg in &self.nodes[i].args {
-                    needed[arg.index()] = true;
+        // A walk from the root over its arguments only (an instance's start must
+        // not cost the size of a scene's whole graph); children have smaller ids,
+        // so the reached nodes in id order are an order of evaluation.
+        let mut seen = std::collections::HashSet::from([root]);
+        let mut stack = vec![root];
+        while let Some(id) = stack.pop() {
+            for arg in &self.nodes[id.index()].args {
+                if seen.insert(*arg) {
+                    stack.push(*arg);
                 }
             }
         }
-        (0..=root.index())
-            .filter(|i| needed[*i])
-            .map(|i| NodeId(i as u32))
-            .collect()
+        let mut order: Vec<NodeId> = seen.into_iter().collect();
+        order.sort_unstable();
+        order
     }
 }
 

@@ -49,14 +49,14 @@ pub struct Step {
 /// The schedule of `root` as steps: children before parents, the root last.
 pub fn steps(graph: &Graph, root: NodeId) -> Vec<Step> {
     let schedule = graph.schedule(root);
-    let mut step_of = vec![usize::MAX; root.index() + 1];
+    // The step of each argument, found in the schedule (sorted by id).
+    let step_of = |id: &NodeId| schedule.binary_search(id).unwrap_or(usize::MAX);
     let mut steps = Vec::with_capacity(schedule.len());
-    for (i, id) in schedule.iter().enumerate() {
-        step_of[id.index()] = i;
+    for id in &schedule {
         let node = graph.node(*id);
         steps.push(Step {
             op: node.op.clone(),
-            args: node.args.iter().map(|a| step_of[a.index()]).collect(),
+            args: node.args.iter().map(step_of).collect(),
             width: node.width,
             constant: matches!(node.op, Op::Const(_)),
         });
