@@ -310,6 +310,38 @@ fn instances_placed_live_in_a_room_ring_in_its_one_late_part() {
     assert!(after > 1e-4, "no late part heard: {after}");
 }
 
+/// A library's binaural listener (the MIT KEMAR set, where installed): a host's
+/// source moved to the listener's left is heard louder in the left ear (broadband:
+/// at low frequencies the head shadows little).
+#[test]
+fn a_binaural_library_hears_a_live_source_on_the_left_in_the_left_ear() {
+    let set = "/usr/share/libmysofa/default.sofa";
+    if !std::path::Path::new(set).exists() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI installs libmysofa-utils"
+        );
+        eprintln!("skipped: {set} is not installed");
+        return;
+    }
+    let library = "
+        (listener :position (0 0 0) :binaural default)
+        (source bee :position (0 3 0))
+        (define-sound hum () (* 0.3 (white)))";
+    let engine = Engine::new(SR).with_channels(2).with_file_access();
+    let library = engine.load_library(library).unwrap();
+    let mut scene = engine.scene(&library).unwrap();
+    scene.move_source("bee", 0.0, [-3.0, 0.0, 0.0]).unwrap();
+    scene.play("hum", &[], Play::at(0.0).source("bee")).unwrap();
+    let x = scene.render_offline(0.5).unwrap();
+    let ear = |k: usize| -> f64 {
+        let s: Vec<f64> = x.iter().skip(k).step_by(2).skip(4800).copied().collect();
+        (s.iter().map(|v| v * v).sum::<f64>() / s.len() as f64).sqrt()
+    };
+    let (left, right) = (ear(0), ear(1));
+    assert!(left > 2.0 * right, "left {left}, right {right}");
+}
+
 /// The first diagnostic of a refused call: its code and its report.
 fn refused(result: Result<(), timbre::Error>) -> (String, String) {
     let error = result.unwrap_err();

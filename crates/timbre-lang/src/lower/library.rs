@@ -268,6 +268,11 @@ impl Lowerer<'_> {
     fn read_library_space(&mut self) -> Option<DeclaredSpace> {
         let forms = std::mem::take(&mut self.scene.space_forms);
         let origin = forms.last()?.1.clone();
+        // A library has no scene form: its listener is checked against the host's
+        // channels (a pair, two ears, an Ambisonic order, a layout).
+        if self.settings.channels.is_none() {
+            self.settings.channels = self.options.channels;
+        }
         let mut failed = false;
         for (form, origin) in &forms {
             if let Err(diag) = self.read_space_form(form, origin) {
