@@ -162,6 +162,15 @@ fn the_engine_drops_an_octave_then_sputters_ever_slower() {
     }
 }
 
+/// The little-endian numbers of a file's header at byte `k`.
+fn u16_at(bytes: &[u8], k: usize) -> u16 {
+    u16::from_le_bytes([bytes[k], bytes[k + 1]])
+}
+
+fn u32_at(bytes: &[u8], k: usize) -> u32 {
+    u32::from_le_bytes([bytes[k], bytes[k + 1], bytes[k + 2], bytes[k + 3]])
+}
+
 /// `examples/ambisonic-car.tt` writes first-order AmbiX, declared as such in the WAV
 /// (WAVE_FORMAT_EXTENSIBLE, IEEE float, channel mask 0: no loudspeaker positions),
 /// and it decodes to the side the car is on in AmbiX's convention (ACN, SN3D, +y to
@@ -180,8 +189,7 @@ fn the_ambisonic_car_is_ambix_and_decodes_to_the_side_it_is_on() {
     ])
     .assert_success();
     let bytes = std::fs::read(&out).unwrap();
-    let u16_at = |k: usize| u16::from_le_bytes([bytes[k], bytes[k + 1]]);
-    let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().unwrap());
+    let (u16_at, u32_at) = (|k| u16_at(&bytes, k), |k| u32_at(&bytes, k));
     assert_eq!(&bytes[12..16], b"fmt ");
     assert_eq!(u32_at(16), 40, "an extensible fmt chunk");
     assert_eq!(u16_at(20), 0xFFFE, "WAVE_FORMAT_EXTENSIBLE");
@@ -250,8 +258,7 @@ fn a_714_scene_declares_its_speakers_in_the_wav() {
     ])
     .assert_success();
     let bytes = std::fs::read(&out).unwrap();
-    let u16_at = |k: usize| u16::from_le_bytes([bytes[k], bytes[k + 1]]);
-    let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().unwrap());
+    let (u16_at, u32_at) = (|k| u16_at(&bytes, k), |k| u32_at(&bytes, k));
     assert_eq!(u16_at(20), 0xFFFE, "WAVE_FORMAT_EXTENSIBLE");
     assert_eq!(u16_at(22), 12);
     assert_eq!(u32_at(40), 0x2D63F, "the 7.1.4 channel mask");

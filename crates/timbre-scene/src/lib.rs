@@ -518,7 +518,7 @@ struct Bus {
 
 impl Bus {
     fn new(bus: &LateBus, config: RenderConfig) -> Bus {
-        let frames = config.block_size.max(1) * bus.lanes;
+        let frames = config.block_size.max(1) * bus.lanes();
         Bus {
             room: bus.clone(),
             state: bus.new_state(config.sample_rate),
@@ -958,7 +958,7 @@ impl SceneRenderer {
         Ok(id)
     }
 
-    /// Adds the late part of a room heard by `bus.lanes` receivers (one per channel,
+    /// Adds the late part of a room heard by `bus.lanes()` receivers (one per channel,
     /// or one heard in every channel), for instances placed in it to send to; returns
     /// its number. The same room and receivers as a bus it has give that bus.
     pub fn add_bus(&mut self, bus: &LateBus) -> usize {
@@ -967,7 +967,7 @@ impl SceneRenderer {
         }
         self.buses.push(Bus::new(bus, self.config));
         // Room for a voice sending to it, so that inserting one allocates nothing.
-        let frames = self.config.block_size.max(1) * (self.channels + bus.lanes);
+        let frames = self.config.block_size.max(1) * (self.channels + bus.lanes());
         if self.scratch.len() < frames {
             self.scratch.resize(frames, 0.0);
         }

@@ -19,14 +19,13 @@ use super::environment::{Acoustics, Late};
 /// Partition of the late part's convolution, samples.
 const LATE_PARTITION: usize = 256;
 
-/// A room's late part heard by `lanes` receivers: what a scene's instances send to.
+/// A room's late part heard by its receivers: what a scene's instances send to.
 #[derive(Clone, Debug)]
 pub struct LateBus {
     pub acoustics: Acoustics,
-    /// Receivers (one input and one output lane each).
-    pub lanes: usize,
-    /// Each receiver's share of the diffuse field ([`Pickup::diffuse`]): its output's
-    /// gain, and 0 for a lane that hears none (whose reverberator is not run).
+    /// Each receiver's share of the diffuse field ([`Pickup::diffuse`]), a lane in and
+    /// out each: its output's gain, and 0 for a lane that hears none (whose
+    /// reverberator is not run).
     ///
     /// [`Pickup::diffuse`]: super::Pickup::diffuse
     pub shares: Vec<f64>,
@@ -38,7 +37,6 @@ impl LateBus {
     pub fn of(acoustics: &Acoustics, shares: Vec<f64>) -> Option<LateBus> {
         (!matches!(acoustics.late, Late::None)).then(|| LateBus {
             acoustics: acoustics.clone(),
-            lanes: shares.len(),
             shares,
         })
     }
@@ -49,10 +47,15 @@ impl LateBus {
         let describe = |bus: &LateBus| {
             let mut d = crate::op::Description::new();
             bus.acoustics.describe(&mut d);
-            d.u64(bus.lanes as u64).f64s(&bus.shares);
+            d.f64s(&bus.shares);
             d
         };
         describe(self) == describe(other)
+    }
+
+    /// Receivers (lanes in and out).
+    pub fn lanes(&self) -> usize {
+        self.shares.len()
     }
 
     /// How long it rings after its last input, seconds.

@@ -6,6 +6,8 @@
 //! Directions are in the listener's frame (x right, y front, z up); a speaker's
 //! azimuth is counter-clockwise from the front (30° is front left).
 
+use std::sync::OnceLock;
+
 use glam::{DMat3, DVec3};
 
 /// A loudspeaker layout.
@@ -133,13 +135,73 @@ impl Layout {
     }
 
     /// Every speaker's gain for `direction`, into `gains` (one per channel).
+    /// Allocates nothing: the layout's pairs or triangles are found once.
     pub fn gains(self, direction: DVec3, gains: &mut [f64]) {
         gains.iter_mut().for_each(|g| *g = 0.0);
+        let bases = self.bases();
         if self == Layout::Surround714 {
-            self.gains_3d(direction, gains);
+            bases.gains_3d(direction, gains);
         } else {
-            self.gains_2d(direction, gains);
+            bases.gains_2d(direction, gains);
         }
+    }
+
+    /// Its pairs and triangles, worked out the first time they are asked for.
+    fn bases(self) -> &'static Bases {
+        static BASES: [OnceLock<Bases>; 4] = [const { OnceLock::new() }; 4];
+        BASES[self as usize].get_or_init(|| Bases::of(self))
+    }
+}
+
+/// A layout's speakers as VBAP pans between them.
+#[derive(Debug)]
+struct Bases {
+    /// The ring's speakers by azimuth (counter-clockwise from the front, radians).
+    ring: Vec<(usize, f64)>,
+    /// The triangles of the speakers' convex hull (closed below by a virtual speaker
+    /// straight down, `None`), each with the inverse of its base.
+    faces: Vec<([Option<usize>; 3], DMat3)>,
+}
+
+impl Bases {
+    fn of(layout: Layout) -> Bases {
+        let azimuth = |v: DVec3| (-v.x).atan2(v.y);
+        let mut ring: Vec<(usize, f64)> = (0..layout.channels())
+            .filter_map(|k| layout.direction(k).map(|d| (k, azimuth(d))))
+            .collect();
+        ring.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let mut points: Vec<(Option<usize>, DVec3)> = (0..layout.channels())
+            .filter_map(|k| layout.direction(k).map(|d| (Some(k), d)))
+            .collect();
+        points.push((None, -DVec3::Z));
+        let n = points.len();
+        let mut faces = vec![];
+        for i in 0..n {
+            for j in i + 1..n {
+                for k in j + 1..n {
+                    let (a, b, c) = (points[i].1, points[j].1, points[k].1);
+                    let normal = (b - a).cross(c - a);
+                    // A hull face: every other point on one side of its plane.
+                    let side = |p: DVec3| normal.dot(p - a);
+                    let others = (0..n).filter(|m| ![i, j, k].contains(m));
+                    let (mut above, mut below) = (false, false);
+                    for m in others {
+                        let s = side(points[m].1);
+                        above |= s > 1e-9;
+                        below |= s < -1e-9;
+                    }
+                    let base = DMat3::from_cols(a, b, c);
+                    if normal.length_squared() < 1e-12
+                        || (above && below)
+                        || base.determinant().abs() < 1e-12
+                    {
+                        continue;
+                    }
+                    faces.push(([i, j, k].map(|p| points[p].0), base.inverse()));
+                }
+            }
+        }
+        Bases { ring, faces }
     }
 
     /// Pairwise VBAP on the horizontal ring: the pair of neighbouring speakers the
@@ -147,15 +209,11 @@ impl Layout {
     /// normalised. A pair more than 180° apart (stereo's back) has no base that
     /// spans it; there the gains are the sine and cosine of the fraction of the arc
     /// turned through (equal power, continuous with the front pair's at its ends).
-    fn gains_2d(self, direction: DVec3, gains: &mut [f64]) {
-        let azimuth = |v: DVec3| (-v.x).atan2(v.y);
-        let mut ring: Vec<(usize, f64)> = (0..self.channels())
-            .filter_map(|k| self.direction(k).map(|d| (k, azimuth(d))))
-            .collect();
-        ring.sort_by(|a, b| a.1.total_cmp(&b.1));
+    fn gains_2d(&self, direction: DVec3, gains: &mut [f64]) {
+        let ring = &self.ring;
         let flat = DVec3::new(direction.x, direction.y, 0.0);
         let phi = if flat.length_squared() > 0.0 {
-            azimuth(flat)
+            (-flat.x).atan2(flat.y)
         } else {
             0.0
         };
@@ -191,55 +249,24 @@ impl Layout {
         }
     }
 
-    /// VBAP over the triangles of the speakers' convex hull, closed below by a
-    /// virtual speaker straight down whose gain is dropped (the remaining gains
-    /// renormalised to unit power): sound from below is heard from the nearest
+    /// VBAP over the hull's triangles: the one whose smallest gain is largest (the
+    /// one the direction passes through), the virtual speaker's gain dropped and the
+    /// rest renormalised to unit power: sound from below is heard from the nearest
     /// speakers of the ring.
-    fn gains_3d(self, direction: DVec3, gains: &mut [f64]) {
-        let mut points: Vec<(Option<usize>, DVec3)> = (0..self.channels())
-            .filter_map(|k| self.direction(k).map(|d| (Some(k), d)))
-            .collect();
-        points.push((None, -DVec3::Z));
-        let n = points.len();
-        let mut best: Option<(f64, [usize; 3], DVec3)> = None;
-        for i in 0..n {
-            for j in i + 1..n {
-                for k in j + 1..n {
-                    let (a, b, c) = (points[i].1, points[j].1, points[k].1);
-                    let normal = (b - a).cross(c - a);
-                    if normal.length_squared() < 1e-12 {
-                        continue;
-                    }
-                    // A hull face: every other point on one side of its plane.
-                    let side = |p: DVec3| normal.dot(p - a);
-                    let others = (0..n).filter(|m| ![i, j, k].contains(m));
-                    let (mut above, mut below) = (false, false);
-                    for m in others {
-                        let s = side(points[m].1);
-                        above |= s > 1e-9;
-                        below |= s < -1e-9;
-                    }
-                    if above && below {
-                        continue;
-                    }
-                    let base = DMat3::from_cols(a, b, c);
-                    if base.determinant().abs() < 1e-12 {
-                        continue;
-                    }
-                    let g = base.inverse() * direction;
-                    let worst = g.min_element();
-                    if best.is_none_or(|(w, ..)| worst > w) {
-                        best = Some((worst, [i, j, k], g));
-                    }
-                }
+    fn gains_3d(&self, direction: DVec3, gains: &mut [f64]) {
+        let mut best: Option<(&[Option<usize>; 3], DVec3)> = None;
+        for (speakers, inverse) in &self.faces {
+            let g = *inverse * direction;
+            if best.is_none_or(|(_, b)| g.min_element() > b.min_element()) {
+                best = Some((speakers, g));
             }
         }
-        let Some((_, face, g)) = best else { return };
+        let Some((speakers, g)) = best else { return };
         let mut power = 0.0;
-        for (p, g) in face.iter().zip(g.to_array()) {
-            if let Some(k) = points[*p].0 {
-                gains[k] = g.max(0.0);
-                power += gains[k] * gains[k];
+        for (speaker, g) in speakers.iter().zip(g.to_array()) {
+            if let Some(k) = speaker {
+                gains[*k] = g.max(0.0);
+                power += gains[*k] * gains[*k];
             }
         }
         let norm = power.sqrt();

@@ -216,13 +216,12 @@ impl Receiver {
         let (right, front, up) = self.frame(t);
         let axis = glam::DQuat::from_axis_angle(up, self.axis_angle) * front;
         let direction = (from - self.at(t)).try_normalize().unwrap_or(axis);
-        match &self.pickup {
-            Pickup::Pattern(a) => a + (1.0 - a) * axis.dot(direction),
-            pickup => {
-                let local = |v: DVec3| DVec3::new(right.dot(v), front.dot(v), up.dot(v));
-                pickup.gain(local(direction), local(axis))
-            }
+        if let Pickup::Pattern(_) = self.pickup {
+            // A pattern depends on the angle alone, the same in any frame.
+            return self.pickup.gain(direction, axis);
         }
+        let local = |v: DVec3| DVec3::new(right.dot(v), front.dot(v), up.dot(v));
+        self.pickup.gain(local(direction), local(axis))
     }
 
     /// How much later than its way's delay it may hear a sound, seconds: an ear's
@@ -355,7 +354,8 @@ struct Solution {
     /// Where the sound heard then was emitted (the real source, not its image).
     emitted: DVec3,
     /// An ear's onset delay for the direction it arrives from, seconds (0 for other
-    /// receivers): added to `tau` when the way is read, interpolated linearly.
+    /// receivers): added to `tau` at the points when the way is read, so the cubic
+    /// carries it between them.
     ear: f64,
     /// The direction it arrives from in the listener's frame (an ear's only).
     arrival: DVec3,
@@ -1396,17 +1396,17 @@ impl Read<'_> {
             let (step, from) = (p / GRID, p % GRID);
             let until = (from + len - j).min(GRID);
             let (a, b) = (&points[step], &points[step + 1]);
+            // An ear's onset rides on the delay at the points (0 elsewhere, which
+            // leaves the bits as they were).
+            let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
             let n = until - from;
-            for (k, ((((h00, h10h), h01), h11h), s)) in (basis.h00[from..until].iter())
+            for (k, (((h00, h10h), h01), h11h)) in (basis.h00[from..until].iter())
                 .zip(&basis.h10h[from..until])
                 .zip(&basis.h01[from..until])
                 .zip(&basis.h11h[from..until])
-                .zip(&basis.s[from..until])
                 .enumerate()
             {
-                let tau = h00 * a.tau + h10h * a.slope + h01 * b.tau + h11h * b.slope;
-                // An ear's onset (0 elsewhere, which adds nothing to the bits).
-                let tau = tau + (a.ear + (b.ear - a.ear) * s);
+                let tau = h00 * tau_a + h10h * a.slope + h01 * tau_b + h11h * b.slope;
                 delay[j + k] = clamp_or(tau * self.sr, 0.0, max, 0.0);
             }
             for (g, s) in gain[j..j + n].iter_mut().zip(&basis.s[from..until]) {

@@ -280,6 +280,41 @@ impl Lowerer<'_> {
         Ok(())
     }
 
+    /// Refuses the options of the other kinds of receiver beside `kind` (`speakers`,
+    /// `binaural`, `ambisonics`): `who` has none of them.
+    fn alone_with(
+        &self,
+        kind: &str,
+        who: &str,
+        options: &Options<'_>,
+        origin: &Origin,
+    ) -> Result<(), Diag> {
+        const RECEIVER_OPTIONS: [&str; 7] = [
+            "pair",
+            "pattern",
+            "spacing",
+            "angle",
+            "ambisonics",
+            "binaural",
+            "speakers",
+        ];
+        for key in RECEIVER_OPTIONS.into_iter().filter(|k| *k != kind) {
+            if let Some(e) = options.get(key) {
+                return Err(self
+                    .diag(
+                        "timbre::bad-listener",
+                        format!("{who} has no `:{key}`"),
+                        origin,
+                    )
+                    .label(e.span, format!("not with :{kind}"))
+                    .help(format!(
+                        "{who} is a receiver of its own; leave out the other receivers' options"
+                    )));
+            }
+        }
+        Ok(())
+    }
+
     /// `:speakers "5.1"` (`stereo`, `5.1`, `7.1`, `7.1.4`): a feed per loudspeaker
     /// of the layout, panned by VBAP from the listener's place and facing.
     fn speaker_listener(
@@ -289,25 +324,7 @@ impl Lowerer<'_> {
         mono: &Receiver,
         origin: &Origin,
     ) -> Result<Vec<Receiver>, Diag> {
-        for key in [
-            "pair",
-            "pattern",
-            "spacing",
-            "angle",
-            "ambisonics",
-            "binaural",
-        ] {
-            if let Some(e) = options.get(key) {
-                return Err(self
-                    .diag(
-                        "timbre::bad-listener",
-                        format!("a listener for loudspeakers has no `:{key}`"),
-                        origin,
-                    )
-                    .label(e.span, "not with :speakers")
-                    .help("a listener for loudspeakers feeds the layout's speakers; leave out the other receivers' options"));
-            }
-        }
+        self.alone_with("speakers", "a listener for loudspeakers", options, origin)?;
         let name = match &layout_expr.kind {
             ExprKind::Str(s) => s.clone(),
             ExprKind::Number(x) => x.to_string(),
@@ -353,18 +370,7 @@ impl Lowerer<'_> {
         mono: &Receiver,
         origin: &Origin,
     ) -> Result<Vec<Receiver>, Diag> {
-        for key in ["pair", "pattern", "spacing", "angle", "ambisonics"] {
-            if let Some(e) = options.get(key) {
-                return Err(self
-                    .diag(
-                        "timbre::bad-listener",
-                        format!("a binaural listener has no `:{key}`"),
-                        origin,
-                    )
-                    .label(e.span, "not with :binaural")
-                    .help("a binaural listener hears with its two ears; leave out the microphones' options"));
-            }
-        }
+        self.alone_with("binaural", "a binaural listener", options, origin)?;
         if self.settings.channels != Some(2) {
             return Err(self
                 .diag(
@@ -436,18 +442,7 @@ impl Lowerer<'_> {
                 .label(order_expr.span, "the order")
                 .help("write :ambisonics 1 (4 channels), 2 (9) or 3 (16)"));
         }
-        for key in ["pair", "pattern", "spacing", "angle"] {
-            if let Some(e) = options.get(key) {
-                return Err(self
-                    .diag(
-                        "timbre::bad-listener",
-                        format!("an Ambisonic listener has no `:{key}`"),
-                        origin,
-                    )
-                    .label(e.span, "not with :ambisonics")
-                    .help("an Ambisonic listener records every direction; leave out the microphones' options"));
-            }
-        }
+        self.alone_with("ambisonics", "an Ambisonic listener", options, origin)?;
         let channels = ambisonic_channels(order as usize);
         if self.settings.channels != Some(channels) {
             return Err(self
