@@ -106,6 +106,19 @@ impl AirFilter {
         self.coefficient = coefficient;
     }
 
+    /// The coefficient `a` each pole applies (clamped as [`AirFilter::process_run`]
+    /// clamps it) and the two poles' states.
+    pub(crate) fn parts(&self) -> (f64, f64, f64) {
+        let a = self.coefficient.clamp(0.0, 1.0);
+        (a, self.first.state(), self.second.state())
+    }
+
+    /// Keeps the poles' states after a run computed from [`AirFilter::parts`].
+    pub(crate) fn keep(&mut self, first: f64, second: f64, settle: bool) {
+        self.first.keep(first, settle);
+        self.second.keep(second, settle);
+    }
+
     /// A run of samples through both poles in place, each as
     /// [`OnePole::process_run`] computes it (the two recursions in one loop, so the
     /// processor overlaps them), settled at the end if `settle`; with a coefficient

@@ -5,6 +5,7 @@
 pub mod environment;
 pub mod geometry;
 pub mod hrtf;
+mod lanes;
 pub mod late;
 pub mod layouts;
 pub mod live;

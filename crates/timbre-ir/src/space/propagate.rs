@@ -17,6 +17,7 @@
 //! the stride, then its sound added into its receiver's lane.
 
 use std::collections::VecDeque;
+use std::ops::Range;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -24,6 +25,7 @@ use glam::DVec3;
 use super::environment::{Environment, Late, Material, BANDS, CROSSFADE};
 use super::geometry::{first_blocking, ImageSource, Obstacle, Room, MAX_ORDER};
 use super::hrtf::{HrirTable, Weights, TAPS};
+use super::lanes::{LaneFilters, Lanes, LANES};
 use super::late::LateBus;
 use super::path::{Path, VELOCITY_STEP};
 use super::pickup::Pickup;
@@ -613,13 +615,15 @@ pub struct PropagationState {
     basis: Basis,
     /// One way's sound in the current stride.
     heard: [f64; SPAN],
+    /// A group's sounds in the current stride, a lane per way, as they are filtered.
+    block: [Lanes; SPAN],
     /// The first receiver's direct delay at each sample of the stride, when its
     /// sound has arrived (the late part is fed from it).
     direct: [Option<f64>; SPAN],
     /// cos ω of the air's reference frequency at the render's rate.
     air_cos: f64,
-    /// Whether the reads may use AVX2.
-    wide: bool,
+    /// The widest vectors the reads may use.
+    width: Width,
     receivers_at: Vec<ReceiverAt>,
     /// Where the receivers are at the grid points inside a stride (one run of
     /// receivers per point), when a way turns sharply in it.
@@ -635,6 +639,9 @@ pub struct PropagationState {
     late: Option<LateState>,
     ways: Vec<Way>,
     state: Vec<WayState>,
+    /// The ways filtered together: runs of at most [`LANES`] ways, in order; a way
+    /// with an ear's filter alone.
+    groups: Vec<Range<usize>>,
     /// The obstacles where they are now.
     obstacles: Vec<Obstacle>,
     /// Samples since the instance's first (to place the grid).
@@ -1215,9 +1222,10 @@ impl StatefulKernel for Propagation {
             history: History::new(length),
             basis: Basis::new(sr),
             heard: [0.0; SPAN],
+            block: [[0.0; LANES]; SPAN],
             direct: [None; SPAN],
             air_cos,
-            wide: wide_reads(),
+            width: Width::detect(),
             between: vec![ReceiverAt::default(); (STRIDE - 1) * self.receivers.len()],
             receivers_at,
             emissions,
@@ -1225,6 +1233,7 @@ impl StatefulKernel for Propagation {
             outruns,
             roots: Vec::with_capacity(MAX_BRANCHES),
             late,
+            groups: groups(&state),
             ways,
             state,
             obstacles,
@@ -1291,39 +1300,96 @@ impl Propagation {
         // Filters settle at grid points only, so blocks may end anywhere.
         let settle = (phase + len).is_multiple_of(GRID);
         let heard = &mut state.heard[..len];
-        for (k, (way, w)) in state.ways.iter().zip(&mut state.state).enumerate() {
-            read.way(&w.stride, heard, false, state.wide);
-            for pair in &w.extra {
-                read.way(pair, heard, true, state.wide);
-            }
-            if k == 0 && state.late.is_some() {
-                // The first receiver's direct delay, if its sound has arrived at all
-                // (a source outrunning its sound is silent until its boom).
-                for (j, direct) in state.direct[..len].iter_mut().enumerate() {
-                    let p = phase + j;
-                    let [a, b] = [&w.stride[p / GRID], &w.stride[p / GRID + 1]];
-                    let arrived = a.gain != 0.0 || b.gain != 0.0;
-                    *direct = arrived.then(|| state.basis.at(p % GRID, a, b).0);
+        let block = &mut state.block[..len];
+        let air = self.medium.air.is_some();
+        for group in &state.groups {
+            let mut filters = LaneFilters::default();
+            for (lane, k) in group.clone().enumerate() {
+                let (way, w) = (&state.ways[k], &mut state.state[k]);
+                read.way(&w.stride, heard, false, state.width);
+                for pair in &w.extra {
+                    read.way(pair, heard, true, state.width);
+                }
+                if k == 0 && state.late.is_some() {
+                    // The first receiver's direct delay, if its sound has arrived at
+                    // all (a source outrunning its sound is silent until its boom).
+                    for (j, direct) in state.direct[..len].iter_mut().enumerate() {
+                        let p = phase + j;
+                        let [a, b] = [&w.stride[p / GRID], &w.stride[p / GRID + 1]];
+                        let arrived = a.gain != 0.0 || b.gain != 0.0;
+                        *direct = arrived.then(|| state.basis.at(p % GRID, a, b).0);
+                    }
+                }
+                if let Some(ear) = &mut w.ear {
+                    // Alone in its group: its filters, then the ear's.
+                    if air {
+                        w.air.process_run(heard, settle);
+                    }
+                    if let Some(coefficient) = way.wall_filter {
+                        w.wall.process_run(coefficient, heard, settle);
+                    }
+                    if w.muffle.material.is_some() {
+                        for y in heard.iter_mut() {
+                            *y = w.muffle.process(*y, fade_step);
+                        }
+                    }
+                    let end = &w.stride[unit / GRID];
+                    ear.process(heard, phase, unit, end.arrival, state.width.wide());
+                    let lane = &mut samples[way.receiver * stride..][..len];
+                    for (out, y) in lane.iter_mut().zip(heard.iter()) {
+                        *out += y;
+                    }
+                    continue;
+                }
+                for (row, y) in block.iter_mut().zip(heard.iter()) {
+                    row[lane] = *y;
+                }
+                if air {
+                    (filters.air[lane], filters.first[lane], filters.second[lane]) = w.air.parts();
+                }
+                if let Some(coefficient) = way.wall_filter {
+                    filters.wall[lane] = clamp_or(coefficient, 0.0, 1.0, 1.0);
+                    filters.walls[lane] = w.wall.state();
                 }
             }
-            if self.medium.air.is_some() {
-                w.air.process_run(heard, settle);
+            if state.state[group.start].ear.is_some() {
+                continue;
             }
-            if let Some(coefficient) = way.wall_filter {
-                w.wall.process_run(coefficient, heard, settle);
-            }
-            if w.muffle.material.is_some() {
-                for y in heard.iter_mut() {
-                    *y = w.muffle.process(*y, fade_step);
+            // Lanes past the group's hold earlier ways' sound: filtered (or not) and
+            // never added.
+            let n = group.len();
+            filters.run(block, n, state.width.wide());
+            for (lane, k) in group.clone().enumerate() {
+                let (way, w) = (&state.ways[k], &mut state.state[k]);
+                if air {
+                    w.air
+                        .keep(filters.first[lane], filters.second[lane], settle);
+                }
+                if way.wall_filter.is_some() {
+                    w.wall.keep(filters.walls[lane], settle);
+                }
+                if w.muffle.material.is_some() {
+                    for row in block.iter_mut() {
+                        row[lane] = w.muffle.process(row[lane], fade_step);
+                    }
                 }
             }
-            if let Some(ear) = &mut w.ear {
-                let end = &w.stride[unit / GRID];
-                ear.process(heard, phase, unit, end.arrival, state.wide);
-            }
-            let lane = &mut samples[way.receiver * stride..][..len];
-            for (out, y) in lane.iter_mut().zip(heard.iter()) {
-                *out += y;
+            // Into the receivers' lanes, way after way (as each way alone would add).
+            let mut lane = 0;
+            while lane < n {
+                let receiver = state.ways[group.start + lane].receiver;
+                let run = (state.ways[group.start + lane..group.end].iter())
+                    .take_while(|way| way.receiver == receiver)
+                    .count();
+                let out = &mut samples[receiver * stride..][..len];
+                for (out, row) in out.iter_mut().zip(block.iter()) {
+                    let mut sum = *out;
+                    for y in &row[lane..lane + run] {
+                        sum += y;
+                    }
+                    *out = sum;
+                }
+                lane += run;
             }
         }
         if let Some(late) = &mut state.late {
@@ -1345,6 +1411,23 @@ impl Propagation {
     }
 }
 
+/// The ways filtered together (see [`LaneFilters`]): runs of at most [`LANES`] ways in
+/// order, a way with an ear's filter alone.
+fn groups(states: &[WayState]) -> Vec<Range<usize>> {
+    let mut groups: Vec<Range<usize>> = vec![];
+    for (k, s) in states.iter().enumerate() {
+        match groups.last_mut() {
+            Some(last)
+                if s.ear.is_none() && last.len() < LANES && states[last.start].ear.is_none() =>
+            {
+                last.end = k + 1
+            }
+            _ => groups.push(k..k + 1),
+        }
+    }
+    groups
+}
+
 /// What one way's reads in a grid step share.
 struct Read<'a> {
     history: &'a History,
@@ -1359,18 +1442,21 @@ impl Read<'_> {
     /// `heard[j] = gain_j · x[now_j − τ_j·rate]` for the branch of solutions `a`,
     /// `b` (added to `heard` if `add`), exactly as [`History::read_lagrange`] reads:
     /// the delays and taps gathered first, then the interpolation as arithmetic on
-    /// arrays, which the compiler computes several samples to an instruction (on
-    /// AVX2 when `wide`: the same operations, so the same bits).
-    fn way(&self, points: &[Solution], heard: &mut [f64], add: bool, wide: bool) {
+    /// arrays, which the compiler computes several samples to an instruction (with
+    /// vectors of `width`: the same operations, so the same bits).
+    fn way(&self, points: &[Solution], heard: &mut [f64], add: bool, width: Width) {
+        // SAFETY: a width is detected only where the processor has it.
         #[cfg(target_arch = "x86_64")]
-        if wide {
-            // SAFETY: `wide` is set only where the processor has AVX2
-            // (`is_x86_feature_detected!`).
-            unsafe { self.way_avx2(points, heard, add) };
-            return;
+        match width {
+            Width::Avx512 => unsafe { self.way_avx512(points, heard, add) },
+            Width::Avx2 => unsafe { self.way_avx2(points, heard, add) },
+            Width::Portable => self.way_portable(points, heard, add),
         }
-        let _ = wide;
-        self.way_portable(points, heard, add);
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = width;
+            self.way_portable(points, heard, add);
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -1379,16 +1465,15 @@ impl Read<'_> {
         self.way_portable(points, heard, add);
     }
 
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f")]
+    fn way_avx512(&self, points: &[Solution], heard: &mut [f64], add: bool) {
+        self.way_portable(points, heard, add);
+    }
+
     #[inline(always)]
     fn way_portable(&self, points: &[Solution], heard: &mut [f64], add: bool) {
         let len = heard.len().min(SPAN);
-        let max = self.history.max_delay();
-        let x = self.history.samples();
-        let basis = self.basis;
-        let mut gain = [0.0; SPAN];
-        let mut delay = [0.0; SPAN];
-        let mut whole = [0.0; SPAN];
-        let mut fraction = [0.0; SPAN];
         // Grid step by grid step: between points i and i + 1 of the stride.
         let mut j = 0;
         while j < len {
@@ -1396,86 +1481,162 @@ impl Read<'_> {
             let (step, from) = (p / GRID, p % GRID);
             let until = (from + len - j).min(GRID);
             let (a, b) = (&points[step], &points[step + 1]);
-            // An ear's onset rides on the delay at the points (0 elsewhere, which
-            // leaves the bits as they were).
-            let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
-            let n = until - from;
-            for (k, (((h00, h10h), h01), h11h)) in (basis.h00[from..until].iter())
-                .zip(&basis.h10h[from..until])
-                .zip(&basis.h01[from..until])
-                .zip(&basis.h11h[from..until])
-                .enumerate()
-            {
-                let tau = h00 * tau_a + h10h * a.slope + h01 * tau_b + h11h * b.slope;
-                delay[j + k] = clamp_or(tau * self.sr, 0.0, max, 0.0);
+            let out = &mut heard[j..j + until - from];
+            match out.try_into() {
+                Ok(out) => self.step(a, b, self.first + j, out, add),
+                Err(_) => self.part(a, b, from, self.first + j, out, add),
             }
-            for (g, s) in gain[j..j + n].iter_mut().zip(&basis.s[from..until]) {
-                *g = a.gain + (b.gain - a.gain) * s;
-            }
-            j += n;
+            j += until - from;
         }
-        for j in 0..len {
-            // Delays are never negative: the floor is the truncation.
-            whole[j] = delay[j].floor();
-            fraction[j] = delay[j] - whole[j];
-        }
-        if delay[..len].iter().fold(f64::INFINITY, |m, &d| m.min(d)) < 2.0 {
-            // Within two samples of the receiver: the cubic of the near reads.
-            for (j, y) in heard.iter_mut().enumerate() {
-                let value = gain[j] * self.history.read_lagrange(self.first + j, delay[j]);
-                *y = if add { *y + value } else { value };
-            }
-            return;
-        }
-        // Sample j's taps are x[first + j + 2 − k_j − m], m = 0…5 (first ≥ max + 4 >
-        // k_j + 3, so all in the history). Over a run of samples of one whole delay
-        // k (the delay changes slowly), the taps of successive samples are successive
-        // samples: one window of the history serves the run.
-        let mut value = [0.0; SPAN];
-        let mut from = 0;
-        while from < len {
-            let k = whole[from];
-            let until = from + whole[from..len].iter().take_while(|&&w| w == k).count();
-            let top = self.first + from + 2 - k as usize;
-            let n = until - from;
-            let window = &x[top - 5..top + n];
-            let taps: [&[f64]; 6] = std::array::from_fn(|m| &window[5 - m..5 - m + n]);
-            read_run(&fraction[from..until], taps, &mut value[from..until]);
-            from = until;
-        }
-        for ((y, value), gain) in heard.iter_mut().zip(&value).zip(&gain) {
-            let value = gain * value;
+    }
+
+    /// The delay (in samples) and the gain at `phase` of the grid step from `a` to
+    /// `b`. An ear's onset rides on the delay at the points (0 elsewhere).
+    #[inline(always)]
+    fn at(&self, a: &Solution, b: &Solution, phase: usize) -> (f64, f64) {
+        let basis = self.basis;
+        let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
+        let tau = basis.h00[phase] * tau_a
+            + basis.h10h[phase] * a.slope
+            + basis.h01[phase] * tau_b
+            + basis.h11h[phase] * b.slope;
+        let delay = clamp_or(tau * self.sr, 0.0, self.history.max_delay(), 0.0);
+        (delay, a.gain + (b.gain - a.gain) * basis.s[phase])
+    }
+
+    /// A part of a grid step, `out` from `phase`, its first sample at index `now` of
+    /// the history: sample by sample.
+    fn part(
+        &self,
+        a: &Solution,
+        b: &Solution,
+        phase: usize,
+        now: usize,
+        out: &mut [f64],
+        add: bool,
+    ) {
+        for (j, y) in out.iter_mut().enumerate() {
+            let (delay, gain) = self.at(a, b, phase + j);
+            let value = gain * self.history.read_lagrange(now + j, delay);
             *y = if add { *y + value } else { value };
         }
     }
-}
 
-/// `out[i]`: the 6-point Lagrange read at `fraction[i]` from the taps
-/// `taps[m][i]` (the tap m samples before the newest of the six), exactly as
-/// [`History::read_lagrange`]: a whole delay reads its tap. Written over equal
-/// slices so that the compiler computes several samples to an instruction.
-#[inline(always)]
-fn read_run(fraction: &[f64], taps: [&[f64]; 6], out: &mut [f64]) {
-    let n = out.len();
-    let fraction = &fraction[..n];
-    let [x0, x1, x2, x3, x4, x5] = taps.map(|tap| &tap[..n]);
-    for i in 0..n {
-        let x = [x0[i], x1[i], x2[i], x3[i], x4[i], x5[i]];
-        let t = fraction[i];
-        let interpolated = lagrange6(t, |m| x[m]);
-        out[i] = if t == 0.0 { x[2] } else { interpolated };
+    /// A whole grid step, `out` its samples from index `now` of the history, read as
+    /// [`History::read_lagrange`] reads, [`RUN`] samples at a time.
+    #[inline(always)]
+    fn step(&self, a: &Solution, b: &Solution, now: usize, out: &mut [f64; GRID], add: bool) {
+        let basis = self.basis;
+        let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
+        let (sr, max) = (self.sr, self.history.max_delay());
+        let mut delay = [0.0; GRID];
+        let mut gain = [0.0; GRID];
+        for p in 0..GRID {
+            // As `at` computes them, in a loop the compiler sees whole.
+            let tau = basis.h00[p] * tau_a
+                + basis.h10h[p] * a.slope
+                + basis.h01[p] * tau_b
+                + basis.h11h[p] * b.slope;
+            delay[p] = clamp_or(tau * sr, 0.0, max, 0.0);
+            gain[p] = a.gain + (b.gain - a.gain) * basis.s[p];
+        }
+        for (r, out) in out.chunks_exact_mut(RUN).enumerate() {
+            let run = |x: &[f64; GRID]| -> [f64; RUN] { std::array::from_fn(|j| x[r * RUN + j]) };
+            let (delay, gain) = (run(&delay), run(&gain));
+            let mut value = [0.0; RUN];
+            if !self.run(&delay, now + r * RUN, &mut value) {
+                // Sample by sample.
+                for (j, value) in value.iter_mut().enumerate() {
+                    *value = self.history.read_lagrange(now + r * RUN + j, delay[j]);
+                }
+            }
+            if add {
+                for ((out, value), gain) in out.iter_mut().zip(value).zip(gain) {
+                    *out += gain * value;
+                }
+            } else {
+                for ((out, value), gain) in out.iter_mut().zip(value).zip(gain) {
+                    *out = gain * value;
+                }
+            }
+        }
+    }
+
+    /// [`RUN`] samples read at `delay` from index `now` of the history on, several
+    /// samples to an instruction, exactly as [`History::read_lagrange`] reads them:
+    /// sample j's six taps are x[now + j + 2 − k_j − m], m = 0…5, for its whole delay
+    /// k_j. Where the run's whole delays are k or k + 1 (the delay moves less than a
+    /// sample over the run: slower than 43 m/s at 48 kHz), every sample's taps are
+    /// among seven windows of the history, each a sample further back than the last.
+    /// False, and `value` untouched, where they are not, or the delay is within two
+    /// samples (the cubic's).
+    #[inline(always)]
+    fn run(&self, delay: &[f64; RUN], now: usize, value: &mut [f64; RUN]) -> bool {
+        // Delays are never negative: the floor is the truncation.
+        let whole = delay.map(f64::floor);
+        let near = whole[0].min(whole[RUN - 1]);
+        let within = (whole.iter()).fold(true, |within, &k| {
+            within & ((k == near) | (k == near + 1.0))
+        });
+        if !within || near < 2.0 {
+            return false;
+        }
+        // now ≥ max + 4 ≥ near + 4, and near ≥ 2: the windows are in the history.
+        let top = now + 2 - near as usize;
+        let window = self.history.samples().get(top - 6..top + RUN);
+        let Some(window) = window.and_then(|w| <&[f64; RUN + 6]>::try_from(w).ok()) else {
+            return false;
+        };
+        for (j, value) in value.iter_mut().enumerate() {
+            // Window i holds x[top + j − i]: sample j's taps are windows 0…5, or 1…6
+            // where its whole delay is one more (both read, one kept: no branch, so
+            // the samples go several to an instruction).
+            let further = whole[j] != near;
+            let nearer: [f64; 7] = std::array::from_fn(|i| window[6 + j - i]);
+            let taps: [f64; 6] =
+                std::array::from_fn(|m| if further { nearer[m + 1] } else { nearer[m] });
+            let t = delay[j] - whole[j];
+            let interpolated = lagrange6(t, |m| taps[m]);
+            *value = if t == 0.0 { taps[2] } else { interpolated };
+        }
+        true
     }
 }
 
-/// Whether this processor can run the reads on AVX2.
-fn wide_reads() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
+/// Samples read together (see [`Read::run`]).
+const RUN: usize = 8;
+
+/// The widest vectors this processor gives the reads (and AVX2 the filters).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Width {
+    Portable,
+    Avx2,
+    Avx512,
+}
+
+impl Width {
+    fn detect() -> Width {
+        Width::all().last().copied().unwrap_or(Width::Portable)
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+
+    /// Every width this processor has, the narrowest first.
+    fn all() -> Vec<Width> {
+        let mut all = vec![Width::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::is_x86_feature_detected!("avx2") {
+                all.push(Width::Avx2);
+                if std::is_x86_feature_detected!("avx512f") {
+                    all.push(Width::Avx512);
+                }
+            }
+        }
+        all
+    }
+
+    /// Whether it has AVX2.
+    fn wide(self) -> bool {
+        self != Width::Portable
     }
 }
 
@@ -1538,14 +1699,14 @@ mod tests {
 
     /// `x` through the kernel in blocks of `block`, each lane (the receivers', then
     /// the sends to the late part) in a row of its own.
-    fn render(kernel: &Propagation, x: &[f64], block: usize, wide: bool) -> Vec<Vec<f64>> {
+    fn render(kernel: &Propagation, x: &[f64], block: usize, vectors: Width) -> Vec<Vec<f64>> {
         let width = kernel.receivers.len() + kernel.sends();
         let config = RenderConfig {
             sample_rate: SR,
             block_size: block,
         };
         let mut state = kernel.new_state(&StateContext { width, config });
-        state.wide = wide;
+        state.width = vectors;
         let mut lanes = vec![vec![]; width];
         for (k, chunk) in x.chunks(block).enumerate() {
             let n = chunk.len();
@@ -1599,7 +1760,7 @@ mod tests {
     fn the_output_does_not_depend_on_the_block_size() {
         let kernel = kernel();
         let x = signal(96_000);
-        let whole = render(&kernel, &x, 4096, wide_reads());
+        let whole = render(&kernel, &x, 4096, Width::detect());
         assert_eq!(whole.len(), 4, "two receivers and their two sends");
         assert!(whole[0].iter().any(|y| y.abs() > 0.01), "it is heard");
         assert!(
@@ -1609,7 +1770,7 @@ mod tests {
         for block in [1, 7, 64, 333] {
             same_bits(
                 &whole,
-                &render(&kernel, &x, block, wide_reads()),
+                &render(&kernel, &x, block, Width::detect()),
                 &format!("block {block}"),
             );
         }
@@ -1636,7 +1797,7 @@ mod tests {
     }
 
     #[test]
-    fn an_ear_s_filter_gives_the_same_bits_wide_or_portable_and_in_any_blocks() {
+    fn an_ear_s_filter_gives_the_same_bits_at_every_width_and_in_any_blocks() {
         let Some(kernel) = binaural() else {
             eprintln!(
                 "skipped: no HRTF set at {}",
@@ -1645,36 +1806,123 @@ mod tests {
             return;
         };
         let x = signal(48_000);
-        let whole = render(&kernel, &x, 4096, false);
+        let whole = render(&kernel, &x, 4096, Width::Portable);
         assert!(whole[0].iter().any(|y| y.abs() > 0.01), "it is heard");
         for block in [1, 37, 256] {
             same_bits(
                 &whole,
-                &render(&kernel, &x, block, false),
+                &render(&kernel, &x, block, Width::Portable),
                 &format!("block {block}"),
             );
         }
-        if wide_reads() {
+        for width in Width::all() {
             same_bits(
                 &whole,
-                &render(&kernel, &x, 4096, true),
-                "AVX2 against portable",
+                &render(&kernel, &x, 4096, width),
+                &format!("{width:?} against portable"),
             );
         }
     }
 
+    /// The reads of a stride, run by run, have the bits of reading each sample alone
+    /// with `History::read_lagrange`, at every width: delays standing still, moving
+    /// slowly and by more than a sample per run, near the receiver and at the
+    /// longest delay, from every phase.
     #[test]
-    fn the_wide_reads_give_the_portable_bits() {
-        if !wide_reads() {
+    fn a_way_s_reads_are_those_of_each_sample_alone() {
+        let mut history = History::new(2_000);
+        let x: Vec<f64> = (0..4096)
+            .map(|n| (n as f64 * 0.173).sin() + (n as f64 * 0.0071).cos())
+            .collect();
+        // Every read in the signal (none in the silence before it).
+        let first = (x.chunks(SPAN).map(|chunk| history.push(chunk)).last()).unwrap();
+        let basis = Basis::new(SR);
+        let point = |samples: f64, slope: f64| Solution {
+            tau: samples / SR,
+            slope,
+            gain: 0.5 + samples / 4000.0,
+            ..Solution::default()
+        };
+        // (delay at the start, at the end of the stride; slopes), samples.
+        let cases = [
+            (300.0, 300.0, 0.0, 0.0),
+            (300.0, 303.5, 0.05, 0.06),
+            (900.0, 880.0, -0.3, -0.3),
+            (1.5, 6.0, 0.07, 0.07),
+            (2.2, 2.9, 0.01, 0.01),
+            (1995.0, 2010.0, 0.2, 0.2),
+            (40.0, 40.0, 0.0, 0.0),
+        ];
+        for (from, to, slope_a, slope_b) in cases {
+            let points: Vec<Solution> = (0..=STRIDE)
+                .map(|i| {
+                    let s = i as f64 / STRIDE as f64;
+                    point(from + (to - from) * s, slope_a + (slope_b - slope_a) * s)
+                })
+                .collect();
+            for (phase, len) in [(0, SPAN), (0, 16), (5, 40), (16, 48), (33, 31)] {
+                let read = Read {
+                    history: &history,
+                    basis: &basis,
+                    first: first + phase,
+                    phase,
+                    sr: SR,
+                };
+                let mut alone = vec![0.0; len];
+                for (j, y) in alone.iter_mut().enumerate() {
+                    let p = phase + j;
+                    let (a, b) = (&points[p / GRID], &points[p / GRID + 1]);
+                    let (delay, gain) = read.at(a, b, p % GRID);
+                    *y = gain * history.read_lagrange(first + p, delay);
+                }
+                for width in Width::all() {
+                    let mut heard = vec![0.0; len];
+                    read.way(&points, &mut heard, false, width);
+                    for j in 0..len {
+                        assert_eq!(
+                            heard[j].to_bits(),
+                            alone[j].to_bits(),
+                            "{width:?}, delays {from}..{to}, phase {phase}, sample {j}"
+                        );
+                    }
+                    read.way(&points, &mut heard, true, width);
+                    assert!(heard.iter().zip(&alone).all(|(h, a)| *h == a + a), "added");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn every_width_gives_the_portable_bits() {
+        let widths = Width::all();
+        if widths.len() == 1 {
             eprintln!("skipped: this processor has no AVX2, so only the portable reads run");
             return;
         }
-        let kernel = kernel();
-        let x = signal(96_000);
-        same_bits(
-            &render(&kernel, &x, 256, true),
-            &render(&kernel, &x, 256, false),
-            "AVX2 against portable",
-        );
+        // Passing close at 60 m/s, then a slow source: reads whose whole delay
+        // moves by more and by less than a sample over a run.
+        let mut slow = kernel();
+        let track = |values: [f64; 3]| {
+            Arc::new(
+                KeyframeTrack::new(vec![0.0, 1.0, 2.0], values.to_vec(), Interpolation::Linear)
+                    .unwrap(),
+            )
+        };
+        slow.source = Path::Keyed(Arc::new([
+            track([-5.0, 5.0, -5.0]),
+            track([4.0, 3.0, 4.0]),
+            track([1.5, 1.5, 1.5]),
+        ]));
+        for kernel in [kernel(), slow] {
+            let x = signal(96_000);
+            let portable = render(&kernel, &x, 256, Width::Portable);
+            for &width in &widths[1..] {
+                same_bits(
+                    &render(&kernel, &x, 256, width),
+                    &portable,
+                    &format!("{width:?} against portable"),
+                );
+            }
+        }
     }
 }
