@@ -66,7 +66,8 @@ impl Path {
         match self {
             Path::Fixed(p) => (*p, DVec3::ZERO),
             Path::Keyed(tracks) => {
-                let [x, y, z] = [0, 1, 2].map(|k| tracks[k].derivatives(t));
+                let [x, y, z] =
+                    KeyframeTrack::derivatives3([&tracks[0], &tracks[1], &tracks[2]], t);
                 (DVec3::new(x[0], y[0], z[0]), DVec3::new(x[1], y[1], z[1]))
             }
             Path::Moving(trajectory) => {
