@@ -5,8 +5,8 @@
 //! d(t)/c would give a source approaching at v the pitch f·(1 + v/c) instead of
 //! f·c/(c − v). The equation is solved exactly by Newton's method every [`STRIDE`]
 //! grid steps of [`GRID`] samples (counted from the instance's first sample, so the
-//! result does not depend on the block size), warm-started where the last solution's
-//! slope leads; between solutions τ follows the cubic Hermite curve through the two
+//! result does not depend on the block size), warm-started where the last two
+//! solutions' slopes lead; between solutions τ follows the cubic Hermite curve through the two
 //! solutions and their exact slopes dτ/dt = u·(v_s − v_r)/(c + u·v_s). Where that
 //! slope turns by more than [`TURN`] over a stride, every grid point of it is solved
 //! exactly instead. The emitted sound is read from the source's [`History`] at τ·rate
@@ -674,7 +674,7 @@ impl Propagation {
     /// Solves c·τ = |m(p_source(t − τ)) − p_receiver(t)| at scene time `t` for the
     /// source seen through mirror `m`, from the guess `tau` (Newton's method with the
     /// exact velocity at each step; the function is monotone in τ while the source is
-    /// slower than sound). Warm-started from where the last solution's slope leads,
+    /// slower than sound). Warm-started from where the last two solutions' slopes lead,
     /// the first step is usually below [`CONVERGED`]: the source's motion is then
     /// evaluated once per solve, its position at the root taken to first order in
     /// that step (an error of a·step²/2, below 10⁻¹⁶ m).
@@ -958,8 +958,10 @@ impl Propagation {
         let h = span as f64 / sr;
         let mut between_placed = false;
         for (way, s) in state.ways.iter().zip(&mut state.state) {
-            let start = s.stride[STRIDE];
-            let guess = start.tau + start.slope * h;
+            // Where the last stride's start and end slopes lead (the delay to second
+            // order): the solve's first Newton step then usually ends it.
+            let (last, start) = (s.stride[0], s.stride[STRIDE]);
+            let guess = start.tau + (start.slope + 0.5 * (start.slope - last.slope)) * h;
             let end = self.solve(way, t, guess, &state.receivers_at[way.receiver]);
             s.stride[0] = start;
             s.stride[STRIDE] = end;
@@ -1189,7 +1191,7 @@ impl StatefulKernel for Propagation {
         for (way, s) in ways.iter().zip(&mut state) {
             let receiver = &receivers_at[way.receiver];
             let first = self.solve(way, t0, self.first_guess(way, t0, receiver), receiver);
-            s.stride[STRIDE] = first;
+            s.stride = [first; STRIDE + 1];
             if let (Pickup::Ear { set, ear }, None) =
                 (&self.receivers[way.receiver].pickup, way.image)
             {
