@@ -6,15 +6,16 @@
 //! f·c/(c − v). The equation is solved exactly by Newton's method every [`STRIDE`]
 //! grid steps of [`GRID`] samples (counted from the instance's first sample, so the
 //! result does not depend on the block size), warm-started where the last two
-//! solutions' slopes lead; between solutions τ follows the cubic Hermite curve through the two
-//! solutions and their exact slopes dτ/dt = u·(v_s − v_r)/(c + u·v_s). Where that
-//! slope turns by more than [`TURN`] over a stride, every grid point of it is solved
-//! exactly instead. The emitted sound is read from the source's [`History`] at τ·rate
-//! samples, so Doppler shift emerges from the motion.
+//! solutions' slopes lead; between solutions τ follows the cubic Hermite curve
+//! through the two solutions and their exact slopes dτ/dt = u·(v_s − v_r)/(c + u·v_s).
+//! Where that slope turns by more than [`TURN`] over a stride, every grid point of it
+//! is solved exactly instead. The emitted sound is read from the source's [`History`]
+//! at τ·rate samples, so Doppler shift emerges from the motion.
 //!
-//! The kernel works a stride at a time, way by way: each way's reads of the stride as
-//! arithmetic on arrays (several samples to an instruction), then its filters over
-//! the stride, then its sound added into its receiver's lane.
+//! The kernel works a stride at a time: each way's reads of the stride as arithmetic
+//! on arrays (several samples to an instruction), into its lane of a group of ways;
+//! then the group's filters, its ways side by side in vector lanes
+//! (`lanes::LaneFilters`); then each way's sound added into its receiver's lane.
 
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -44,8 +45,7 @@ pub const GRID: usize = 16;
 /// Grid steps between exact solutions while the delay's slope changes little: the
 /// retarded time is solved every `STRIDE · GRID` samples (2.67 ms at 48 kHz) and
 /// the cubic through two solutions and their slopes gives the grid points between.
-/// Solving is a third of the kernel's time in a room: 128 samples rather than 64
-/// made room-16 about 1.25× faster, the cubic still within 0.02 samples.
+/// (At 64 samples solving was a third of the kernel's time in a room.)
 pub const STRIDE: usize = 8;
 
 /// Samples in a stride.
