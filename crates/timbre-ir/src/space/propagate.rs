@@ -1327,27 +1327,6 @@ impl Propagation {
                         *direct = arrived.then(|| state.basis.at(p % GRID, a, b).0);
                     }
                 }
-                if let Some(ear) = &mut w.ear {
-                    // Alone in its group: its filters, then the ear's.
-                    if air {
-                        w.air.process_run(heard, settle);
-                    }
-                    if let Some(coefficient) = way.wall_filter {
-                        w.wall.process_run(coefficient, heard, settle);
-                    }
-                    if w.muffle.material.is_some() {
-                        for y in heard.iter_mut() {
-                            *y = w.muffle.process(*y, fade_step);
-                        }
-                    }
-                    let end = &w.stride[unit / GRID];
-                    ear.process(heard, phase, unit, end.arrival, state.width.wide());
-                    let lane = &mut samples[way.receiver * stride..][..len];
-                    for (out, y) in lane.iter_mut().zip(heard.iter()) {
-                        *out += y;
-                    }
-                    continue;
-                }
                 for (row, y) in block.iter_mut().zip(heard.iter()) {
                     row[lane] = *y;
                 }
@@ -1358,9 +1337,6 @@ impl Propagation {
                     filters.wall[lane] = clamp_or(coefficient, 0.0, 1.0, 1.0);
                     filters.walls[lane] = w.wall.state();
                 }
-            }
-            if state.state[group.start].ear.is_some() {
-                continue;
             }
             // Lanes past the group's hold earlier ways' sound: filtered (or not) and
             // never added.
@@ -1378,6 +1354,17 @@ impl Propagation {
                 if w.muffle.material.is_some() {
                     for row in block.iter_mut() {
                         row[lane] = w.muffle.process(row[lane], fade_step);
+                    }
+                }
+                if let Some(ear) = &mut w.ear {
+                    // Alone in its group: then the ear's response.
+                    for (y, row) in heard.iter_mut().zip(block.iter()) {
+                        *y = row[lane];
+                    }
+                    let end = &w.stride[unit / GRID];
+                    ear.process(heard, phase, unit, end.arrival, state.width.wide());
+                    for (row, y) in block.iter_mut().zip(heard.iter()) {
+                        row[lane] = *y;
                     }
                 }
             }
@@ -1614,7 +1601,7 @@ impl Read<'_> {
 const RUN: usize = 8;
 
 /// The widest vectors this processor gives the reads (and AVX2 the filters).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Width {
     Portable,
     Avx2,
@@ -1622,23 +1609,28 @@ enum Width {
 }
 
 impl Width {
+    /// The widest this processor has.
     fn detect() -> Width {
-        Width::all().last().copied().unwrap_or(Width::Portable)
-    }
-
-    /// Every width this processor has, the narrowest first.
-    fn all() -> Vec<Width> {
-        let mut all = vec![Width::Portable];
         #[cfg(target_arch = "x86_64")]
         {
             if std::is_x86_feature_detected!("avx2") {
-                all.push(Width::Avx2);
                 if std::is_x86_feature_detected!("avx512f") {
-                    all.push(Width::Avx512);
+                    return Width::Avx512;
                 }
+                return Width::Avx2;
             }
         }
-        all
+        Width::Portable
+    }
+
+    /// Every width this processor has, the narrowest first.
+    #[cfg(test)]
+    fn all() -> Vec<Width> {
+        let widest = Width::detect();
+        [Width::Portable, Width::Avx2, Width::Avx512]
+            .into_iter()
+            .filter(|&width| width <= widest)
+            .collect()
     }
 
     /// Whether it has AVX2.
