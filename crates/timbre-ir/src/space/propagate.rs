@@ -619,9 +619,6 @@ pub struct PropagationState {
     heard: [f64; SPAN],
     /// A group's sounds in the current stride, a lane per way, as they are filtered.
     block: [Lanes; SPAN],
-    /// The first receiver's direct delay at each sample of the stride, when its
-    /// sound has arrived (the late part is fed from it).
-    direct: [Option<f64>; SPAN],
     /// cos ω of the air's reference frequency at the render's rate.
     air_cos: f64,
     /// The widest vectors the reads may use.
@@ -1230,7 +1227,6 @@ impl StatefulKernel for Propagation {
             basis: Basis::new(sr),
             heard: [0.0; SPAN],
             block: [[0.0; LANES]; SPAN],
-            direct: [None; SPAN],
             air_cos,
             width: Width::detect(),
             between: vec![ReceiverAt::default(); (STRIDE - 1) * self.receivers.len()],
@@ -1317,16 +1313,6 @@ impl Propagation {
                 for pair in &w.extra {
                     read.way(pair, heard, true, state.width);
                 }
-                if k == 0 && state.late.is_some() {
-                    // The first receiver's direct delay, if its sound has arrived at
-                    // all (a source outrunning its sound is silent until its boom).
-                    for (j, direct) in state.direct[..len].iter_mut().enumerate() {
-                        let p = phase + j;
-                        let [a, b] = [&w.stride[p / GRID], &w.stride[p / GRID + 1]];
-                        let arrived = a.gain != 0.0 || b.gain != 0.0;
-                        *direct = arrived.then(|| state.basis.at(p % GRID, a, b).0);
-                    }
-                }
                 for (row, y) in block.iter_mut().zip(heard.iter()) {
                     row[lane] = *y;
                 }
@@ -1388,17 +1374,14 @@ impl Propagation {
         }
         if let Some(late) = &mut state.late {
             // What the room's late part is sent: the sound heard directly by the
-            // first receiver, `onset` later, a lane per receiver after theirs.
+            // first receiver (its first way), `onset` later, a lane per receiver
+            // after theirs.
+            read.send(&state.state[0].stride, late, heard);
             let receivers = self.receivers.len();
-            for j in 0..len {
-                let x = state.direct[j].map_or(0.0, |tau| {
-                    late.gain
-                        * state
-                            .history
-                            .read_lagrange(first + j, (tau + late.onset) * sr)
-                });
-                for (lane, muffle) in late.muffles.iter_mut().enumerate() {
-                    samples[(receivers + lane) * stride + j] += muffle.process(x, fade_step);
+            for (lane, muffle) in late.muffles.iter_mut().enumerate() {
+                let out = &mut samples[(receivers + lane) * stride..][..len];
+                for (out, x) in out.iter_mut().zip(heard.iter()) {
+                    *out += muffle.process(*x, fade_step);
                 }
             }
         }
@@ -1477,10 +1460,47 @@ impl Read<'_> {
             let (a, b) = (&points[step], &points[step + 1]);
             let out = &mut heard[j..j + until - from];
             match out.try_into() {
-                Ok(out) => self.step(a, b, self.first + j, out, add),
+                Ok(out) => self.step::<false>(a, b, self.first + j, out, add, 0.0),
                 Err(_) => self.part(a, b, from, self.first + j, out, add),
             }
             j += until - from;
+        }
+    }
+
+    /// What `late` is sent along the branch `points`: `x[now_j − (τ_j + onset)·rate]`
+    /// times its gain where the sound has arrived (a source outrunning its sound is
+    /// silent until its boom), 0 before, exactly as each sample read alone
+    /// (`τ_j` without an ear's onset: the late part is not heard by the ear).
+    fn send(&self, points: &[Solution], late: &LateState, out: &mut [f64]) {
+        let mut j = 0;
+        while j < out.len() {
+            let p = self.phase + j;
+            let (step, from) = (p / GRID, p % GRID);
+            let until = (from + out.len() - j).min(GRID);
+            let (a, b) = (&points[step], &points[step + 1]);
+            let out = &mut out[j..j + until - from];
+            let now = self.first + j;
+            j += until - from;
+            if a.gain == 0.0 && b.gain == 0.0 {
+                out.fill(0.0);
+                continue;
+            }
+            // The late part's gain at both ends: the interpolated gain is then its own.
+            let [a, b] = [a, b].map(|point| Solution {
+                ear: 0.0,
+                gain: late.gain,
+                ..*point
+            });
+            match out.try_into() {
+                Ok(out) => self.step::<true>(&a, &b, now, out, false, late.onset),
+                Err(_) => {
+                    for (i, y) in out.iter_mut().enumerate() {
+                        let tau = self.basis.at(from + i, &a, &b).0;
+                        let delay = (tau + late.onset) * self.sr;
+                        *y = late.gain * self.history.read_lagrange(now + i, delay);
+                    }
+                }
+            }
         }
     }
 
@@ -1517,9 +1537,18 @@ impl Read<'_> {
     }
 
     /// A whole grid step, `out` its samples from index `now` of the history, read as
-    /// [`History::read_lagrange`] reads, [`RUN`] samples at a time.
+    /// [`History::read_lagrange`] reads, [`RUN`] samples at a time; `onset` seconds
+    /// later where `LATE` (the late part's send).
     #[inline(always)]
-    fn step(&self, a: &Solution, b: &Solution, now: usize, out: &mut [f64; GRID], add: bool) {
+    fn step<const LATE: bool>(
+        &self,
+        a: &Solution,
+        b: &Solution,
+        now: usize,
+        out: &mut [f64; GRID],
+        add: bool,
+        onset: f64,
+    ) {
         let basis = self.basis;
         let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
         let (sr, max) = (self.sr, self.history.max_delay());
@@ -1531,6 +1560,7 @@ impl Read<'_> {
                 + basis.h10h[p] * a.slope
                 + basis.h01[p] * tau_b
                 + basis.h11h[p] * b.slope;
+            let tau = if LATE { tau + onset } else { tau };
             delay[p] = clamp_or(tau * sr, 0.0, max, 0.0);
             gain[p] = a.gain + (b.gain - a.gain) * basis.s[p];
         }
