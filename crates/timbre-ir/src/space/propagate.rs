@@ -1564,16 +1564,16 @@ impl Read<'_> {
             delay[p] = clamp_or(tau * sr, 0.0, max, 0.0);
             gain[p] = a.gain + (b.gain - a.gain) * basis.s[p];
         }
-        for (r, out) in out.chunks_exact_mut(RUN).enumerate() {
-            let run = |x: &[f64; GRID]| -> [f64; RUN] { std::array::from_fn(|j| x[r * RUN + j]) };
-            let (delay, gain) = (run(&delay), run(&gain));
-            let mut value = [0.0; RUN];
-            if !self.run(&delay, now + r * RUN, &mut value) {
+        let runs = out.as_chunks_mut::<RUN>().0.iter_mut();
+        let runs = runs
+            .zip(delay.as_chunks::<RUN>().0)
+            .zip(gain.as_chunks::<RUN>().0);
+        for (r, ((out, delay), gain)) in runs.enumerate() {
+            let now = now + r * RUN;
+            let value = self.run(delay, now).unwrap_or_else(|| {
                 // Sample by sample.
-                for (j, value) in value.iter_mut().enumerate() {
-                    *value = self.history.read_lagrange(now + r * RUN + j, delay[j]);
-                }
-            }
+                std::array::from_fn(|j| self.history.read_lagrange(now + j, delay[j]))
+            });
             if add {
                 for ((out, value), gain) in out.iter_mut().zip(value).zip(gain) {
                     *out += gain * value;
@@ -1592,10 +1592,9 @@ impl Read<'_> {
     /// k_j. Where the run's whole delays are k or k + 1 (the delay moves less than a
     /// sample over the run: slower than 43 m/s at 48 kHz), every sample's taps are
     /// among seven windows of the history, each a sample further back than the last.
-    /// False, and `value` untouched, where they are not, or the delay is within two
-    /// samples (the cubic's).
+    /// None where they are not, or the delay is within two samples (the cubic's).
     #[inline(always)]
-    fn run(&self, delay: &[f64; RUN], now: usize, value: &mut [f64; RUN]) -> bool {
+    fn run(&self, delay: &[f64; RUN], now: usize) -> Option<[f64; RUN]> {
         // Delays are never negative: the floor is the truncation.
         let whole = delay.map(f64::floor);
         let near = whole[0].min(whole[RUN - 1]);
@@ -1603,14 +1602,13 @@ impl Read<'_> {
             within & ((k == near) | (k == near + 1.0))
         });
         if !within || near < 2.0 {
-            return false;
+            return None;
         }
         // now ≥ max + 4 ≥ near + 4, and near ≥ 2: the windows are in the history.
         let top = now + 2 - near as usize;
         let window = self.history.samples().get(top - 6..top + RUN);
-        let Some(window) = window.and_then(|w| <&[f64; RUN + 6]>::try_from(w).ok()) else {
-            return false;
-        };
+        let window: &[f64; RUN + 6] = window?.try_into().ok()?;
+        let mut value = [0.0; RUN];
         for (j, value) in value.iter_mut().enumerate() {
             // Window i holds x[top + j − i]: sample j's taps are windows 0…5, or 1…6
             // where its whole delay is one more (both read, one kept: no branch, so
@@ -1623,7 +1621,7 @@ impl Read<'_> {
             let interpolated = lagrange6(t, |m| taps[m]);
             *value = if t == 0.0 { taps[2] } else { interpolated };
         }
-        true
+        Some(value)
     }
 }
 
