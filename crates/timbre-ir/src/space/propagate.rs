@@ -361,8 +361,10 @@ struct Solution {
     /// receivers): added to `tau` at the points when the way is read, so the cubic
     /// carries it between them.
     ear: f64,
-    /// The direction it arrives from in the listener's frame (an ear's only).
-    arrival: DVec3,
+    /// The measurements that make the direction it arrives from in the listener's
+    /// frame, and their weights (an ear's only): its level and onset above, and its
+    /// ear's response.
+    weights: Weights,
 }
 
 /// Most emission times heard at once along one way (a source faster than sound).
@@ -409,8 +411,7 @@ struct EarFilter {
 }
 
 impl EarFilter {
-    fn new(table: Arc<HrirTable>, ear: usize, arrival: DVec3) -> EarFilter {
-        let weights = table.weights(arrival);
+    fn new(table: Arc<HrirTable>, ear: usize, weights: Weights) -> EarFilter {
         let mut to = vec![0.0; TAPS];
         table.response(&weights, ear, &mut to);
         to.reverse();
@@ -426,19 +427,18 @@ impl EarFilter {
     }
 
     /// Filters `heard`, samples `phase..phase + heard.len()` of a stride of `unit`
-    /// samples whose end the ear hears from `arrival` (on AVX2 when `wide`: the same
-    /// operations, so the same bits).
+    /// samples whose end the ear hears from the direction of `weights` (on AVX2 when
+    /// `wide`: the same operations, so the same bits).
     fn process(
         &mut self,
         heard: &mut [f64],
         phase: usize,
         unit: usize,
-        arrival: DVec3,
+        weights: Weights,
         wide: bool,
     ) {
         if phase == 0 {
             std::mem::swap(&mut self.from, &mut self.to);
-            let weights = self.table.weights(arrival);
             self.turning = weights != self.weights;
             if self.turning {
                 self.table.response(&weights, self.ear, &mut self.to);
@@ -722,7 +722,7 @@ impl Propagation {
             0.0
         };
         let at = &self.receivers[way.receiver];
-        let (directivity, ear, arrival) = match &at.pickup {
+        let (directivity, ear, weights) = match &at.pickup {
             Pickup::Ear { set, ear } => {
                 // The direct sound is filtered by the ear's response, which carries
                 // its level; a reflection takes the level alone.
@@ -732,9 +732,15 @@ impl Propagation {
                     None => 1.0,
                     Some(_) => set.nominal.level(&weights, *ear),
                 };
-                (level, set.nominal.delay(&weights, *ear), arrival)
+                // The directions are the file's at every rate: the weights serve the
+                // ear's response at the render's rate too.
+                (level, set.nominal.delay(&weights, *ear), weights)
             }
-            _ => (at.directivity(receiver.time, image), 0.0, DVec3::ZERO),
+            _ => (
+                at.directivity(receiver.time, image),
+                0.0,
+                Weights::default(),
+            ),
         };
         let gain = self.medium.gain(d) * directivity * way.reflectance;
         Solution {
@@ -743,7 +749,7 @@ impl Propagation {
             gain,
             emitted,
             ear,
-            arrival,
+            weights,
         }
     }
 
@@ -1063,7 +1069,7 @@ fn cubic_between(a: &Solution, b: &Solution, s: f64, h: f64) -> Solution {
         gain: a.gain + (b.gain - a.gain) * s,
         emitted: b.emitted,
         ear: a.ear + (b.ear - a.ear) * s,
-        arrival: b.arrival,
+        weights: b.weights,
     }
 }
 
@@ -1194,7 +1200,7 @@ impl StatefulKernel for Propagation {
             {
                 // The response at the render's rate (read once per rate and set).
                 let table = set.table(sr).unwrap_or_else(|_| set.nominal.clone());
-                s.ear = Some(Box::new(EarFilter::new(table, *ear, first.arrival)));
+                s.ear = Some(Box::new(EarFilter::new(table, *ear, first.weights)));
             }
             // Blocked from the start: no crossfade.
             self.block(way, s, receiver.position, &obstacles, sr);
@@ -1348,7 +1354,7 @@ impl Propagation {
                         *y = row[lane];
                     }
                     let end = &w.stride[unit / GRID];
-                    ear.process(heard, phase, unit, end.arrival, state.width.wide());
+                    ear.process(heard, phase, unit, end.weights, state.width.wide());
                     for (row, y) in block.iter_mut().zip(heard.iter()) {
                         row[lane] = *y;
                     }
