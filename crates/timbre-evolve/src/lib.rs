@@ -1,8 +1,8 @@
 //! Genetic search over timbre trees, after the 1993 paper's section 3.3 and Sims'
-//! genetic images: a sound class is a [`Genome`]; [`mutate`] and [`crossover`] make
+//! genetic images: a sound class is a [`Genome`]; [`mutate()`] and [`crossover`] make
 //! offspring with the paper's operators ([`Operator`]), and keep only those that
 //! lower, render to something worth hearing and stay within the size and depth limits
-//! ([`check`]): no sample that is not finite, no silence, no constant; a sound that
+//! ([`check()`]): no sample that is not finite, no silence, no constant; a sound that
 //! clips is scaled back (lang-spec/evolution.md).
 //!
 //! ```

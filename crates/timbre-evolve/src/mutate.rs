@@ -1,6 +1,6 @@
 //! The mutations of the 1993 paper and Sims' genetic images, and crossover. Each
 //! operator changes one site of a tree; [`mutate`] and [`crossover`] keep only
-//! offspring that pass [`check`](crate::check::check) within the size and depth limits.
+//! offspring that pass [`check`](crate::check()) within the size and depth limits.
 
 use rand::{Rng, RngExt};
 use timbre_gen::generate::{random_tree, GenConfig};

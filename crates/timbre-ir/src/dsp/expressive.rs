@@ -320,7 +320,7 @@ pub enum SweepCurve {
 /// The `sputter` node: `(sputter from to duration :curve 1)`, the paper's sputtering
 /// rhythm: a falling sawtooth `y = 1 − frac(φ)` in (0, 1] (each cycle starts at full
 /// level and dies away, one "sputter"), its phase `φ[n+1] = φ[n] + f[n]/sr` from
-/// φ[0] = 0, and its rate f sweeping from `from` to `to` Hz over `duration` seconds
+/// φ\[0\] = 0, and its rate f sweeping from `from` to `to` Hz over `duration` seconds
 /// of the node's own time (then holding `to`): with u = clamp(n/(sr·duration), 0, 1),
 /// linear or exponential ([`SweepCurve`]). Negative rates count as 0 (the level
 /// holds); an exponential sweep raises both rates to [`MIN_SPUTTER_HZ`]; a

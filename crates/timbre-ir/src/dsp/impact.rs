@@ -123,7 +123,7 @@ pub fn universal_speed(s: f64) -> f64 {
     sign * value
 }
 
-/// u(s) at the table's nodes (for tests of the curve): node `j` of [`INTERVALS`].
+/// u(s) at the table's nodes (for tests of the curve): node `j` of `INTERVALS`.
 pub fn universal_node(j: usize) -> Option<(f64, f64, f64)> {
     let table = universal();
     let step = HALF_DURATION / INTERVALS as f64;

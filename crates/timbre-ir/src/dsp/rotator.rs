@@ -1,6 +1,6 @@
 //! The damped-sine and modal-bank nodes made by [`crate::optimise`]:
 //! sin(2π·F·τ)·e^(−D·τ) as a complex rotator per lane, re-anchored exactly wherever τ
-//! jumps and every [`ANCHOR_INTERVAL`] samples. They are never written by a user: a
+//! jumps and every `ANCHOR_INTERVAL` (512) samples. They are never written by a user: a
 //! damped sine is the faster form of `(* (sine (* τ F)) (damp (* τ D)))` that compiled
 //! engines render, and a modal bank is the sum of a whole bank of them with constant
 //! amplitudes, `(combine (* A (sine (* τ F)) (damp (* τ D))))`, which the JIT compiles
@@ -153,7 +153,7 @@ impl Rotator {
 
 /// The rotators of one damped-sine node, and the last time they were rendered at.
 /// z is recomputed exactly from τ wherever τ does not advance by one sample period
-/// (a re-strike, a jump), and every [`ANCHOR_INTERVAL`] samples, so rounding never
+/// (a re-strike, a jump), and every `ANCHOR_INTERVAL` (512) samples, so rounding never
 /// accumulates beyond that.
 #[derive(Clone, Debug)]
 pub struct RotatorBank {

@@ -37,7 +37,7 @@ pub enum ModalPath {
     /// x86-64 with AVX2 and FMA: eight samples a vector.
     Avx2,
     /// Any CPU: `f32::mul_add` (NEON's on aarch64), or on x86-64 the same rounding in
-    /// `f64` arithmetic (see [`fused`]).
+    /// `f64` arithmetic (see `fused`).
     Portable,
 }
 
