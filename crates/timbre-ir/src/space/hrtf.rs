@@ -11,7 +11,7 @@
 //! the response together are the measured response exactly (to its first `LEAD +
 //! TAPS` samples from the onset).
 
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, PoisonError, Weak};
 
 use glam::DVec3;
 
@@ -57,6 +57,29 @@ impl HrtfSet {
             tables: Mutex::new(vec![nominal.clone()]),
             nominal,
         })
+    }
+
+    /// [`HrtfSet::read`], or the set read from the same bytes at the same rate while
+    /// anything still holds it: a scene compiled again (a REPL, a live reload) shares
+    /// its set rather than reading the file again, which takes tens of milliseconds.
+    /// A file changed since is read anew.
+    pub fn shared(name: &str, bytes: Vec<u8>, sample_rate: f64) -> Result<Arc<HrtfSet>, String> {
+        static HELD: Mutex<Vec<Weak<HrtfSet>>> = Mutex::new(Vec::new());
+        // Held while a set is read, so that two compiles at once read it once.
+        let mut held = HELD.lock().unwrap_or_else(PoisonError::into_inner);
+        held.retain(|set| set.strong_count() > 0);
+        let hash = fnv1a(&bytes);
+        let same = |set: &Arc<HrtfSet>| {
+            set.content_hash == hash
+                && set.nominal.sample_rate == sample_rate
+                && *set.bytes == *bytes
+        };
+        if let Some(set) = held.iter().filter_map(Weak::upgrade).find(same) {
+            return Ok(set);
+        }
+        let set = Arc::new(HrtfSet::read(name, bytes, sample_rate)?);
+        held.push(Arc::downgrade(&set));
+        Ok(set)
     }
 
     /// Its responses at `sample_rate` (resampled from the file's rate the first
@@ -275,6 +298,33 @@ mod tests {
         assert!(w[0].1 >= w[1].1 && w[1].1 >= w[2].1);
         // The same rate is read once.
         assert!(Arc::ptr_eq(&table, &set.table(48_000.0).unwrap()));
+    }
+
+    #[test]
+    fn a_set_read_again_is_shared_while_it_is_held() {
+        let Ok(bytes) = std::fs::read(DEFAULT_SET) else {
+            eprintln!("{DEFAULT_SET} is not installed (Debian: libmysofa-utils)");
+            return;
+        };
+        let read = |rate: f64| HrtfSet::shared(DEFAULT_SET, bytes.clone(), rate).unwrap();
+        let (a, b) = (read(48_000.0), read(48_000.0));
+        assert!(
+            Arc::ptr_eq(&a, &b),
+            "the same bytes at the same rate: one set"
+        );
+        let other = read(44_100.0);
+        assert!(!Arc::ptr_eq(&a, &other), "another rate: another set");
+        assert_eq!(other.nominal.sample_rate, 44_100.0);
+        // Other bytes are another set, though named alike.
+        let mut changed = bytes.clone();
+        changed.extend_from_slice(&[0; 16]);
+        if let Ok(c) = HrtfSet::shared(DEFAULT_SET, changed, 48_000.0) {
+            assert!(!Arc::ptr_eq(&a, &c), "another file's bytes: another set");
+        }
+        // Once nothing holds it, it is read anew.
+        let weak = Arc::downgrade(&a);
+        drop((a, b));
+        assert!(weak.upgrade().is_none(), "not kept alive by the sharing");
     }
 
     #[test]

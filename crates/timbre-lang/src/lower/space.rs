@@ -409,8 +409,7 @@ impl Lowerer<'_> {
             .load(&path, origin.dir.as_deref())
             .map_err(|e| unreadable(self, e.to_string()))?;
         let sr = self.settings.sample_rate.unwrap_or(48_000.0);
-        let set = HrtfSet::read(&path, bytes, sr).map_err(|why| unreadable(self, why))?;
-        let set = Arc::new(set);
+        let set = HrtfSet::shared(&path, bytes, sr).map_err(|why| unreadable(self, why))?;
         Ok((0..2)
             .map(|ear| Receiver {
                 pickup: Pickup::Ear {
