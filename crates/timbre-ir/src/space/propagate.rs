@@ -427,15 +427,15 @@ impl EarFilter {
     }
 
     /// Filters `heard`, samples `phase..phase + heard.len()` of a stride of `unit`
-    /// samples whose end the ear hears from the direction of `weights` (on AVX2 when
-    /// `wide`: the same operations, so the same bits).
+    /// samples whose end the ear hears from the direction of `weights` (in vectors of
+    /// `width`: the same operations, so the same bits).
     fn process(
         &mut self,
         heard: &mut [f64],
         phase: usize,
         unit: usize,
         weights: Weights,
-        wide: bool,
+        width: Width,
     ) {
         if phase == 0 {
             std::mem::swap(&mut self.from, &mut self.to);
@@ -450,17 +450,17 @@ impl EarFilter {
         }
         let start = TAPS - 1 + phase;
         self.input[start..start + heard.len()].copy_from_slice(heard);
+        // SAFETY: a width is detected only where the processor has it.
         #[cfg(target_arch = "x86_64")]
-        if wide {
-            // SAFETY: `wide` is set only where the processor has AVX2.
-            unsafe { self.filter_avx2(heard, phase, unit) };
-        } else {
-            self.filter(heard, phase, unit);
+        match width {
+            Width::Avx512 => unsafe { self.filter_avx512(heard, phase, unit) },
+            Width::Avx2 => unsafe { self.filter_avx2(heard, phase, unit) },
+            Width::Portable => self.filter(heard, phase, unit, dots),
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            let _ = wide;
-            self.filter(heard, phase, unit);
+            let _ = width;
+            self.filter(heard, phase, unit, dots);
         }
         if phase + heard.len() == unit {
             self.input.copy_within(unit..unit + TAPS - 1, 0);
@@ -470,39 +470,149 @@ impl EarFilter {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn filter_avx2(&self, heard: &mut [f64], phase: usize, unit: usize) {
-        self.filter(heard, phase, unit);
+        // SAFETY: this function runs only where the processor has AVX2.
+        self.filter(heard, phase, unit, |h, x| unsafe { dots_avx2(h, x) });
     }
 
-    /// The responses over the input, crossfaded from `from`'s to `to`'s.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f")]
+    fn filter_avx512(&self, heard: &mut [f64], phase: usize, unit: usize) {
+        // SAFETY: this function runs only where the processor has AVX-512.
+        self.filter(heard, phase, unit, |h, x| unsafe { dots_avx512(h, x) });
+    }
+
+    /// The responses over the input, crossfaded from `from`'s to `to`'s: [`DOTS`]
+    /// samples at a time by `dots`, then one by one.
     #[inline(always)]
-    fn filter(&self, heard: &mut [f64], phase: usize, unit: usize) {
-        for (j, y) in heard.iter_mut().enumerate() {
-            let window = &self.input[phase + j..phase + j + TAPS];
-            let from = dot(&self.from, window);
-            *y = if self.turning {
-                let s = (phase + j + 1) as f64 / unit as f64;
-                from + (dot(&self.to, window) - from) * s
-            } else {
-                from
+    fn filter(
+        &self,
+        heard: &mut [f64],
+        phase: usize,
+        unit: usize,
+        dots: impl Fn(&[f64], &[f64]) -> Option<[f64; DOTS]>,
+    ) {
+        let mut j = 0;
+        while j < heard.len() {
+            let input = &self.input[phase + j..];
+            let n = if heard.len() - j >= DOTS { DOTS } else { 1 };
+            // The input holds TAPS − 1 + SPAN samples: DOTS windows from here while
+            // DOTS samples are left.
+            let sums = |h: &[f64]| match (n == DOTS).then(|| dots(h, input)).flatten() {
+                Some(sums) => sums,
+                None => [dot(h, input); DOTS],
             };
+            let from = sums(&self.from);
+            let to = if self.turning { sums(&self.to) } else { from };
+            for (i, y) in heard[j..j + n].iter_mut().enumerate() {
+                *y = if self.turning {
+                    let s = (phase + j + i + 1) as f64 / unit as f64;
+                    from[i] + (to[i] - from[i]) * s
+                } else {
+                    from[i]
+                };
+            }
+            j += n;
         }
     }
 }
 
-/// `Σ h[k]·x[k]` over [`TAPS`] taps, in two vectors of four running sums (one sum
-/// would be a chain of dependent additions), added in a fixed order, so the bits
-/// are the same on every path.
+/// Samples whose responses are summed together (see [`dots`]).
+const DOTS: usize = 4;
+
+/// `Σ h[k]·x[i + k]` over [`TAPS`] taps for the [`DOTS`] samples i = 0, 1, …, each
+/// summed as [`dot`] sums it. None where `x` holds fewer than `TAPS + DOTS − 1`
+/// samples. The vector paths interleave the samples' sums, so that the processor
+/// works on several chains of additions at once (a lone sum waits on each addition
+/// before the next).
 #[inline(always)]
-fn dot(h: &[f64], x: &[f64]) -> f64 {
-    let (mut a, mut b) = ([0.0f64; 4], [0.0f64; 4]);
-    for (h, x) in h[..TAPS].chunks_exact(8).zip(x[..TAPS].chunks_exact(8)) {
-        let (h, x): (&[f64; 8], &[f64; 8]) = (h.try_into().unwrap(), x.try_into().unwrap());
-        for k in 0..4 {
-            a[k] += h[k] * x[k];
-            b[k] += h[k + 4] * x[k + 4];
+fn dots(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
+    let x = x.first_chunk::<{ TAPS + DOTS - 1 }>()?;
+    Some(std::array::from_fn(|i| dot(h, &x[i..])))
+}
+
+/// [`dots`] in AVX2 vectors: sample i's running sums k = 0…3 and 4…7 a vector each,
+/// each lane's additions those of [`dot`] in the same order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn dots_avx2(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
+    use std::arch::x86_64::*;
+    let (h, x) = (
+        h.first_chunk::<TAPS>()?,
+        x.first_chunk::<{ TAPS + DOTS - 1 }>()?,
+    );
+    let (mut low, mut high) = ([_mm256_setzero_pd(); DOTS], [_mm256_setzero_pd(); DOTS]);
+    for c in (0..TAPS).step_by(8) {
+        // SAFETY: c + 8 ≤ TAPS, and i + c + 8 ≤ TAPS + DOTS − 1: within both.
+        let (h0, h1) = unsafe {
+            let h = h.as_ptr().add(c);
+            (_mm256_loadu_pd(h), _mm256_loadu_pd(h.add(4)))
+        };
+        for i in 0..DOTS {
+            let (x0, x1) = unsafe {
+                let x = x.as_ptr().add(i + c);
+                (_mm256_loadu_pd(x), _mm256_loadu_pd(x.add(4)))
+            };
+            low[i] = _mm256_add_pd(low[i], _mm256_mul_pd(h0, x0));
+            high[i] = _mm256_add_pd(high[i], _mm256_mul_pd(h1, x1));
         }
     }
-    ((a[0] + b[0]) + (a[1] + b[1])) + ((a[2] + b[2]) + (a[3] + b[3]))
+    Some(std::array::from_fn(|i| {
+        let mut sums = [0.0; 8];
+        // SAFETY: eight samples, in `sums`.
+        unsafe {
+            _mm256_storeu_pd(sums.as_mut_ptr(), low[i]);
+            _mm256_storeu_pd(sums.as_mut_ptr().add(4), high[i]);
+        }
+        total(sums)
+    }))
+}
+
+/// [`dots`] in AVX-512 vectors: sample i's eight running sums a vector, each lane's
+/// additions those of [`dot`] in the same order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f")]
+unsafe fn dots_avx512(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
+    use std::arch::x86_64::*;
+    let (h, x) = (
+        h.first_chunk::<TAPS>()?,
+        x.first_chunk::<{ TAPS + DOTS - 1 }>()?,
+    );
+    let mut sums = [_mm512_setzero_pd(); DOTS];
+    for c in (0..TAPS).step_by(8) {
+        // SAFETY: c + 8 ≤ TAPS, and i + c + 8 ≤ TAPS + DOTS − 1: within both.
+        let h = unsafe { _mm512_loadu_pd(h.as_ptr().add(c)) };
+        for (i, sum) in sums.iter_mut().enumerate() {
+            let x = unsafe { _mm512_loadu_pd(x.as_ptr().add(i + c)) };
+            *sum = _mm512_add_pd(*sum, _mm512_mul_pd(h, x));
+        }
+    }
+    Some(sums.map(|sum| {
+        let mut lanes = [0.0; 8];
+        // SAFETY: eight samples, in `lanes`.
+        unsafe { _mm512_storeu_pd(lanes.as_mut_ptr(), sum) };
+        total(lanes)
+    }))
+}
+
+/// `Σ h[k]·x[k]` over [`TAPS`] taps, in eight running sums (one sum would be a chain
+/// of dependent additions; eight are a vector or two), added in a fixed order, so
+/// the bits are the same on every path.
+#[inline(always)]
+fn dot(h: &[f64], x: &[f64]) -> f64 {
+    let mut sums = [0.0f64; 8];
+    let (h, x) = (h[..TAPS].as_chunks::<8>().0, x[..TAPS].as_chunks::<8>().0);
+    for (h, x) in h.iter().zip(x) {
+        for k in 0..8 {
+            sums[k] += h[k] * x[k];
+        }
+    }
+    total(sums)
+}
+
+/// The eight running sums of [`dot`] added up, in a fixed order.
+#[inline(always)]
+fn total(s: [f64; 8]) -> f64 {
+    ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]))
 }
 
 /// What an obstacle does to a sound: its material's gain and low-pass, crossfaded
@@ -1354,7 +1464,7 @@ impl Propagation {
                         *y = row[lane];
                     }
                     let end = &w.stride[unit / GRID];
-                    ear.process(heard, phase, unit, end.weights, state.width.wide());
+                    ear.process(heard, phase, unit, end.weights, state.width);
                     for (row, y) in block.iter_mut().zip(heard.iter()) {
                         row[lane] = *y;
                     }
@@ -1848,12 +1958,15 @@ mod tests {
                 &format!("block {block}"),
             );
         }
+        // Blocks that end within a run of four samples summed together, too.
         for width in Width::all() {
-            same_bits(
-                &whole,
-                &render(&kernel, &x, 4096, width),
-                &format!("{width:?} against portable"),
-            );
+            for block in [37, 4096] {
+                same_bits(
+                    &whole,
+                    &render(&kernel, &x, block, width),
+                    &format!("{width:?} in blocks of {block} against portable"),
+                );
+            }
         }
     }
 
