@@ -146,4 +146,29 @@ fn memory_covers_each_kernels_state_and_grows_with_its_buffers() {
         long > 50 * short,
         "`sample`: {short} bytes for 1 s, {long} for 100 s"
     );
+
+    // A source heard by a spaced pair along every way of a room at order 2 (25 ways to
+    // each microphone): its propagation states what its state allocates, the ways
+    // counted one by one, and not several times more.
+    for order in [0, 2] {
+        let source = format!(
+            "(scene :channels 2 :duration 1)
+             (define-sound tone () (sine (* t 440)))
+             (room :size (40 30 8) :absorption 0.3 :order {order})
+             (listener :position (20 15 1.7) :pair spaced)
+             (source s :position (keyframes :interp linear (0 (5 5 1)) (1 (30 20 2))))
+             (instance a (tone) :source s)"
+        );
+        let found = kernels(&source)
+            .into_iter()
+            .find(|(k, _)| k.name() == "propagate");
+        let (kernel, ctx) = found.unwrap_or_else(|| panic!("no `propagate` at order {order}"));
+        let allocated = allocated_by_state(kernel.as_ref(), &ctx);
+        let stated = kernel.memory(&ctx);
+        eprintln!("propagate at order {order}: states {stated} bytes, allocates {allocated}");
+        assert!(
+            allocated <= stated && stated <= 2 * allocated,
+            "`propagate` at order {order} states {stated} bytes but allocates {allocated}"
+        );
+    }
 }

@@ -1267,8 +1267,18 @@ impl StatefulKernel for Propagation {
         let filters = (8 * (3 * TAPS + SPAN) * ears) as f64;
         // A way's stride and a group's, a lane per way.
         let scratch = (8 * SPAN * (1 + LANES)) as f64;
-        let bytes =
-            history + 24.0 * (grid_points + 3.0) + 65_536.0 * ctx.width as f64 + filters + scratch;
+        // Each way, its state and its group; the receivers where they are at each grid
+        // point of a stride; the late part's muffles (the late part itself is the
+        // bus's).
+        let ways = self.ways(ctx.config.sample_rate).len();
+        let way = size_of::<Way>() + size_of::<WayState>() + size_of::<Range<usize>>();
+        let receivers =
+            self.receivers.len() * (STRIDE * size_of::<ReceiverAt>() + size_of::<Muffle>());
+        let bytes = history
+            + 24.0 * (grid_points + 3.0)
+            + filters
+            + scratch
+            + (ways * way + receivers) as f64;
         bytes.min(1e18) as u64
     }
 
