@@ -116,7 +116,17 @@ pub struct HrirTable {
     levels: Vec<[f64; 2]>,
     /// Each measurement's aligned responses, left then right, [`TAPS`] each.
     responses: Vec<f64>,
+    /// The sphere in cells of [`CELL`] of azimuth by [`CELL`] of elevation: cell c's
+    /// measurements, those that can be among the four nearest of any direction in
+    /// it, are `members[starts[c]..starts[c + 1]]`, in the order of `directions`.
+    starts: Vec<usize>,
+    members: Vec<usize>,
 }
+
+/// The side of a cell of the sphere (radians, 5°), azimuth and elevation.
+const CELL: f64 = std::f64::consts::PI / 36.0;
+const AZIMUTHS: usize = 72;
+const ELEVATIONS: usize = 36;
 
 /// Three measurements and their weights (summing to 1).
 pub type Weights = [(usize, f64); 3];
@@ -154,6 +164,8 @@ impl HrirTable {
             delays: Vec::with_capacity(m),
             levels: Vec::with_capacity(m),
             responses: Vec::with_capacity(m * 2 * TAPS),
+            starts: vec![],
+            members: vec![],
         };
         for k in 0..m {
             let p = &positions[3 * k..3 * k + 3];
@@ -189,6 +201,7 @@ impl HrirTable {
             table.delays.push(delays);
             table.levels.push(levels);
         }
+        (table.starts, table.members) = cells(&table.directions);
         Ok(table)
     }
 
@@ -212,14 +225,17 @@ impl HrirTable {
     /// falls to 0 as it leaves the three and the weights change continuously with
     /// the direction. A direction within 0.06° of a measurement is that measurement.
     pub fn weights(&self, direction: DVec3) -> Weights {
-        let mut best = [(0usize, f64::NEG_INFINITY); 4];
-        for (k, d) in self.directions.iter().enumerate() {
-            let cos = d.dot(direction);
-            if cos > best[3].1 {
-                best[3] = (k, cos);
-                best.sort_by(|a, b| b.1.total_cmp(&a.1));
-            }
-        }
+        let cosine = |k: usize| (k, self.directions[k].dot(direction));
+        // Only the measurements of the direction's cell can be among its four
+        // nearest (a unit vector's; another is compared with every measurement).
+        let best = match cell(direction) {
+            Some(c) if (direction.length_squared() - 1.0).abs() < 1e-9 => nearest(
+                self.members[self.starts[c]..self.starts[c + 1]]
+                    .iter()
+                    .map(|&k| cosine(k)),
+            ),
+            _ => nearest((0..self.directions.len()).map(cosine)),
+        };
         let angle = |cos: f64| cos.clamp(-1.0, 1.0).acos();
         // Within the file's precision (its directions are f32) of a measurement.
         if angle(best[0].1) < MEASURED {
@@ -268,9 +284,79 @@ impl HrirTable {
     }
 }
 
+/// The four nearest measurements among `cosines` (each an index and the cosine of
+/// its angle from the direction), the nearest first; of those as near, the one
+/// listed first. Any list that holds the four nearest of all, in the same order,
+/// gives the same four.
+fn nearest(cosines: impl Iterator<Item = (usize, f64)>) -> [(usize, f64); 4] {
+    let mut best = [(0usize, f64::NEG_INFINITY); 4];
+    for (k, cos) in cosines {
+        if cos > best[3].1 {
+            best[3] = (k, cos);
+            best.sort_by(|a, b| b.1.total_cmp(&a.1));
+        }
+    }
+    best
+}
+
+/// The cell of the sphere `direction` points into (see [`HrirTable::members`]).
+fn cell(direction: DVec3) -> Option<usize> {
+    let azimuth = direction.y.atan2(direction.x) + std::f64::consts::PI;
+    let elevation = direction.z.atan2(direction.x.hypot(direction.y)) + std::f64::consts::FRAC_PI_2;
+    if !(azimuth.is_finite() && elevation.is_finite()) {
+        return None;
+    }
+    // Truncation: both are ≥ 0; the last cell takes its upper edge.
+    let a = ((azimuth / CELL) as usize).min(AZIMUTHS - 1);
+    let e = ((elevation / CELL) as usize).min(ELEVATIONS - 1);
+    Some(e * AZIMUTHS + a)
+}
+
+/// Each cell's measurements that can be among the four nearest of a direction in
+/// it: with c the cell's centre, r the largest angle from c to a point of the cell
+/// (at a corner) and θ₄ the fourth nearest measurement's angle from c, a direction p
+/// in the cell has four measurements within θ₄ + r, so its four nearest are within
+/// θ₄ + r of p, so within θ₄ + 2r of c; a degree more for rounding.
+fn cells(directions: &[DVec3]) -> (Vec<usize>, Vec<usize>) {
+    let unit = |azimuth: f64, elevation: f64| {
+        let (azimuth, elevation) = (
+            azimuth - std::f64::consts::PI,
+            elevation - std::f64::consts::FRAC_PI_2,
+        );
+        DVec3::new(
+            elevation.cos() * azimuth.cos(),
+            elevation.cos() * azimuth.sin(),
+            elevation.sin(),
+        )
+    };
+    let angle = |a: DVec3, b: DVec3| a.dot(b).clamp(-1.0, 1.0).acos();
+    let (mut starts, mut members) = (vec![0], vec![]);
+    for e in 0..ELEVATIONS {
+        for a in 0..AZIMUTHS {
+            let (a, e) = (a as f64, e as f64);
+            let centre = unit((a + 0.5) * CELL, (e + 0.5) * CELL);
+            let corners = [(a, e), (a + 1.0, e), (a, e + 1.0), (a + 1.0, e + 1.0)];
+            let r = (corners.iter())
+                .map(|&(a, e)| angle(centre, unit(a * CELL, e * CELL)))
+                .fold(0.0, f64::max);
+            let fourth = nearest(directions.iter().map(|d| d.dot(centre)).enumerate())[3].1;
+            let reach = fourth.clamp(-1.0, 1.0).acos() + 2.0 * r + 1f64.to_radians();
+            let within = if reach < std::f64::consts::PI {
+                reach.cos()
+            } else {
+                f64::NEG_INFINITY
+            };
+            members.extend((0..directions.len()).filter(|&k| directions[k].dot(centre) >= within));
+            starts.push(members.len());
+        }
+    }
+    (starts, members)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::FRAC_PI_2;
 
     fn kemar() -> Option<HrtfSet> {
         let bytes = std::fs::read(DEFAULT_SET).ok()?;
@@ -298,6 +384,51 @@ mod tests {
         assert!(w[0].1 >= w[1].1 && w[1].1 >= w[2].1);
         // The same rate is read once.
         assert!(Arc::ptr_eq(&table, &set.table(48_000.0).unwrap()));
+    }
+
+    #[test]
+    fn a_direction_s_cell_holds_its_four_nearest_measurements() {
+        let Some(set) = kemar() else {
+            eprintln!("{DEFAULT_SET} is not installed (Debian: libmysofa-utils)");
+            return;
+        };
+        let table = &set.nominal;
+        // Directions all over the sphere (a Fibonacci lattice), on the cells' edges
+        // and corners (the poles among them), and at the measurements.
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let mut directions: Vec<DVec3> = (0..20_000)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / 20_000.0;
+                let r = (1.0 - z * z).sqrt();
+                let phi = golden * i as f64;
+                DVec3::new(r * phi.cos(), r * phi.sin(), z)
+            })
+            .collect();
+        for e in 0..=ELEVATIONS {
+            for a in 0..=AZIMUTHS {
+                let (azimuth, elevation) = (a as f64 * CELL, e as f64 * CELL - FRAC_PI_2);
+                let (s, c) = elevation.sin_cos();
+                directions.push(DVec3::new(c * azimuth.cos(), c * azimuth.sin(), s));
+            }
+        }
+        directions.extend(table.directions.iter().copied());
+        let mut held = 0;
+        for d in &directions {
+            let d = d.normalize();
+            let all = nearest((0..table.len()).map(|k| (k, table.directions[k].dot(d))));
+            let c = cell(d).unwrap();
+            let members = &table.members[table.starts[c]..table.starts[c + 1]];
+            let found = nearest(members.iter().map(|&k| (k, table.directions[k].dot(d))));
+            assert_eq!(found.map(|(k, _)| k), all.map(|(k, _)| k), "toward {d}");
+            held += members.len();
+        }
+        // And a cell holds few of the 710.
+        let mean = held as f64 / directions.len() as f64;
+        assert!(mean < 60.0, "{mean} measurements a cell on average");
+        eprintln!(
+            "{mean:.1} measurements a cell on average, of {}",
+            table.len()
+        );
     }
 
     #[test]
