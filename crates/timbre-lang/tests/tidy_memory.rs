@@ -4,8 +4,6 @@
 //! lines, a sound to replay). This binary counts allocations with its own global
 //! allocator, so it holds one test only (tests run on threads in parallel).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use timbre_ir::dsp::sample::SamplePlayer;
@@ -15,25 +13,10 @@ use timbre_ir::op::Op;
 use timbre_ir::RenderConfig;
 use timbre_lang::catalogue::{Kind, NODES};
 use timbre_lang::{compile_str, CompileOptions, NoFiles, Registry};
-
-/// Counts the bytes ever allocated, so a kernel's state can be weighed.
-struct Counting;
-
-static ALLOCATED: AtomicU64 = AtomicU64::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATED.fetch_add(layout.size() as u64, Ordering::Relaxed);
-        System.alloc(layout)
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-}
+use timbre_testkit::heap;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static HEAP: heap::Counting = heap::Counting;
 
 const CONFIG: RenderConfig = RenderConfig {
     sample_rate: 48_000.0,
@@ -42,9 +25,9 @@ const CONFIG: RenderConfig = RenderConfig {
 
 /// Bytes allocated while making the kernel's state (dropped right after).
 fn allocated_by_state(kernel: &dyn DynKernel, ctx: &StateContext) -> u64 {
-    let before = ALLOCATED.load(Ordering::Relaxed);
+    let before = heap::allocated_bytes();
     let state = kernel.new_state(ctx);
-    let after = ALLOCATED.load(Ordering::Relaxed);
+    let after = heap::allocated_bytes();
     drop(state);
     after - before
 }

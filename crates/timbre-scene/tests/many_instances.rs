@@ -3,31 +3,13 @@
 //! they start and freed when they have decayed, so the heap holds the instances that
 //! sound, not all that will; and they mix to the same bits on any number of threads.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicIsize, Ordering};
-
 use timbre_ir::{Program, RenderConfig};
 use timbre_lang::{compile_str, CompileOptions, FsLoader, Registry};
 use timbre_scene::{Engine, SceneRenderer};
-
-/// The bytes live on the heap.
-struct LiveBytes;
-
-static LIVE: AtomicIsize = AtomicIsize::new(0);
-
-unsafe impl GlobalAlloc for LiveBytes {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LIVE.fetch_add(layout.size() as isize, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use timbre_testkit::heap;
 
 #[global_allocator]
-static ALLOCATOR: LiveBytes = LiveBytes;
+static HEAP: heap::Counting = heap::Counting;
 
 const INSTANCES: usize = 2000;
 
@@ -54,7 +36,7 @@ fn program() -> Program {
 }
 
 /// Five seconds in blocks of 256, in chunks of 0.1 s; the live heap after each chunk.
-fn render(program: &Program, threads: usize) -> (Vec<f64>, Vec<isize>) {
+fn render(program: &Program, threads: usize) -> (Vec<f64>, Vec<i64>) {
     let config = RenderConfig {
         sample_rate: 48_000.0,
         block_size: 256,
@@ -66,7 +48,7 @@ fn render(program: &Program, threads: usize) -> (Vec<f64>, Vec<isize>) {
     let mut live = vec![];
     for chunk in out.chunks_mut(4800) {
         renderer.render(chunk).unwrap();
-        live.push(LIVE.load(Ordering::Relaxed));
+        live.push(heap::live_bytes());
     }
     (out, live)
 }

@@ -1,31 +1,13 @@
 //! A ten-minute scene of moving sources renders in flat memory: what is allocated
 //! after the first minute is freed again, and the live heap never grows.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicIsize, Ordering};
-
 use timbre_ir::RenderConfig;
 use timbre_lang::{compile_str, CompileOptions, FsLoader, Registry};
 use timbre_scene::{Engine, SceneRenderer};
-
-/// Tracks the bytes live on the heap (this file holds one test, so nothing else runs).
-struct LiveBytes;
-
-static LIVE: AtomicIsize = AtomicIsize::new(0);
-
-unsafe impl GlobalAlloc for LiveBytes {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LIVE.fetch_add(layout.size() as isize, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use timbre_testkit::heap;
 
 #[global_allocator]
-static ALLOCATOR: LiveBytes = LiveBytes;
+static HEAP: heap::Counting = heap::Counting;
 
 #[test]
 fn ten_minutes_of_moving_sources_render_in_flat_memory() {
@@ -68,7 +50,7 @@ fn ten_minutes_of_moving_sources_render_in_flat_memory() {
     let mut most = 0;
     for tenth in 0..6000 {
         renderer.render(&mut block).unwrap();
-        let live = LIVE.load(Ordering::Relaxed);
+        let live = heap::live_bytes();
         if tenth == 600 {
             after_first_minute = live;
         }

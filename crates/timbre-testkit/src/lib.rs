@@ -11,6 +11,7 @@
 
 pub mod chimes;
 pub mod frames;
+pub mod heap;
 
 use std::path::Path;
 

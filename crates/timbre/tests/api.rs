@@ -2,36 +2,11 @@
 //! constants, keyframes and variables, rendering without allocation, several engines
 //! on several threads.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use timbre::{Backend, Engine, Interpolation, KeyframeTrack, ParamValue, Variable};
-use timbre_testkit::assert_close;
-
-/// Counts the allocations a thread makes while its `COUNTING` is on (other tests run
-/// on other threads meanwhile).
-struct CountingAllocator;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use timbre_testkit::{assert_close, heap};
 
 #[global_allocator]
-static ALLOCATOR: CountingAllocator = CountingAllocator;
+static HEAP: heap::Counting = heap::Counting;
 
 const SR: f64 = 48_000.0;
 
@@ -192,19 +167,14 @@ fn rendering_the_next_block_allocates_nothing() {
             .unwrap();
         scene.stop(later, 0.5).unwrap();
         let mut block = vec![0.0; 256];
-        ALLOCATIONS.store(0, Ordering::Relaxed);
-        COUNTING.with(|c| c.set(true));
         // Starts, a stop and variable changes all happen inside these blocks.
-        for k in 0..200 {
-            amp.set(0.3 + 0.001 * k as f64);
-            scene.render(&mut block).unwrap();
-        }
-        COUNTING.with(|c| c.set(false));
-        assert_eq!(
-            ALLOCATIONS.load(Ordering::Relaxed),
-            0,
-            "{backend:?} allocated while rendering"
-        );
+        let ((), allocations, _) = heap::counted(|| {
+            for k in 0..200 {
+                amp.set(0.3 + 0.001 * k as f64);
+                scene.render(&mut block).unwrap();
+            }
+        });
+        assert_eq!(allocations, 0, "{backend:?} allocated while rendering");
     }
 }
 
@@ -430,13 +400,11 @@ fn a_hosts_swarm_runs_as_lanes_without_allocating() {
         }
         let lanes = scene.instances_in_lanes();
         let mut out = vec![0.0; 24_000];
-        ALLOCATIONS.store(0, Ordering::Relaxed);
-        COUNTING.with(|c| c.set(true));
-        for block in out.chunks_mut(256) {
-            scene.render(block).unwrap();
-        }
-        COUNTING.with(|c| c.set(false));
-        let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+        let ((), allocations, _) = heap::counted(|| {
+            for block in out.chunks_mut(256) {
+                scene.render(block).unwrap();
+            }
+        });
         (out, lanes, allocations)
     };
     let (jit, lanes, allocations) = render(Backend::Jit);

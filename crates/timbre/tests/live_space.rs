@@ -3,39 +3,14 @@
 //! retarded time (the Doppler frequency and the arrival of a click), with an audio
 //! thread that never allocates, and the diagnostics of bad moves.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 use timbre::{Backend, Engine, Play};
-
-/// Counts the allocations and frees a thread makes while its `COUNTING` is on.
-struct CountingAllocator;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-static FREES: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        if COUNTING.with(Cell::get) {
-            FREES.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use timbre_testkit::heap;
 
 #[global_allocator]
-static ALLOCATOR: CountingAllocator = CountingAllocator;
+static HEAP: heap::Counting = heap::Counting;
 
 const SR: f64 = 48_000.0;
 const C: f64 = 343.0;
@@ -189,15 +164,8 @@ fn a_click_arrives_within_a_sample_of_its_retarded_time_while_both_move() {
 /// What a host's audio callback does: renders a block, counting what it allocates
 /// and frees.
 fn callback(renderer: &mut timbre::Renderer, block: &mut [f32]) -> (usize, usize) {
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    FREES.store(0, Ordering::Relaxed);
-    COUNTING.with(|c| c.set(true));
-    renderer.render_f32(block).unwrap();
-    COUNTING.with(|c| c.set(false));
-    (
-        ALLOCATIONS.load(Ordering::Relaxed),
-        FREES.load(Ordering::Relaxed),
-    )
+    let ((), allocations, frees) = heap::counted(|| renderer.render_f32(block).unwrap());
+    (allocations, frees)
 }
 
 #[test]

@@ -3,40 +3,14 @@
 //! never allocates, multichannel output with gain, panning and routing, and smoothed
 //! variables.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use timbre::{Backend, Engine, Mix, ParamValue, Placement, Play, Variable};
-use timbre_testkit::rms;
-
-/// Counts the allocations and frees a thread makes while its `COUNTING` is on.
-struct CountingAllocator;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-static FREES: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        if COUNTING.with(Cell::get) {
-            FREES.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use timbre_testkit::{heap, rms};
 
 #[global_allocator]
-static ALLOCATOR: CountingAllocator = CountingAllocator;
+static HEAP: heap::Counting = heap::Counting;
 
 const SR: f64 = 48_000.0;
 
@@ -128,15 +102,8 @@ fn a_typo_or_a_wide_sound_in_an_unused_class_is_a_load_time_error() {
 /// What a host's audio callback does: renders a block of interleaved `f32`, counting
 /// what it allocates and frees.
 fn callback(renderer: &mut timbre::Renderer, block: &mut [f32]) -> (usize, usize) {
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    FREES.store(0, Ordering::Relaxed);
-    COUNTING.with(|c| c.set(true));
-    renderer.render_f32(block).unwrap();
-    COUNTING.with(|c| c.set(false));
-    (
-        ALLOCATIONS.load(Ordering::Relaxed),
-        FREES.load(Ordering::Relaxed),
-    )
+    let ((), allocations, frees) = heap::counted(|| renderer.render_f32(block).unwrap());
+    (allocations, frees)
 }
 
 #[test]
