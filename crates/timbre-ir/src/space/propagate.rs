@@ -526,8 +526,17 @@ const DOTS: usize = 4;
 /// before the next).
 #[inline(always)]
 fn dots(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
-    let x = x.first_chunk::<{ TAPS + DOTS - 1 }>()?;
+    let (h, x) = dots_windows(h, x)?;
     Some(std::array::from_fn(|i| dot(h, &x[i..])))
+}
+
+/// The response and the input [`dots`] sums over, if both are long enough.
+#[inline(always)]
+fn dots_windows<'a>(
+    h: &'a [f64],
+    x: &'a [f64],
+) -> Option<(&'a [f64; TAPS], &'a [f64; TAPS + DOTS - 1])> {
+    Some((h.first_chunk()?, x.first_chunk()?))
 }
 
 /// [`dots`] in AVX2 vectors: sample i's running sums k = 0…3 and 4…7 a vector each,
@@ -536,10 +545,7 @@ fn dots(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
 #[target_feature(enable = "avx2")]
 unsafe fn dots_avx2(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
     use std::arch::x86_64::*;
-    let (h, x) = (
-        h.first_chunk::<TAPS>()?,
-        x.first_chunk::<{ TAPS + DOTS - 1 }>()?,
-    );
+    let (h, x) = dots_windows(h, x)?;
     let (mut low, mut high) = ([_mm256_setzero_pd(); DOTS], [_mm256_setzero_pd(); DOTS]);
     for c in (0..TAPS).step_by(8) {
         // SAFETY: c + 8 ≤ TAPS, and i + c + 8 ≤ TAPS + DOTS − 1: within both.
@@ -573,10 +579,7 @@ unsafe fn dots_avx2(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
 #[target_feature(enable = "avx2,avx512f")]
 unsafe fn dots_avx512(h: &[f64], x: &[f64]) -> Option<[f64; DOTS]> {
     use std::arch::x86_64::*;
-    let (h, x) = (
-        h.first_chunk::<TAPS>()?,
-        x.first_chunk::<{ TAPS + DOTS - 1 }>()?,
-    );
+    let (h, x) = dots_windows(h, x)?;
     let mut sums = [_mm512_setzero_pd(); DOTS];
     for c in (0..TAPS).step_by(8) {
         // SAFETY: c + 8 ≤ TAPS, and i + c + 8 ≤ TAPS + DOTS − 1: within both.
@@ -1576,37 +1579,43 @@ impl Read<'_> {
 
     #[inline(always)]
     fn way_portable(&self, points: &[Solution], heard: &mut [f64], add: bool) {
-        let len = heard.len().min(SPAN);
-        // Grid step by grid step: between points i and i + 1 of the stride.
-        let mut j = 0;
-        while j < len {
-            let p = self.phase + j;
-            let (step, from) = (p / GRID, p % GRID);
-            let until = (from + len - j).min(GRID);
+        for (step, from, part) in self.grid_steps(heard.len().min(SPAN)) {
             let (a, b) = (&points[step], &points[step + 1]);
-            let out = &mut heard[j..j + until - from];
+            let now = self.first + part.start;
+            let out = &mut heard[part];
             match out.try_into() {
-                Ok(out) => self.step::<false>(a, b, self.first + j, out, add, 0.0),
-                Err(_) => self.part(a, b, from, self.first + j, out, add),
+                Ok(out) => self.step::<false>(a, b, now, out, add, 0.0),
+                Err(_) => self.part(a, b, from, now, out, add),
             }
-            j += until - from;
         }
+    }
+
+    /// The grid steps that the `len` samples from `phase` fall in, one after the
+    /// other: each step's index in the stride (between its points `step` and
+    /// `step + 1`), the phase of its first sample in the step, and its samples,
+    /// counted from `phase`.
+    #[inline(always)]
+    fn grid_steps(&self, len: usize) -> impl Iterator<Item = (usize, usize, Range<usize>)> {
+        let (phase, mut j) = (self.phase, 0);
+        std::iter::from_fn(move || {
+            (j < len).then(|| {
+                let (step, from) = ((phase + j) / GRID, (phase + j) % GRID);
+                let part = j..j + (GRID - from).min(len - j);
+                j = part.end;
+                (step, from, part)
+            })
+        })
     }
 
     /// What `late` is sent along the branch `points`: `x[now_j − (τ_j + onset)·rate]`
     /// times its gain where the sound has arrived (a source outrunning its sound is
     /// silent until its boom), 0 before, exactly as each sample read alone
     /// (`τ_j` without an ear's onset: the late part is not heard by the ear).
-    fn send(&self, points: &[Solution], late: &LateState, out: &mut [f64]) {
-        let mut j = 0;
-        while j < out.len() {
-            let p = self.phase + j;
-            let (step, from) = (p / GRID, p % GRID);
-            let until = (from + out.len() - j).min(GRID);
+    fn send(&self, points: &[Solution], late: &LateState, sent: &mut [f64]) {
+        for (step, from, part) in self.grid_steps(sent.len()) {
             let (a, b) = (&points[step], &points[step + 1]);
-            let out = &mut out[j..j + until - from];
-            let now = self.first + j;
-            j += until - from;
+            let now = self.first + part.start;
+            let out = &mut sent[part];
             if a.gain == 0.0 && b.gain == 0.0 {
                 out.fill(0.0);
                 continue;
