@@ -207,6 +207,16 @@ pub(crate) fn read_lagrange(tap: impl Fn(usize) -> f64, d: f64) -> f64 {
     lagrange6(t, |m| tap(k + m - 2))
 }
 
+/// 1 / Π_{i≠m} (m − i) for the taps m = 0…5 of [`lagrange6`]: ±1/(m!·(5 − m)!).
+pub(crate) const INVERSE_DENOMINATORS: [f64; 6] = [
+    -1.0 / 120.0,
+    1.0 / 24.0,
+    -1.0 / 12.0,
+    1.0 / 12.0,
+    -1.0 / 24.0,
+    1.0 / 120.0,
+];
+
 /// The 6-point Lagrange interpolation at fraction `t` between the taps
 /// `x(0) … x(5)`, centred between `x(2)` and `x(3)`: Σ wₘ·x(m).
 #[inline(always)]
@@ -214,15 +224,7 @@ pub(crate) fn lagrange6(t: f64, x: impl Fn(usize) -> f64) -> f64 {
     let x0 = 2.0 + t;
     let f = [x0, x0 - 1.0, x0 - 2.0, x0 - 3.0, x0 - 4.0, x0 - 5.0];
     // wₘ = Π_{i<m} f[i] · Π_{i>m} f[i] / Π_{i≠m} (m − i), the products built from
-    // both ends; the denominators are ±m!·(5 − m)!.
-    const INVERSE_DENOMINATORS: [f64; 6] = [
-        -1.0 / 120.0,
-        1.0 / 24.0,
-        -1.0 / 12.0,
-        1.0 / 12.0,
-        -1.0 / 24.0,
-        1.0 / 120.0,
-    ];
+    // both ends.
     let mut left = [1.0; 6];
     let mut right = [1.0; 6];
     for m in 1..6 {

@@ -32,7 +32,7 @@ use super::path::{Path, VELOCITY_STEP};
 use super::pickup::Pickup;
 use crate::dsp::air::{Air, AirFilter};
 use crate::dsp::clamp_or;
-use crate::dsp::delay::{lagrange6, History};
+use crate::dsp::delay::{lagrange6, History, INVERSE_DENOMINATORS};
 use crate::dsp::filter::OnePole;
 use crate::kernel::{Inputs, KernelOption, Outputs, StateContext, StatefulKernel};
 use crate::op::Description;
@@ -1428,6 +1428,7 @@ impl Propagation {
             first,
             phase,
             sr,
+            width: state.width,
         };
         // Filters settle at grid points only, so blocks may end anywhere.
         let settle = (phase + len).is_multiple_of(GRID);
@@ -1438,9 +1439,9 @@ impl Propagation {
             let mut filters = LaneFilters::default();
             for (lane, k) in group.clone().enumerate() {
                 let (way, w) = (&state.ways[k], &mut state.state[k]);
-                read.way(&w.stride, heard, false, state.width);
+                read.way(&w.stride, heard, false);
                 for pair in &w.extra {
-                    read.way(pair, heard, true, state.width);
+                    read.way(pair, heard, true);
                 }
                 for (row, y) in block.iter_mut().zip(heard.iter()) {
                     row[lane] = *y;
@@ -1542,6 +1543,7 @@ struct Read<'a> {
     first: usize,
     phase: usize,
     sr: f64,
+    width: Width,
 }
 
 impl Read<'_> {
@@ -1550,19 +1552,16 @@ impl Read<'_> {
     /// the delays and taps gathered first, then the interpolation as arithmetic on
     /// arrays, which the compiler computes several samples to an instruction (with
     /// vectors of `width`: the same operations, so the same bits).
-    fn way(&self, points: &[Solution], heard: &mut [f64], add: bool, width: Width) {
+    fn way(&self, points: &[Solution], heard: &mut [f64], add: bool) {
         // SAFETY: a width is detected only where the processor has it.
         #[cfg(target_arch = "x86_64")]
-        match width {
+        match self.width {
             Width::Avx512 => unsafe { self.way_avx512(points, heard, add) },
             Width::Avx2 => unsafe { self.way_avx2(points, heard, add) },
             Width::Portable => self.way_portable(points, heard, add),
         }
         #[cfg(not(target_arch = "x86_64"))]
-        {
-            let _ = width;
-            self.way_portable(points, heard, add);
-        }
+        self.way_portable(points, heard, add);
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -1684,6 +1683,12 @@ impl Read<'_> {
         add: bool,
         onset: f64,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.width == Width::Avx512 {
+            // SAFETY: a width is detected only where the processor has it.
+            unsafe { self.step_avx512::<LATE>(a, b, now, out, add, onset) };
+            return;
+        }
         let basis = self.basis;
         let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
         let (sr, max) = (self.sr, self.history.max_delay());
@@ -1758,6 +1763,183 @@ impl Read<'_> {
         }
         Some(value)
     }
+
+    /// Where a run of reads from index `now` whose nearest whole delay is `near`
+    /// finds its taps: `top − 6 … top + RUN − 1` of the history, if within.
+    #[inline(always)]
+    fn window_top(&self, near: f64, now: usize) -> Option<usize> {
+        // now ≥ max + 4 ≥ near + 4: top ≥ 6.
+        let top = (now + 2).checked_sub(near as usize)?;
+        (top >= 6 && top + RUN <= self.history.samples().len()).then_some(top)
+    }
+
+    /// [`Read::step`] in AVX-512 vectors, a run of [`RUN`] samples a vector: the same
+    /// operations in the same order, so the same bits. (The compiler's vectors of the
+    /// portable step mixed widths and went through the stack between the delays and
+    /// the reads; here each run stays in registers.)
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    fn step_avx512<const LATE: bool>(
+        &self,
+        a: &Solution,
+        b: &Solution,
+        now: usize,
+        out: &mut [f64; GRID],
+        add: bool,
+        onset: f64,
+    ) {
+        use std::arch::x86_64::*;
+        let basis = self.basis;
+        let (tau_a, tau_b) = (a.tau + a.ear, b.tau + b.ear);
+        let x = self.history.samples();
+        let (tau_a, slope_a) = (_mm512_set1_pd(tau_a), _mm512_set1_pd(a.slope));
+        let (tau_b, slope_b) = (_mm512_set1_pd(tau_b), _mm512_set1_pd(b.slope));
+        let (gain_a, rise) = (_mm512_set1_pd(a.gain), _mm512_set1_pd(b.gain - a.gain));
+        let (onset, sr) = (_mm512_set1_pd(onset), _mm512_set1_pd(self.sr));
+        let max = _mm512_set1_pd(self.history.max_delay());
+        for p in (0..GRID).step_by(RUN) {
+            // SAFETY: p + RUN ≤ GRID, the length of the basis's rows and of `out`.
+            let (h00, h10h, h01, h11h, s) = unsafe {
+                (
+                    _mm512_loadu_pd(basis.h00.as_ptr().add(p)),
+                    _mm512_loadu_pd(basis.h10h.as_ptr().add(p)),
+                    _mm512_loadu_pd(basis.h01.as_ptr().add(p)),
+                    _mm512_loadu_pd(basis.h11h.as_ptr().add(p)),
+                    _mm512_loadu_pd(basis.s.as_ptr().add(p)),
+                )
+            };
+            let tau = _mm512_add_pd(
+                _mm512_add_pd(
+                    _mm512_add_pd(_mm512_mul_pd(h00, tau_a), _mm512_mul_pd(h10h, slope_a)),
+                    _mm512_mul_pd(h01, tau_b),
+                ),
+                _mm512_mul_pd(h11h, slope_b),
+            );
+            let tau = if LATE { _mm512_add_pd(tau, onset) } else { tau };
+            // clamp_or(τ·rate, 0, max, 0).
+            let scaled = _mm512_mul_pd(tau, sr);
+            let number = _mm512_cmp_pd_mask::<_CMP_ORD_Q>(scaled, scaled);
+            let clamped = _mm512_min_pd(_mm512_max_pd(scaled, _mm512_setzero_pd()), max);
+            let delay = _mm512_maskz_mov_pd(number, clamped);
+            let gain = _mm512_add_pd(gain_a, _mm512_mul_pd(rise, s));
+            let whole =
+                _mm512_roundscale_pd::<{ _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC }>(delay);
+            // The nearer of the first and last whole delays; every one is it or one more.
+            let last = _mm512_castpd512_pd128(_mm512_permutexvar_pd(_mm512_set1_epi64(7), whole));
+            let near = _mm_min_sd(_mm512_castpd512_pd128(whole), last);
+            let near_all = _mm512_broadcastsd_pd(near);
+            let at_near = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(whole, near_all);
+            let one_more = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(
+                whole,
+                _mm512_add_pd(near_all, _mm512_set1_pd(1.0)),
+            );
+            let near = _mm_cvtsd_f64(near);
+            let top = if at_near | one_more == 0xff && near >= 2.0 {
+                self.window_top(near, now + p)
+            } else {
+                None
+            };
+            let value = match top {
+                Some(top) => {
+                    let t = _mm512_sub_pd(delay, whole);
+                    // Window i holds x[top + j − i] in lane j: sample j's taps are
+                    // windows 0…5, or 1…6 where its whole delay is one more.
+                    // SAFETY: `window_top` found top − 6 … top + RUN − 1 within the history.
+                    let w = unsafe {
+                        let x = x.as_ptr().add(top);
+                        [
+                            _mm512_loadu_pd(x),
+                            _mm512_loadu_pd(x.sub(1)),
+                            _mm512_loadu_pd(x.sub(2)),
+                            _mm512_loadu_pd(x.sub(3)),
+                            _mm512_loadu_pd(x.sub(4)),
+                            _mm512_loadu_pd(x.sub(5)),
+                            _mm512_loadu_pd(x.sub(6)),
+                        ]
+                    };
+                    let further = !at_near;
+                    let taps = [
+                        _mm512_mask_blend_pd(further, w[0], w[1]),
+                        _mm512_mask_blend_pd(further, w[1], w[2]),
+                        _mm512_mask_blend_pd(further, w[2], w[3]),
+                        _mm512_mask_blend_pd(further, w[3], w[4]),
+                        _mm512_mask_blend_pd(further, w[4], w[5]),
+                        _mm512_mask_blend_pd(further, w[5], w[6]),
+                    ];
+                    lagrange6_avx512(t, taps)
+                }
+                None => {
+                    let mut delays = [0.0; RUN];
+                    // SAFETY: eight samples, in `delays`.
+                    unsafe { _mm512_storeu_pd(delays.as_mut_ptr(), delay) };
+                    let value = self.alone(&delays, now + p);
+                    // SAFETY: eight samples, in `value`.
+                    unsafe { _mm512_loadu_pd(value.as_ptr()) }
+                }
+            };
+            let heard = _mm512_mul_pd(gain, value);
+            // SAFETY: p + RUN ≤ GRID.
+            unsafe {
+                let out = out.as_mut_ptr().add(p);
+                let heard = if add {
+                    _mm512_add_pd(_mm512_loadu_pd(out), heard)
+                } else {
+                    heard
+                };
+                _mm512_storeu_pd(out, heard);
+            }
+        }
+    }
+
+    /// [`RUN`] samples read at `delay` from index `now` of the history on, sample by
+    /// sample.
+    #[cold]
+    fn alone(&self, delay: &[f64; RUN], now: usize) -> [f64; RUN] {
+        std::array::from_fn(|j| self.history.read_lagrange(now + j, delay[j]))
+    }
+}
+
+/// [`lagrange6`] in AVX-512 vectors, a sample a lane, at fractions `t` between the
+/// taps `x`; the whole taps (t = 0) as they are, as [`History::read_lagrange`] reads
+/// them. The same operations in the same order, so the same bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f")]
+#[inline]
+fn lagrange6_avx512(
+    t: std::arch::x86_64::__m512d,
+    x: [std::arch::x86_64::__m512d; 6],
+) -> std::arch::x86_64::__m512d {
+    use std::arch::x86_64::*;
+    let set = _mm512_set1_pd;
+    let x0 = _mm512_add_pd(set(2.0), t);
+    let f = [
+        x0,
+        _mm512_sub_pd(x0, set(1.0)),
+        _mm512_sub_pd(x0, set(2.0)),
+        _mm512_sub_pd(x0, set(3.0)),
+        _mm512_sub_pd(x0, set(4.0)),
+        _mm512_sub_pd(x0, set(5.0)),
+    ];
+    // The products from both ends (a product with 1 is the factor itself).
+    let mut left = [f[0]; 6];
+    let mut right = [f[5]; 6];
+    for m in 2..6 {
+        left[m] = _mm512_mul_pd(left[m - 1], f[m - 1]);
+        right[5 - m] = _mm512_mul_pd(right[6 - m], f[6 - m]);
+    }
+    let mut y = _mm512_setzero_pd();
+    for m in 0..6 {
+        let weight = match m {
+            0 => right[0],
+            5 => left[5],
+            _ => _mm512_mul_pd(left[m], right[m]),
+        };
+        let term = _mm512_mul_pd(_mm512_mul_pd(weight, set(INVERSE_DENOMINATORS[m])), x[m]);
+        y = _mm512_add_pd(y, term);
+    }
+    let whole = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(t, _mm512_setzero_pd());
+    _mm512_mask_blend_pd(whole, y, x[2])
 }
 
 /// Samples read together (see [`Read::run`]).
@@ -2032,6 +2214,7 @@ mod tests {
                     first: first + phase,
                     phase,
                     sr: SR,
+                    width: Width::Portable,
                 };
                 let mut alone = vec![0.0; len];
                 for (j, y) in alone.iter_mut().enumerate() {
@@ -2041,8 +2224,9 @@ mod tests {
                     *y = gain * history.read_lagrange(first + p, delay);
                 }
                 for width in Width::all() {
+                    let read = Read { width, ..read };
                     let mut heard = vec![0.0; len];
-                    read.way(&points, &mut heard, false, width);
+                    read.way(&points, &mut heard, false);
                     for j in 0..len {
                         assert_eq!(
                             heard[j].to_bits(),
@@ -2050,7 +2234,7 @@ mod tests {
                             "{width:?}, delays {from}..{to}, phase {phase}, sample {j}"
                         );
                     }
-                    read.way(&points, &mut heard, true, width);
+                    read.way(&points, &mut heard, true);
                     assert!(heard.iter().zip(&alone).all(|(h, a)| *h == a + a), "added");
                 }
             }
