@@ -728,9 +728,9 @@ impl Basis {
 pub struct PropagationState {
     history: History,
     basis: Basis,
-    /// One way's sound in the current stride.
-    heard: [f64; SPAN],
-    /// A group's sounds in the current stride, a lane per way, as they are filtered.
+    /// A group's ways' sounds in the current stride, a way each.
+    heard: [[f64; SPAN]; LANES],
+    /// The same, a lane per way, as they are filtered.
     block: [Lanes; SPAN],
     /// cos ω of the air's reference frequency at the render's rate.
     air_cos: f64,
@@ -1268,8 +1268,8 @@ impl StatefulKernel for Propagation {
             .filter(|r| matches!(r.pickup, Pickup::Ear { .. }))
             .count();
         let filters = (8 * (3 * TAPS + SPAN) * ears) as f64;
-        // A way's stride and a group's, a lane per way.
-        let scratch = (8 * SPAN * (1 + LANES)) as f64;
+        // A group's strides, a way each and a lane per way.
+        let scratch = (8 * SPAN * 2 * LANES) as f64;
         // Each way, its state and its group; the receivers where they are at each grid
         // point of a stride; the late part's muffles (the late part itself is the
         // bus's).
@@ -1354,7 +1354,7 @@ impl StatefulKernel for Propagation {
         let mut propagation = PropagationState {
             history: History::new(length),
             basis: Basis::new(sr),
-            heard: [0.0; SPAN],
+            heard: [[0.0; SPAN]; LANES],
             block: [[0.0; LANES]; SPAN],
             air_cos,
             width: Width::detect(),
@@ -1432,19 +1432,17 @@ impl Propagation {
         };
         // Filters settle at grid points only, so blocks may end anywhere.
         let settle = (phase + len).is_multiple_of(GRID);
-        let heard = &mut state.heard[..len];
+        let heard = &mut state.heard;
         let block = &mut state.block[..len];
         let air = self.medium.air.is_some();
         for group in &state.groups {
             let mut filters = LaneFilters::default();
             for (lane, k) in group.clone().enumerate() {
                 let (way, w) = (&state.ways[k], &mut state.state[k]);
+                let heard = &mut heard[lane][..len];
                 read.way(&w.stride, heard, false);
                 for pair in &w.extra {
                     read.way(pair, heard, true);
-                }
-                for (row, y) in block.iter_mut().zip(heard.iter()) {
-                    row[lane] = *y;
                 }
                 if air {
                     (filters.air[lane], filters.first[lane], filters.second[lane]) = w.air.parts();
@@ -1457,9 +1455,12 @@ impl Propagation {
             // Lanes past the group's hold earlier ways' sound: filtered (or not) and
             // never added.
             let n = group.len();
+            into_lanes(heard, n, block);
             filters.run(block, n, state.width.wide());
+            out_of_lanes(block, n, heard);
             for (lane, k) in group.clone().enumerate() {
                 let (way, w) = (&state.ways[k], &mut state.state[k]);
+                let heard = &mut heard[lane][..len];
                 if air {
                     w.air
                         .keep(filters.first[lane], filters.second[lane], settle);
@@ -1468,52 +1469,62 @@ impl Propagation {
                     w.wall.keep(filters.walls[lane], settle);
                 }
                 if w.muffle.material.is_some() {
-                    for row in block.iter_mut() {
-                        row[lane] = w.muffle.process(row[lane], fade_step);
+                    for y in heard.iter_mut() {
+                        *y = w.muffle.process(*y, fade_step);
                     }
                 }
                 if let Some(ear) = &mut w.ear {
                     // Alone in its group: then the ear's response.
-                    for (y, row) in heard.iter_mut().zip(block.iter()) {
-                        *y = row[lane];
-                    }
                     let end = &w.stride[unit / GRID];
                     ear.process(heard, phase, unit, end.weights, state.width);
-                    for (row, y) in block.iter_mut().zip(heard.iter()) {
-                        row[lane] = *y;
-                    }
                 }
-            }
-            // Into the receivers' lanes, way after way (as each way alone would add).
-            let mut lane = 0;
-            while lane < n {
-                let receiver = state.ways[group.start + lane].receiver;
-                let run = (state.ways[group.start + lane..group.end].iter())
-                    .take_while(|way| way.receiver == receiver)
-                    .count();
-                let out = &mut samples[receiver * stride..][..len];
-                for (out, row) in out.iter_mut().zip(block.iter()) {
-                    let mut sum = *out;
-                    for y in &row[lane..lane + run] {
-                        sum += y;
-                    }
-                    *out = sum;
+                // Into its receiver's lane, way after way (as each way alone would add).
+                let out = &mut samples[way.receiver * stride..][..len];
+                for (out, y) in out.iter_mut().zip(heard.iter()) {
+                    *out += y;
                 }
-                lane += run;
             }
         }
         if let Some(late) = &mut state.late {
             // What the room's late part is sent: the sound heard directly by the
             // first receiver (its first way), `onset` later, a lane per receiver
             // after theirs.
-            read.send(&state.state[0].stride, late, heard);
+            let sent = &mut heard[0][..len];
+            read.send(&state.state[0].stride, late, sent);
             let receivers = self.receivers.len();
             for (lane, muffle) in late.muffles.iter_mut().enumerate() {
                 let out = &mut samples[(receivers + lane) * stride..][..len];
-                for (out, x) in out.iter_mut().zip(heard.iter()) {
+                for (out, x) in out.iter_mut().zip(sent.iter()) {
                     *out += muffle.process(*x, fade_step);
                 }
             }
+        }
+    }
+}
+
+/// `block[j][l] = ways[l][j]` for the samples of `block` and the first `lanes`
+/// lanes, rounded up as [`LaneFilters::run`] rounds them (its other lanes are never
+/// added).
+fn into_lanes(ways: &[[f64; SPAN]; LANES], lanes: usize, block: &mut [Lanes]) {
+    fn copy<const N: usize>(ways: &[[f64; SPAN]; LANES], block: &mut [Lanes]) {
+        for (j, row) in block.iter_mut().enumerate() {
+            for l in 0..N {
+                row[l] = ways[l][j];
+            }
+        }
+    }
+    match lanes {
+        0..=2 => copy::<2>(ways, block),
+        3..=4 => copy::<4>(ways, block),
+        _ => copy::<LANES>(ways, block),
+    }
+}
+
+/// `ways[l][j] = block[j][l]` for the samples of `block` and the first `lanes` lanes.
+fn out_of_lanes(block: &[Lanes], lanes: usize, ways: &mut [[f64; SPAN]; LANES]) {
+    for (l, way) in ways.iter_mut().enumerate().take(lanes) {
+        for (y, row) in way.iter_mut().zip(block) {
+            *y = row[l];
         }
     }
 }
