@@ -387,14 +387,20 @@ impl Active {
         // Lanes heard directly: 1 (routed) or one per channel.
         let dry = width - sends;
         let unmixed = self.mix == Mix::default();
-        if finite && dry == 1 && channels == 1 && sends == 0 && self.fade_from.is_none() && unmixed
-        {
-            // The common case, mono and no fade, in a tight loop.
-            // Up to the sample after which it has decayed, if it has.
+        if finite && dry == 1 && sends == 0 && self.fade_from.is_none() && unmixed {
+            // The common case, a mono voice heard everywhere and no fade, in a tight
+            // loop. Up to the sample after which it has decayed, if it has.
             let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
             let heard = last.map_or(n, |k| k + 1);
-            for (y, x) in out[offset..offset + heard].iter_mut().zip(rendered) {
-                *y += x;
+            let out = &mut out[offset * channels..(offset + heard) * channels];
+            match channels {
+                1 => add_everywhere::<1>(out, rendered),
+                2 => add_everywhere::<2>(out, rendered),
+                _ => {
+                    for (frame, x) in out.chunks_exact_mut(channels).zip(rendered) {
+                        frame.iter_mut().for_each(|y| *y += x);
+                    }
+                }
             }
             if last.is_some() {
                 next = from + heard as u64;
@@ -483,6 +489,16 @@ impl Active {
             }
         }
         self.next = next;
+    }
+}
+
+/// Adds each sample of the mono `voice` to every channel of its frame of `out`
+/// (frames of `N` channels).
+fn add_everywhere<const N: usize>(out: &mut [f64], voice: &[f64]) {
+    for (frame, x) in out.as_chunks_mut::<N>().0.iter_mut().zip(voice) {
+        for y in frame {
+            *y += x;
+        }
     }
 }
 
