@@ -10,7 +10,7 @@
 //! - Widths are checked by lowering before [`Graph::add`] is called; `add` computes
 //!   the width but trusts the arguments to be compatible.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 
 use crate::op::{BinaryOp, ImpulseResponse, Op, TernaryOp, UnaryOp};
@@ -313,13 +313,43 @@ impl Graph {
     /// sub-tree on a clock of their own (`energetic`), so that no later pass over this
     /// graph (optimising, dumping, copying) has to know about the sub-tree.
     pub fn subgraph(&self, root: NodeId) -> (Graph, NodeId) {
-        let needed = self.reachable(&[root]);
+        let needed = self.needed(root);
         let mut out = Graph::new();
-        let mut map = vec![NodeId(0); root.index() + 1];
-        for i in (0..=root.index()).filter(|i| needed[*i]) {
-            map[i] = out.copy_node(&self.nodes[i], &map);
+        let mut map = HashMap::with_capacity(needed.len());
+        for id in needed {
+            let copy = out.copy_node(&self.nodes[id.index()], |a| map[&a]);
+            map.insert(id, copy);
         }
-        (out, map[root.index()])
+        (out, map[&root])
+    }
+
+    /// The nodes `root` needs (through arguments and impulse-response trees), in id
+    /// order: a walk over them alone, so that an instance's start does not cost the
+    /// size of a scene's whole graph.
+    pub fn needed(&self, root: NodeId) -> Vec<NodeId> {
+        self.walk(root, true)
+    }
+
+    /// The nodes reached from `root` through arguments (and impulse-response trees,
+    /// if `trees`), in id order, found by a walk over them alone.
+    fn walk(&self, root: NodeId, trees: bool) -> Vec<NodeId> {
+        let mut seen = HashSet::from([root]);
+        let mut stack = vec![root];
+        while let Some(id) = stack.pop() {
+            let node = &self.nodes[id.index()];
+            let tree = match &node.op {
+                Op::Conv(ImpulseResponse::Tree { root, .. }) if trees => Some(*root),
+                _ => None,
+            };
+            for arg in node.args.iter().copied().chain(tree) {
+                if seen.insert(arg) {
+                    stack.push(arg);
+                }
+            }
+        }
+        let mut order: Vec<NodeId> = seen.into_iter().collect();
+        order.sort_unstable();
+        order
     }
 
     /// Which nodes `roots` depend on, through arguments and impulse-response trees.
@@ -349,11 +379,11 @@ impl Graph {
 
     /// Adds a copy of `node` (of another graph), its arguments and impulse-response
     /// root renamed by `map` (old id → id here).
-    pub(crate) fn copy_node(&mut self, node: &Node, map: &[NodeId]) -> NodeId {
-        let args = node.args.iter().map(|a| map[a.index()]).collect();
+    pub(crate) fn copy_node(&mut self, node: &Node, map: impl Fn(NodeId) -> NodeId) -> NodeId {
+        let args = node.args.iter().map(|a| map(*a)).collect();
         let op = match &node.op {
             Op::Conv(ImpulseResponse::Tree { root, seconds }) => Op::Conv(ImpulseResponse::Tree {
-                root: map[root.index()],
+                root: map(*root),
                 seconds: *seconds,
             }),
             op => op.clone(),
@@ -364,21 +394,9 @@ impl Graph {
     /// Ids of the nodes the evaluation of `root` needs, in evaluation order. A
     /// convolution's impulse-response tree is not included: it is rendered on its own.
     pub fn schedule(&self, root: NodeId) -> Vec<NodeId> {
-        // A walk from the root over its arguments only (an instance's start must
-        // not cost the size of a scene's whole graph); children have smaller ids,
-        // so the reached nodes in id order are an order of evaluation.
-        let mut seen = std::collections::HashSet::from([root]);
-        let mut stack = vec![root];
-        while let Some(id) = stack.pop() {
-            for arg in &self.nodes[id.index()].args {
-                if seen.insert(*arg) {
-                    stack.push(*arg);
-                }
-            }
-        }
-        let mut order: Vec<NodeId> = seen.into_iter().collect();
-        order.sort_unstable();
-        order
+        // Children have smaller ids, so the reached nodes in id order are an order
+        // of evaluation.
+        self.walk(root, false)
     }
 }
 

@@ -40,7 +40,10 @@ pub const MAX_FACTORS: usize = 64;
 
 /// An optimised copy of what `root` needs of `graph`, and where `root` is in it.
 pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
-    let needed = graph.reachable(&[root]);
+    // What `root` needs first, on its own: the passes below go over every node of
+    // the graph they are given, and a scene's holds every instance.
+    let (graph, root) = &graph.subgraph(root);
+    let needed = graph.reachable(&[*root]);
     let facts = Facts::new(graph, &needed);
     let mut out = Graph::new();
     let mut map: Vec<NodeId> = vec![NodeId(0); graph.len()];
@@ -54,7 +57,7 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
             Op::Concat => white_lanes(graph, &node.args).map(|op| out.add(op, vec![])),
             _ => facts.damped_sine(graph, &mut out, &map, id, &mut parts),
         };
-        let new = rewritten.unwrap_or_else(|| out.copy_node(node, &map));
+        let new = rewritten.unwrap_or_else(|| out.copy_node(node, |a| map[a.index()]));
         map[id.index()] = new;
     }
     (out, map[root.index()])
