@@ -103,10 +103,14 @@ impl Interpreter {
         let buffers = steps
             .iter()
             .map(|step| match &step.op {
-                Op::Const(values) => values
-                    .iter()
-                    .flat_map(|v| std::iter::repeat_n(*v, bs))
-                    .collect(),
+                Op::Const(values) => {
+                    // Lane by lane, each value a block long.
+                    let mut buffer = Vec::with_capacity(values.len() * bs);
+                    for &v in values.iter() {
+                        buffer.resize(buffer.len() + bs, v);
+                    }
+                    buffer
+                }
                 _ => vec![0.0; step.width * bs],
             })
             .collect();
