@@ -419,17 +419,12 @@ impl Jit {
         root: NodeId,
         config: RenderConfig,
     ) -> Result<JitVoice, JitError> {
-        let steps = graph.schedule(root).len();
-        if steps > MAX_KERNEL_STEPS {
-            return Err(JitError::TooLarge { steps });
-        }
-        // Pairs of samples are computed together: the block holds a whole number of them.
-        let config = RenderConfig {
-            block_size: config.block_size.max(2).div_ceil(2) * 2,
-            ..config
-        };
-        let (graph, root) = timbre_ir::optimise::optimise(graph, root);
-        let mut interp = Interpreter::new(&graph, root, config);
+        self.finish_voice(VoiceDraft::new(graph, root, config)?)
+    }
+
+    /// The voice of `draft`: its kernel from the cache (or compiled), its states.
+    pub fn finish_voice(&mut self, draft: VoiceDraft) -> Result<JitVoice, JitError> {
+        let VoiceDraft { mut interp, config } = draft;
         let kernel = self.compile(interp.steps(), config.block_size)?;
         let buffers = interp.buffer_pointers();
         // State of the nodes computed inline: one phase per lane of each phasor; the
@@ -530,6 +525,32 @@ impl Jit {
     /// kernels still in use were compiled into.
     pub fn live_generations(&self) -> usize {
         self.live_generations.load(Ordering::Relaxed)
+    }
+}
+
+/// What a voice is made of before its kernel: the tree optimised and laid out in
+/// blocks. It needs no [`Jit`], so the voices of instances about to start can be
+/// drafted on several threads at once; [`Jit::finish_voice`] then takes the kernel.
+pub struct VoiceDraft {
+    interp: Interpreter,
+    config: RenderConfig,
+}
+
+impl VoiceDraft {
+    /// The draft of [`Jit::voice`]'s voice of `root`.
+    pub fn new(graph: &Graph, root: NodeId, config: RenderConfig) -> Result<Self, JitError> {
+        let steps = graph.schedule(root).len();
+        if steps > MAX_KERNEL_STEPS {
+            return Err(JitError::TooLarge { steps });
+        }
+        // Pairs of samples are computed together: the block holds a whole number of them.
+        let config = RenderConfig {
+            block_size: config.block_size.max(2).div_ceil(2) * 2,
+            ..config
+        };
+        let (graph, root) = timbre_ir::optimise::optimise(graph, root);
+        let interp = Interpreter::new(&graph, root, config);
+        Ok(VoiceDraft { interp, config })
     }
 }
 

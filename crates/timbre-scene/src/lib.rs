@@ -15,9 +15,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+use rayon::iter::{IntoParallelIterator, ParallelIterator};
 use timbre_ir::space::{LateBus, LateBusState};
 use timbre_ir::{Graph, Instance, Interpreter, NodeId, Program, RenderConfig, DECLICK_OUT};
-use timbre_jit::{InstanceLanes, Jit, JitError, JitVoice, LaneBatch};
+use timbre_jit::{InstanceLanes, Jit, JitError, JitVoice, LaneBatch, VoiceDraft};
 
 use mix::Route;
 pub use mix::{Mix, Placement};
@@ -218,7 +219,10 @@ impl Prepared {
     ) -> Result<Self, JitError> {
         let interpreted = || Voice::Interpreter(Box::new(Interpreter::new(graph, root, config)));
         let voice = match (engine, jit) {
-            (Engine::Jit, Some(jit)) => match lock(jit).voice(graph, root, config) {
+            // Drafted before the JIT is locked: voices may be made on several threads.
+            (Engine::Jit, Some(jit)) => match VoiceDraft::new(graph, root, config)
+                .and_then(|draft| lock(jit).finish_voice(draft))
+            {
                 Ok(voice) => Voice::Jit(Box::new(voice)),
                 // Too large to compile: the reference interpreter renders it.
                 Err(JitError::TooLarge { .. }) => interpreted(),
@@ -653,6 +657,9 @@ pub struct SceneRenderer {
     pool: Option<Arc<rayon::ThreadPool>>,
     /// The time the last block's voices took, as on one thread.
     last_block_work: Duration,
+    /// The scene sample before which every pending instance's voice has been made
+    /// ahead of its start (see [`SceneRenderer::prepare_ahead`]).
+    prepared_until: u64,
     /// See [`SceneRenderer::set_threads_min_work`].
     threads_min_work: Duration,
     /// Instances that have ended after producing samples that were not finite.
@@ -674,6 +681,10 @@ pub struct SceneRenderer {
     outbox: Option<rtrb::Producer<Ended>>,
     published: Option<Arc<AtomicU64>>,
 }
+
+/// How far ahead of their start, in seconds of the scene, instances' voices are made
+/// on several threads (see [`SceneRenderer::prepare_ahead`]).
+const PREPARE_AHEAD: f64 = 0.05;
 
 /// Blocks whose voices take less than this on one thread are not shared out among
 /// threads: waking one costs tens of microseconds.
@@ -728,6 +739,7 @@ impl SceneRenderer {
             next_id: 0,
             pool: None,
             last_block_work: Duration::ZERO,
+            prepared_until: 0,
             threads_min_work: THREADS_WORTH_IT,
             batches: vec![],
             batching: engine == Engine::Jit,
@@ -1227,6 +1239,7 @@ impl SceneRenderer {
         out.fill(0.0);
         let end = self.position + (out.len() / self.channels) as u64;
         self.admit_pending(end)?;
+        self.prepare_ahead(end);
         // The voices (and the batches of lanes) share the threads out when there are
         // several and the last block took long enough to be worth waking a thread for
         // (tens of microseconds). A lone voice renders on this thread (its own large
@@ -1259,18 +1272,17 @@ impl SceneRenderer {
                 Source::Voice(voice) => voice,
                 Source::Root(root) => {
                     let graph = self.graph.clone();
-                    let voice = match self.lane(&graph, root, p.start)? {
+                    match self.lane(&graph, root, p.start)? {
                         Some(lane) => lane,
                         None => self.prepare(&graph, root)?.voice,
-                    };
-                    // A placed voice is wider than the channels by its sends.
-                    let frames = self.config.block_size.max(1) * voice.width();
-                    if self.scratch.len() < frames {
-                        self.scratch.resize(frames, 0.0);
                     }
-                    voice
                 }
             };
+            // A placed voice is wider than the channels by its sends.
+            let frames = self.config.block_size.max(1) * voice.width();
+            if self.scratch.len() < frames {
+                self.scratch.resize(frames, 0.0);
+            }
             voice.set_threads(self.pool.clone());
             self.active.push(Active {
                 id: p.id,
@@ -1288,6 +1300,45 @@ impl SceneRenderer {
             });
         }
         Ok(())
+    }
+
+    /// With threads, makes the voices of the pending instances that start in the next
+    /// [`PREPARE_AHEAD`] seconds of the scene, once those made before are used up,
+    /// several at once: making a voice (optimising its tree, laying out its buffers)
+    /// is otherwise done on this thread alone as each instance starts. Instances that
+    /// will be lanes of a batch are left to their start. A voice that cannot be made
+    /// is left too: its start reports why. Voices are the same whenever they are
+    /// made, so the samples do not change.
+    fn prepare_ahead(&mut self, end: u64) {
+        let Some(pool) = self.pool.clone() else {
+            return;
+        };
+        if self.prepared_until > end {
+            return;
+        }
+        let until = end + (PREPARE_AHEAD * self.config.sample_rate) as u64;
+        self.prepared_until = until;
+        let (engine, config, graph) = (self.engine, self.config, &self.graph);
+        let jit = self.jit.as_ref();
+        let batching = self.batching && jit.is_some();
+        let todo: Vec<&mut Pending> = (self.pending.iter_mut().rev())
+            .take_while(|p| p.start < until)
+            .filter(|p| matches!(p.source, Source::Root(_)))
+            .collect();
+        if todo.len() < 2 {
+            return;
+        }
+        pool.install(|| {
+            todo.into_par_iter().for_each(|p| {
+                let Source::Root(root) = p.source else { return };
+                if batching && InstanceLanes::of(graph, root, config.block_size).is_some() {
+                    return;
+                }
+                if let Ok(prepared) = Prepared::new(engine, jit, config, graph, root) {
+                    p.source = Source::Voice(prepared.voice);
+                }
+            })
+        });
     }
 
     /// Renders the batches with lanes in use up to `end`, before the voices: their
