@@ -373,11 +373,32 @@ impl Active {
         fade: u64,
         sent: Option<Sent<'_>>,
     ) {
+        let sends = sent.as_ref().map_or(0, |s| s.lanes);
+        let heard = self.judge(rendered, from, until, position, channels, fade, sends);
+        let frames = out.len() / channels;
+        heard.add(rendered, 0..frames, out, channels, fade, sent);
+    }
+
+    /// How much of its part of the block, `rendered` (samples `from..until` of the
+    /// scene), the instance is heard for, and how it is added (see [`Active::add`]):
+    /// its faults counted, and its end set where it has decayed (the frame it is
+    /// judged to have decayed at is its last). Judged on the instance's own samples,
+    /// so instances may be judged one after the other and added by frames.
+    #[allow(clippy::too_many_arguments)]
+    fn judge(
+        &mut self,
+        rendered: &[f64],
+        from: u64,
+        until: u64,
+        position: u64,
+        channels: usize,
+        fade: u64,
+        sends: usize,
+    ) -> Heard {
         let offset = (from - position) as usize;
         let n = (until - from) as usize;
         let width = self.voice.width();
         let rendered = &rendered[..n * width];
-        let mut next = until;
         let finite = all_finite(rendered);
         if !finite {
             // Left out of the mix (the rest of the scene is heard), counted, and the
@@ -387,17 +408,92 @@ impl Active {
             self.faults += bad;
             self.first_fault.get_or_insert(from + first as u64);
         }
-        let sends = sent.as_ref().map_or(0, |s| s.lanes);
         // Lanes heard directly: 1 (routed) or one per channel.
         let dry = width - sends;
-        let unmixed = self.mix == Mix::default();
-        if finite && dry == 1 && sends == 0 && self.fade_from.is_none() && unmixed {
-            // The common case, a mono voice heard everywhere and no fade, in a tight
-            // loop. Up to the sample after which it has decayed, if it has.
+        let plain = finite && self.fade_from.is_none() && self.mix == Mix::default();
+        let (way, last) = if plain && dry == 1 && sends == 0 {
+            // The common case, a mono voice heard everywhere and no fade. Up to the
+            // sample after which it has decayed, if it has.
             let last = self.decay.as_mut().and_then(|d| d.push_all(rendered));
-            let heard = last.map_or(n, |k| k + 1);
-            let out = &mut out[offset * channels..(offset + heard) * channels];
-            match channels {
+            (MixWay::Mono, last)
+        } else if plain && dry == channels {
+            // A voice of a lane per channel (a placed instance), no fade, its sends
+            // into the bus.
+            let last = (self.decay.as_mut()).and_then(|d| d.push_frames(rendered, width));
+            (MixWay::Frames, last)
+        } else {
+            // Decay is judged on the instance's own sound (with its fade-out), not on
+            // the host's gain: a muted instance goes on. A sample that is not finite
+            // counts as heard: left out of the mix, it does not end the instance.
+            let level = |x: f64| if x.is_finite() { x.abs() } else { 1.0 };
+            let mut last = None;
+            if let Some(decay) = self.decay.as_mut() {
+                for (k, lanes) in rendered.chunks_exact(width).enumerate() {
+                    let fading = fading(self.fade_from, from + k as u64, fade);
+                    let loudest = (lanes.iter()).fold(0.0f64, |m, x| m.max(level(*x))) * fading;
+                    if decay.push(loudest) {
+                        // Decayed: this is its last sample, whatever the block.
+                        last = Some(k);
+                        break;
+                    }
+                }
+            }
+            (MixWay::General, last)
+        };
+        let frames = last.map_or(n, |k| k + 1);
+        self.next = from + frames as u64;
+        if last.is_some() {
+            self.end = Some(self.next);
+        }
+        Heard {
+            offset,
+            frames,
+            width,
+            way,
+            from,
+            fade_from: self.fade_from,
+            mix: self.mix,
+        }
+    }
+}
+
+impl Heard {
+    /// Adds the frames of `rendered` (the instance's part of the block) that are
+    /// heard and fall in the block's frames `range` into `out` (those frames of the
+    /// block), and its sends into `sent` (the bus's same frames). Each frame's sums
+    /// are those of adding the whole block at once.
+    fn add(
+        &self,
+        rendered: &[f64],
+        range: std::ops::Range<usize>,
+        out: &mut [f64],
+        channels: usize,
+        fade: u64,
+        sent: Option<Sent<'_>>,
+    ) {
+        let Heard {
+            offset,
+            frames,
+            width,
+            way,
+            from,
+            fade_from,
+            mix,
+        } = *self;
+        // The instance's frames k that are in `range`, and where the first is in it.
+        let first = range.start.max(offset);
+        let last = range.end.min(offset + frames);
+        if first >= last {
+            return;
+        }
+        let ks = first - offset..last - offset;
+        let at = first - range.start;
+        let out = &mut out[at * channels..(at + ks.len()) * channels];
+        let rendered = &rendered[ks.start * width..ks.end * width];
+        let sends = sent.as_ref().map_or(0, |s| s.lanes);
+        let dry = width - sends;
+        match way {
+            MixWay::Mono => match channels {
                 1 => add_everywhere::<1>(out, rendered),
                 2 => add_everywhere::<2>(out, rendered),
                 _ => {
@@ -405,31 +501,15 @@ impl Active {
                         frame.iter_mut().for_each(|y| *y += x);
                     }
                 }
-            }
-            if last.is_some() {
-                next = from + heard as u64;
-                self.end = Some(next);
-            }
-            self.next = next;
-            return;
-        }
-        if finite && dry == channels && self.fade_from.is_none() && unmixed {
-            // A voice of a lane per channel (a placed instance), no fade: the same
-            // tight loop, a frame at a time, its sends into the bus.
-            let last = self
-                .decay
-                .as_mut()
-                .and_then(|d| d.push_frames(rendered, width));
-            let heard = last.map_or(n, |k| k + 1);
-            let out = &mut out[offset * channels..(offset + heard) * channels];
-            match sent {
+            },
+            MixWay::Frames => match sent {
                 None => {
                     for (y, x) in out.iter_mut().zip(rendered) {
                         *y += x;
                     }
                 }
                 Some(sent) => {
-                    let bus = &mut sent.input[offset * sends..(offset + heard) * sends];
+                    let bus = &mut sent.input[at * sends..(at + ks.len()) * sends];
                     let frames = rendered.chunks_exact(width);
                     for ((y, b), x) in (out.chunks_exact_mut(channels))
                         .zip(bus.chunks_exact_mut(sends))
@@ -443,56 +523,75 @@ impl Active {
                         }
                     }
                 }
-            }
-            if last.is_some() {
-                next = from + heard as u64;
-                self.end = Some(next);
-            }
-            self.next = next;
-            return;
-        }
-        let route = Route::of(self.mix.placement, channels);
-        let mut sent = sent;
-        for (k, lanes) in rendered.chunks_exact(width).enumerate() {
-            let fading = match self.fade_from {
-                Some(f) => {
-                    let s = from + k as u64;
-                    if s < f {
-                        1.0
+            },
+            MixWay::General => {
+                let route = Route::of(mix.placement, channels);
+                let first = from + ks.start as u64;
+                let mut sent = sent;
+                for (j, lanes) in rendered.chunks_exact(width).enumerate() {
+                    let gain = fading(fade_from, first + j as u64, fade) * mix.gain;
+                    let frame = &mut out[j * channels..(j + 1) * channels];
+                    if dry == 1 {
+                        route.add(finite_or_zero(lanes[0]) * gain, frame);
                     } else {
-                        (1.0 - (s - f) as f64 / fade as f64).max(0.0)
+                        for (y, x) in frame.iter_mut().zip(&lanes[..dry]) {
+                            *y += finite_or_zero(*x) * gain;
+                        }
+                    }
+                    if let Some(sent) = sent.as_mut() {
+                        let bus = &mut sent.input[(at + j) * sends..(at + j + 1) * sends];
+                        for (b, x) in bus.iter_mut().zip(&lanes[dry..]) {
+                            *b += finite_or_zero(*x) * gain;
+                        }
                     }
                 }
-                None => 1.0,
-            };
-            let gain = fading * self.mix.gain;
-            let frame = &mut out[(offset + k) * channels..(offset + k + 1) * channels];
-            if dry == 1 {
-                route.add(finite_or_zero(lanes[0]) * gain, frame);
-            } else {
-                for (y, x) in frame.iter_mut().zip(&lanes[..dry]) {
-                    *y += finite_or_zero(*x) * gain;
-                }
-            }
-            if let Some(sent) = sent.as_mut() {
-                let bus = &mut sent.input[(offset + k) * sends..(offset + k + 1) * sends];
-                for (b, x) in bus.iter_mut().zip(&lanes[dry..]) {
-                    *b += finite_or_zero(*x) * gain;
-                }
-            }
-            // Decay is judged on the instance's own sound (with its fade-out), not on
-            // the host's gain: a muted instance goes on. A sample that is not finite
-            // counts as heard: left out of the mix, it does not end the instance.
-            let level = |x: f64| if x.is_finite() { x.abs() } else { 1.0 };
-            let loudest = (lanes.iter()).fold(0.0f64, |m, x| m.max(level(*x))) * fading;
-            if self.decay.as_mut().is_some_and(|d| d.push(loudest)) {
-                // Decayed: this is its last sample, whatever the block.
-                next = from + k as u64 + 1;
-                self.end = Some(next);
-                break;
             }
         }
-        self.next = next;
+    }
+}
+
+/// A thread's frames of the block in [`SceneRenderer::mix_by_frames`]: those frames
+/// of the output and of each bus's input.
+struct MixRun<'a> {
+    frames: std::ops::Range<usize>,
+    out: &'a mut [f64],
+    inputs: Vec<&'a mut [f64]>,
+}
+
+/// What [`Active::judge`] found of an instance's part of a block, and what adding
+/// it needs of the instance.
+#[derive(Clone, Copy, Debug)]
+struct Heard {
+    /// The block's frame its part starts at.
+    offset: usize,
+    /// Frames heard from there (to the end of its part, or to where it decayed).
+    frames: usize,
+    /// Lanes of its voice.
+    width: usize,
+    way: MixWay,
+    /// The scene sample its part starts at.
+    from: u64,
+    fade_from: Option<u64>,
+    mix: Mix,
+}
+
+/// How an instance's frames are added (see [`Active::add`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum MixWay {
+    /// A mono voice heard on every channel, no fade, every sample finite.
+    Mono,
+    /// A lane per channel (and its sends), no fade, every sample finite.
+    Frames,
+    /// Each frame faded, routed and cleared of samples that are not finite.
+    General,
+}
+
+/// The fade-out's gain at scene sample `s` for a stop at `fade_from` over `fade`
+/// samples (1 without a stop).
+fn fading(fade_from: Option<u64>, s: u64, fade: u64) -> f64 {
+    match fade_from {
+        Some(f) if s >= f => (1.0 - (s - f) as f64 / fade as f64).max(0.0),
+        _ => 1.0,
     }
 }
 
@@ -681,6 +780,10 @@ pub struct SceneRenderer {
     outbox: Option<rtrb::Producer<Ended>>,
     published: Option<Arc<AtomicU64>>,
 }
+
+/// The fewest threads the mix is shared out among (see
+/// [`SceneRenderer::mix_by_frames`]).
+const MIX_BY_FRAMES_THREADS: usize = 4;
 
 /// How far ahead of their start, in seconds of the scene, instances' voices are made
 /// on several threads (see [`SceneRenderer::prepare_ahead`]).
@@ -1406,12 +1509,33 @@ impl SceneRenderer {
     /// threads: a lane from its batch, a voice from its own buffer when the threads
     /// rendered it (`on_threads`), else rendered here, now, into the scratch buffer.
     fn mix_active(&mut self, out: &mut [f64], end: u64, on_threads: bool) {
-        let (position, channels, fade) = (self.position, self.channels, self.fade_samples);
+        let (position, channels) = (self.position, self.channels);
         let frames = (end - position) as usize;
         for bus in &mut self.buses {
             bus.input.fill(0.0);
             bus.busy_until = 0;
         }
+        // Shared out by frames only with several threads to share: it costs a
+        // fork and a join per block, which on two cores was measured to cost more
+        // than the mix.
+        let by_frames = |pool: &Arc<rayon::ThreadPool>| {
+            on_threads && pool.current_num_threads() >= MIX_BY_FRAMES_THREADS
+        };
+        match self.pool.clone().filter(by_frames) {
+            Some(pool) => self.mix_by_frames(out, end, &pool),
+            None => self.mix_in_order(out, end, on_threads),
+        }
+        // The rooms' late parts, after every instance has sent its part.
+        for bus in &mut self.buses {
+            if let Some(after) = bus.run(out, position, frames, channels) {
+                self.ended_at = self.ended_at.max(after);
+            }
+        }
+    }
+
+    /// [`SceneRenderer::mix_active`]'s instances on this thread, one after the other.
+    fn mix_in_order(&mut self, out: &mut [f64], end: u64, on_threads: bool) {
+        let (position, channels, fade) = (self.position, self.channels, self.fade_samples);
         for active in &mut self.active {
             let Some((from, until)) = active.window(position, end) else {
                 continue;
@@ -1446,12 +1570,103 @@ impl SceneRenderer {
                 bus.busy_until = bus.busy_until.max(until);
             }
         }
-        // The rooms' late parts, after every instance has sent its part.
-        for bus in &mut self.buses {
-            if let Some(after) = bus.run(out, position, frames, channels) {
-                self.ended_at = self.ended_at.max(after);
+    }
+
+    /// [`SceneRenderer::mix_active`]'s instances when their voices are in their own
+    /// buffers: each judged on this thread, in order (its decay, its faults), then
+    /// the block's frames shared out among the threads, each thread adding every
+    /// instance, in order, into its frames of the block and of the buses' inputs.
+    /// Each sample's sum is then that of mixing in order: the same bits.
+    fn mix_by_frames(&mut self, out: &mut [f64], end: u64, pool: &rayon::ThreadPool) {
+        let (position, channels, fade) = (self.position, self.channels, self.fade_samples);
+        let frames = (end - position) as usize;
+        let mut judged = Vec::with_capacity(self.active.len());
+        for (k, active) in self.active.iter_mut().enumerate() {
+            let Some((from, until)) = active.window(position, end) else {
+                continue;
+            };
+            let sends = match active.send.and_then(|b| self.buses.get_mut(b)) {
+                Some(bus) => {
+                    if bus.awake_from.is_none() {
+                        bus.awake_from = Some(from);
+                        bus.watch.restart();
+                    }
+                    bus.state.lanes()
+                }
+                None => 0,
+            };
+            let heard = match lane_samples(&self.batches, &active.voice, position, from, until) {
+                Some(rendered) => {
+                    active.judge(rendered, from, until, position, channels, fade, sends)
+                }
+                None => {
+                    let rendered = std::mem::take(&mut active.buffer);
+                    let heard =
+                        active.judge(&rendered, from, until, position, channels, fade, sends);
+                    active.buffer = rendered;
+                    heard
+                }
+            };
+            judged.push((k, until, heard));
+            if let Some(bus) = active.send.and_then(|b| self.buses.get_mut(b)) {
+                let goes_on = active.end.is_none_or(|e| active.next < e);
+                let until = if goes_on { u64::MAX } else { active.next };
+                bus.busy_until = bus.busy_until.max(until);
             }
         }
+        // What each thread adds: every instance's part, its sends' bus.
+        let (active, batches) = (&self.active, &self.batches);
+        let parts: Vec<(&[f64], Heard, Option<usize>)> = (judged.iter())
+            .map(|&(k, until, heard)| {
+                let a = &active[k];
+                let rendered = lane_samples(batches, &a.voice, position, heard.from, until);
+                (rendered.unwrap_or(&a.buffer), heard, a.send)
+            })
+            .collect();
+        let lanes: Vec<usize> = self.buses.iter().map(|b| b.state.lanes()).collect();
+        // The block cut into a run of frames per thread, the buses' inputs likewise.
+        let per = frames.div_ceil(pool.current_num_threads().max(1)).max(1);
+        let mut runs: Vec<MixRun> = (out[..frames * channels])
+            .chunks_mut(per * channels)
+            .enumerate()
+            .map(|(i, out)| MixRun {
+                frames: i * per..(i * per + per).min(frames),
+                out,
+                inputs: vec![],
+            })
+            .collect();
+        for (bus, &lanes) in self.buses.iter_mut().zip(&lanes) {
+            let mut rest = &mut bus.input[..frames * lanes];
+            for run in &mut runs {
+                let (input, after) =
+                    std::mem::take(&mut rest).split_at_mut(run.frames.len() * lanes);
+                run.inputs.push(input);
+                rest = after;
+            }
+        }
+        let add_run = |mut run: MixRun| {
+            for (rendered, heard, send) in &parts {
+                let sent = send.and_then(|b| {
+                    let input = run.inputs.get_mut(b)?;
+                    Some(Sent {
+                        lanes: lanes[b],
+                        input,
+                    })
+                });
+                heard.add(rendered, run.frames.clone(), run.out, channels, fade, sent);
+            }
+        };
+        let add_run = &add_run;
+        pool.in_place_scope(|scope| {
+            let mut runs = runs.into_iter();
+            let first = runs.next();
+            for run in runs {
+                scope.spawn(move |_| add_run(run));
+            }
+            if let Some(run) = first {
+                add_run(run);
+            }
+        });
     }
 
     /// Removes the instances that have ended, in place (keeping the others' order, and
