@@ -380,7 +380,7 @@ impl Active {
     }
 
     /// How much of its part of the block, `rendered` (samples `from..until` of the
-    /// scene), the instance is heard for, and how it is added (see [`Active::add`]):
+    /// scene), the instance is heard for, and how it is added (see [`Heard::add`]):
     /// its faults counted, and its end set where it has decayed (the frame it is
     /// judged to have decayed at is its last). Judged on the instance's own samples,
     /// so instances may be judged one after the other and added by frames.
@@ -575,7 +575,7 @@ struct Heard {
     mix: Mix,
 }
 
-/// How an instance's frames are added (see [`Active::add`]).
+/// How an instance's frames are added (see [`Heard::add`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum MixWay {
     /// A mono voice heard on every channel, no fade, every sample finite.
