@@ -1,7 +1,8 @@
 //! Two thousand short modal instances, the contact sounds of a shot: one every 2 ms,
 //! each a ten-mode bank ringing for about half a second. Their voices are made when
-//! they start and freed when they have decayed, so the heap holds the instances that
-//! sound, not all that will; and they mix to the same bits on any number of threads.
+//! they start (with threads, just ahead of it, on the pool) and freed when they have
+//! decayed, so the heap holds the instances that sound, not all that will; and they
+//! mix to the same bits on any number of threads.
 
 use timbre_ir::{Program, RenderConfig};
 use timbre_lang::{compile_str, CompileOptions, FsLoader, Registry};
@@ -12,6 +13,9 @@ use timbre_testkit::heap;
 static HEAP: heap::Counting = heap::Counting;
 
 const INSTANCES: usize = 2000;
+
+/// The tests of this file weigh the heap, which every thread shares: one at a time.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn program() -> Program {
     let mut text = String::from(
@@ -55,6 +59,7 @@ fn render(program: &Program, threads: usize) -> (Vec<f64>, Vec<i64>) {
 
 #[test]
 fn two_thousand_instances_render_in_flat_memory_and_the_same_bits_on_any_threads() {
+    let _alone = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let program = program();
     assert_eq!(program.instances.len(), INSTANCES);
     let (one, live) = render(&program, 1);
@@ -85,4 +90,37 @@ fn two_thousand_instances_render_in_flat_memory_and_the_same_bits_on_any_threads
             "{threads} threads differ from one at that sample"
         );
     }
+}
+
+/// With threads, the voices of the instances about to start are made on the pool:
+/// the thread that renders allocates a small part of what it allocates alone (where
+/// it makes every voice itself), for the same samples.
+#[test]
+fn with_threads_the_voices_are_made_ahead_on_the_pool() {
+    let _alone = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let program = program();
+    let config = RenderConfig {
+        sample_rate: 48_000.0,
+        block_size: 256,
+    };
+    let on = |threads: usize| {
+        let mut renderer = SceneRenderer::new(&program, config, Engine::Jit).unwrap();
+        renderer.set_threads(threads).unwrap();
+        // From 1 s to 2 s, while about 500 instances start.
+        let mut out = vec![0.0; 2 * 48_000];
+        renderer.render(&mut out[..48_000]).unwrap();
+        let ((), allocations, _) = heap::counted(|| renderer.render(&mut out[48_000..]).unwrap());
+        (out, allocations)
+    };
+    let (alone, made_here) = on(1);
+    let (shared, made_here_with_threads) = on(2);
+    assert!(alone
+        .iter()
+        .zip(&shared)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    eprintln!("allocations on the rendering thread: {made_here} alone, {made_here_with_threads} with 2 threads");
+    assert!(
+        made_here_with_threads * 5 < made_here,
+        "{made_here_with_threads} allocations with threads, {made_here} alone"
+    );
 }
