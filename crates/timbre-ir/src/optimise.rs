@@ -43,15 +43,11 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
     // What `root` needs first, on its own: the passes below go over every node of
     // the graph they are given, and a scene's holds every instance.
     let (graph, root) = &graph.subgraph(root);
-    let needed = graph.reachable(&[*root]);
-    let facts = Facts::new(graph, &needed);
+    let facts = Facts::new(graph);
     let mut out = Graph::new();
     let mut map: Vec<NodeId> = vec![NodeId(0); graph.len()];
     let mut parts = vec![];
     for (id, node) in graph.nodes() {
-        if !needed[id.index()] {
-            continue;
-        }
         let rewritten = match node.op {
             Op::Combine => facts.modal_bank(graph, &mut out, &map, node.args[0], &mut parts),
             Op::Concat => white_lanes(graph, &node.args).map(|op| out.add(op, vec![])),
@@ -63,7 +59,7 @@ pub fn optimise(graph: &Graph, root: NodeId) -> (Graph, NodeId) {
     (out, map[root.index()])
 }
 
-/// What the rewrites need to know of each needed node, computed in one pass in id
+/// What the rewrites need to know of each node, computed in one pass in id
 /// order from the facts of its arguments.
 struct Facts {
     /// Whether the node is a time: a one-lane value that advances by one sample period
@@ -82,7 +78,7 @@ struct Facts {
 }
 
 impl Facts {
-    fn new(graph: &Graph, needed: &[bool]) -> Self {
+    fn new(graph: &Graph) -> Self {
         let n = graph.len();
         let mut facts = Facts {
             time_like: vec![false; n],
@@ -94,9 +90,6 @@ impl Facts {
         let cap = MAX_FACTORS as u32 + 1;
         for (id, node) in graph.nodes() {
             let i = id.index();
-            if !needed[i] {
-                continue;
-            }
             let arg = |k: usize| node.args[k].index();
             facts.time_like[i] = match node.op {
                 Op::Time => true,

@@ -636,6 +636,21 @@ struct Bus {
 }
 
 impl Bus {
+    /// Wakes it (if asleep) at scene sample `from`, where an instance first sends.
+    fn wake(&mut self, from: u64) {
+        if self.awake_from.is_none() {
+            self.awake_from = Some(from);
+            self.watch.restart();
+        }
+    }
+
+    /// Keeps it busy while `active`, which sends to it, goes on past this block.
+    fn busy_with(&mut self, active: &Active) {
+        let goes_on = active.end.is_none_or(|e| active.next < e);
+        let until = if goes_on { u64::MAX } else { active.next };
+        self.busy_until = self.busy_until.max(until);
+    }
+
     fn new(bus: &LateBus, config: RenderConfig) -> Bus {
         let frames = config.block_size.max(1) * bus.lanes();
         Bus {
@@ -1541,10 +1556,7 @@ impl SceneRenderer {
                 continue;
             };
             let sent = active.send.and_then(|b| self.buses.get_mut(b)).map(|bus| {
-                if bus.awake_from.is_none() {
-                    bus.awake_from = Some(from);
-                    bus.watch.restart();
-                }
+                bus.wake(from);
                 Sent {
                     lanes: bus.state.lanes(),
                     input: &mut bus.input,
@@ -1565,9 +1577,7 @@ impl SceneRenderer {
                 active.mix(rendered, from, until, out, position, channels, fade, sent);
             }
             if let Some(bus) = active.send.and_then(|b| self.buses.get_mut(b)) {
-                let goes_on = active.end.is_none_or(|e| active.next < e);
-                let until = if goes_on { u64::MAX } else { active.next };
-                bus.busy_until = bus.busy_until.max(until);
+                bus.busy_with(active);
             }
         }
     }
@@ -1587,10 +1597,7 @@ impl SceneRenderer {
             };
             let sends = match active.send.and_then(|b| self.buses.get_mut(b)) {
                 Some(bus) => {
-                    if bus.awake_from.is_none() {
-                        bus.awake_from = Some(from);
-                        bus.watch.restart();
-                    }
+                    bus.wake(from);
                     bus.state.lanes()
                 }
                 None => 0,
@@ -1609,9 +1616,7 @@ impl SceneRenderer {
             };
             judged.push((k, until, heard));
             if let Some(bus) = active.send.and_then(|b| self.buses.get_mut(b)) {
-                let goes_on = active.end.is_none_or(|e| active.next < e);
-                let until = if goes_on { u64::MAX } else { active.next };
-                bus.busy_until = bus.busy_until.max(until);
+                bus.busy_with(active);
             }
         }
         // What each thread adds: every instance's part, its sends' bus.
